@@ -1,0 +1,1 @@
+"""Hydra configuration groups of MuBlE (installed as ``muble_conf``)."""

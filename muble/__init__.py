@@ -1,0 +1,48 @@
+"""MuBlE: a simulation environment and benchmark for task planning in robot manipulation."""
+from muble.core.errors import (
+    ConfigError,
+    MubleError,
+    PhysicsError,
+    PlanningError,
+    PluginError,
+    RenderError,
+    SceneValidationError,
+)
+from muble.core.interfaces import (
+    Agent,
+    CollisionWorld,
+    Instruction,
+    MotionPlanner,
+    ObjectSet,
+    PrimitiveAction,
+    Renderer,
+    Sensor,
+    Task,
+)
+from muble.core.scene import RLE, SceneGraph, SceneObject
+from muble.core.types import (
+    SEG_BACKGROUND,
+    SEG_ROBOT,
+    SEG_TABLE,
+    ActionCall,
+    ActionResult,
+    Answer,
+    Frame,
+    JointGoal,
+    Observation,
+    Outcome,
+    Pose,
+    PoseGoal,
+    Trajectory,
+)
+from muble.plugins import PluginRecord, get_registry, hookimpl
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "SEG_BACKGROUND", "SEG_ROBOT", "SEG_TABLE", "ActionCall", "ActionResult", "Agent", "Answer", "CollisionWorld",
+    "ConfigError", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
+    "Outcome", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
+    "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
+    "Sensor", "Task", "Trajectory", "__version__", "get_registry", "hookimpl",
+]

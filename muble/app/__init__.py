@@ -1,0 +1,1 @@
+"""Hydra applications and the ``muble`` command line."""

@@ -1,0 +1,70 @@
+"""The ``muble`` command.
+
+``muble [run] [OVERRIDES…]`` runs one episode (the main job); ``muble plugins`` lists every registered plugin;
+``muble generate``, ``muble eval`` and ``muble render`` are the dataset, evaluation and rendering jobs. Every job is
+a Hydra application: overrides such as ``renderer=blender`` and multirun (``-m``) work the same for each.
+"""
+from __future__ import annotations
+
+import importlib
+import logging
+import sys
+
+from muble.core.errors import MubleError
+
+log = logging.getLogger(__name__)
+
+# Command -> (module, description). Each module exposes ``main(argv: list[str]) -> int``.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "run": ("muble.app.run", "run one episode (default command)"),
+    "plugins": ("muble.app.plugins_cmd", "list registered plugins by kind with their providing package"),
+    "render": ("muble.app.render", "render a scene file or an episode's keyframes to PNGs and a GIF"),
+    "generate": ("muble.app.generate", "generate the SHOP-VRB2 dataset (sharded, resumable)"),
+    "eval": ("muble.app.evaluate", "evaluate an agent over a dataset split"),
+}
+
+USAGE = """usage: muble [COMMAND] [ARGS…]
+
+commands:
+{commands}
+
+With no command, or when the first argument is a Hydra override (key=value) or flag (-m, --cfg …),
+`run` is meant. `muble COMMAND --help` shows a command's own help (Hydra's for the jobs).
+examples:
+  muble renderer=mujoco seed=3
+  muble -m task=measure_weight,stack robot=panda,ur5e
+  muble plugins --kind renderer
+"""
+
+
+def usage() -> str:
+    width = max(map(len, COMMANDS))
+    lines = [f"  {name.ljust(width)}  {desc}" for name, (_, desc) in COMMANDS.items()]
+    return USAGE.format(commands="\n".join(lines))
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ("-h", "--help", "help"):
+        print(usage())
+        return 0
+    if argv and argv[0] in COMMANDS:
+        command, rest = argv[0], argv[1:]
+    elif not argv or argv[0].startswith("-") or "=" in argv[0]:
+        command, rest = "run", argv
+    else:
+        print(f"muble: unknown command '{argv[0]}'; valid commands: {', '.join(COMMANDS)}\n", file=sys.stderr)
+        print(usage(), file=sys.stderr)
+        return 2
+    module_name, _ = COMMANDS[command]
+    try:
+        module = importlib.import_module(module_name)
+        code = module.main(rest)
+    except MubleError as e:
+        print(f"muble {command}: error: {e}", file=sys.stderr)
+        return 2
+    return int(code or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,110 @@
+"""Structured config schemas and Hydra plumbing.
+
+Config groups mirror the interfaces. Each plugin option's schema comes from its registry record (the record's
+``config`` dataclass plus a ``name`` field) and is stored in the ConfigStore as ``<group>/<name>_schema``, so a
+yaml file for it extends the schema and a mistyped key is an error, not a silent new key.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING
+
+from muble.plugins.registry import Registry
+
+HYDRA_VERSION_BASE = "1.3"
+CONFIG_MODULE = "muble_conf"
+
+# Plugin kind -> config group that selects it.
+GROUP_OF_KIND = {
+    "renderer": "renderer",
+    "planner": "planner",
+    "task": "task",
+    "object_set": "objects",
+    "agent": "agent",
+}
+
+
+@dataclass
+class RobotConfig:
+    """A robosuite single-arm robot and its gripper and controller."""
+
+    name: str = MISSING  # robosuite robot name: Panda, Sawyer, UR5e, Kinova3, IIWA
+    gripper: str | None = None  # robosuite gripper name; None = the robot's default
+    controller: str = "OSC_POSE"
+    control_freq: float = 20.0  # Hz
+    timestep: float = 0.002  # s, MuJoCo physics step
+    grasp: str = "weld"  # "weld" (attach on contact of all pads) or "friction"
+
+
+@dataclass
+class SensorsConfig:
+    """Which sensor plugins run: registry name -> that sensor's options (a mapping, so configs can add to it)."""
+
+    enabled: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class OutputConfig:
+    dir: str = "${hydra:runtime.output_dir}"
+    gif: bool = True
+
+
+@dataclass
+class MubleConfig:
+    """The top-level schema of every MuBlE application."""
+
+    robot: RobotConfig = MISSING
+    renderer: Any = MISSING
+    planner: Any = MISSING
+    task: Any = MISSING
+    objects: Any = MISSING
+    sensors: SensorsConfig = MISSING
+    agent: Any = MISSING
+    seed: int = 0
+    scene_index: int = 0
+    output: OutputConfig = field(default_factory=OutputConfig)
+
+
+def _schema_with_name(config: type, name: str) -> type:
+    fields = [("name", str, dataclasses.field(default=name))]
+    return dataclasses.make_dataclass(f"{config.__name__}WithName", fields, bases=(config,))
+
+
+def register_configs(registry: Registry) -> None:
+    """Store the top-level schema and every registered plugin's schema in Hydra's ConfigStore."""
+    cs = ConfigStore.instance()
+    cs.store(name="muble_schema", node=MubleConfig)
+    cs.store(group="robot", name="robot_schema", node=RobotConfig)
+    cs.store(group="sensors", name="sensors_schema", node=SensorsConfig)
+    for kind, group in GROUP_OF_KIND.items():
+        for name in registry.names(kind):
+            record = registry.get(kind, name).record
+            if record.config is not None:
+                cs.store(group=group, name=f"{name}_schema", node=_schema_with_name(record.config, name))
+
+
+def searchpath_override(registry: Registry) -> list[str]:
+    """The ``hydra.searchpath`` override that adds every plugin's config folders (empty list if none)."""
+    paths: list[str] = []
+    for result in registry.pm.hook.muble_config_searchpath():
+        paths.extend(result or [])
+    if not paths:
+        return []
+    return ["hydra.searchpath=[" + ",".join(paths) + "]"]
+
+
+def compose(config_name: str = "run", overrides: list[str] | tuple[str, ...] = (), registry: Registry | None = None):
+    """Compose a config with Hydra's compose API, plugins' config folders included (for tests and notebooks)."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_module
+
+    from muble.plugins.registry import get_registry
+
+    registry = registry or get_registry()
+    register_configs(registry)
+    with initialize_config_module(config_module=CONFIG_MODULE, version_base=HYDRA_VERSION_BASE):
+        return hydra_compose(config_name=config_name, overrides=[*overrides, *searchpath_override(registry)])

@@ -1,0 +1,50 @@
+"""Error types. Each one says what went wrong *and* what to change."""
+from __future__ import annotations
+
+
+class MubleError(Exception):
+    """Base class of every error MuBlE raises on purpose."""
+
+
+class PluginError(MubleError):
+    """A plugin could not be loaded, registered or found."""
+
+
+class ConfigError(MubleError):
+    """A configuration value is unknown, missing or of the wrong type."""
+
+
+class SceneValidationError(MubleError, ValueError):
+    """A scene file or scene graph breaks the SHOP-VRB2 schema.
+
+    ``obj`` is the object index (``None`` for scene-level fields) and ``field`` the offending key.
+    """
+
+    def __init__(self, message: str, *, obj: int | None = None, field: str | None = None):
+        where = []
+        if obj is not None:
+            where.append(f"object {obj}")
+        if field is not None:
+            where.append(f"field '{field}'")
+        prefix = f"{', '.join(where)}: " if where else ""
+        super().__init__(prefix + message)
+        self.obj = obj
+        self.field = field
+
+
+class PhysicsError(MubleError):
+    """The simulation reached a state it cannot continue from (NaN, blow-up, object off the table)."""
+
+
+class PlanningError(MubleError):
+    """No motion satisfies the request (unreachable pose, no collision-free path, time-out)."""
+
+
+class RenderError(MubleError):
+    """A renderer could not produce a frame (no GL context, unknown camera …)."""
+
+
+def unknown_name(kind: str, name: str, valid: list[str] | tuple[str, ...]) -> str:
+    """The standard message for an unknown plugin, category or option name."""
+    options = ", ".join(sorted(valid)) or "(none registered)"
+    return f"unknown {kind} '{name}'; valid {kind} names: {options}"

@@ -1,0 +1,182 @@
+"""The seven plugin interfaces. Implementations live in plugins and reach the core only by registry name.
+
+Every optional hook has a documented no-op default, so a plugin overrides only what it needs.
+The environment type is referred to by name (``"Environment"``) to keep this module free of MuJoCo imports.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from muble.core.types import (
+    ActionCall,
+    ActionResult,
+    Answer,
+    Frame,
+    JointGoal,
+    Observation,
+    Outcome,
+    PoseGoal,
+    Trajectory,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    import mujoco
+
+    from muble.core.scene import SceneGraph
+
+
+class Renderer(ABC):
+    """Turns simulation states into frames.
+
+    ``setup`` is called once per scene with the scene graph and the compiled MuJoCo model; a keyframe renderer
+    builds its scene there and afterwards only moves transforms. ``render`` draws the state in ``data`` as seen by
+    the MuJoCo camera named ``camera`` and returns RGB, depth and segmentation from one render.
+    """
+
+    @abstractmethod
+    def setup(self, scene: "SceneGraph", model: "mujoco.MjModel") -> None: ...
+
+    @abstractmethod
+    def render(self, data: "mujoco.MjData", camera: str) -> Frame: ...
+
+    def close(self) -> None:
+        """Release GPU/GL resources and scene data. Optional; default does nothing."""
+
+
+class CollisionWorld(ABC):
+    """What a motion planner needs to know about the world: limits, validity, IK."""
+
+    @property
+    @abstractmethod
+    def joint_limits(self) -> np.ndarray:
+        """(dof, 2) array of lower and upper joint limits."""
+
+    @abstractmethod
+    def is_valid(self, q: np.ndarray) -> bool:
+        """True when the arm at ``q`` (and anything it holds) collides with nothing."""
+
+    @abstractmethod
+    def inverse_kinematics(self, goal: PoseGoal, seeds: np.ndarray | None = None) -> np.ndarray:
+        """A valid joint configuration reaching ``goal``; raises ``PlanningError`` if none exists."""
+
+    def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
+        """End-effector position (3,) at ``q``. Optional (Cartesian planners use it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not provide forward kinematics")
+
+
+class MotionPlanner(ABC):
+    """Plans a collision-free joint-space trajectory; raises ``PlanningError`` with the reason when impossible."""
+
+    @abstractmethod
+    def plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory: ...
+
+
+class PrimitiveAction(ABC):
+    """A named, parameterised action (``approach(target=3)``, ``move_vel(velocity, duration)``).
+
+    Subclasses declare ``params``: the parameter names they accept. ``execute`` plans through the environment's
+    planner, drives the physics loop until done or failed and returns an ``ActionResult``. A primitive renders
+    nothing: the action loop renders the keyframe afterwards.
+    """
+
+    params: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, **params: Any) -> None:
+        unknown = sorted(set(params) - set(self.params))
+        if unknown:
+            from muble.core.errors import ConfigError
+
+            raise ConfigError(
+                f"primitive '{type(self).__name__}' got unknown parameter(s) {unknown}; "
+                f"it accepts: {', '.join(self.params) or '(none)'}"
+            )
+        self.arguments = dict(params)
+
+    @abstractmethod
+    def execute(self, env: "Environment") -> ActionResult: ...  # noqa: F821
+
+
+class Sensor(ABC):
+    """Reads the simulation. ``read`` is called on demand; ``on_step`` after every control step."""
+
+    @abstractmethod
+    def read(self, env: "Environment") -> dict[str, Any]: ...  # noqa: F821
+
+    def reset(self, env: "Environment") -> None:  # noqa: F821
+        """Called after every environment reset. Optional; default does nothing."""
+
+    def on_step(self, env: "Environment") -> None:  # noqa: F821
+        """Called after every control step. Optional; default does nothing. Keep it cheap."""
+
+
+@dataclass
+class Instruction:
+    """One generated instruction in the SHOP-VRB2 instruction schema."""
+
+    instruction: str
+    program: list[dict[str, Any]]
+    template_id: str
+    task_id: str
+    image_filename: str = ""
+    image_index: int = 0
+    split: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+class Task(ABC):
+    """A task template family: generates instructions, plans ground truth and judges success."""
+
+    task_id: ClassVar[str] = ""
+
+    @abstractmethod
+    def generate(self, scene: "SceneGraph", rng: np.random.Generator) -> list[Instruction]:
+        """Every valid instruction of this family for ``scene`` (possibly none)."""
+
+    @abstractmethod
+    def ground_truth(self, instruction: Instruction, scene: "SceneGraph") -> list[ActionCall]:
+        """The primitive sequence that solves ``instruction`` in ``scene``."""
+
+    @abstractmethod
+    def check(self, instruction: Instruction, scene: "SceneGraph", answer: Answer | None) -> Outcome:
+        """Judge the final scene graph (and answer, for queries)."""
+
+
+class ObjectSet(ABC):
+    """A catalogue of object models with physical properties."""
+
+    @abstractmethod
+    def categories(self) -> list[str]: ...
+
+    @abstractmethod
+    def sample(self, rng: np.random.Generator, category: str | None = None) -> Any:
+        """A random object description (model, attributes, weight, stiffness) from the catalogue."""
+
+    @abstractmethod
+    def build(self, spec: Any) -> Any:
+        """The model for ``spec``: visual mesh, convex collision parts, mass, inertia, friction, grasp frames."""
+
+
+class Agent(ABC):
+    """Maps an instruction and observation to the next primitive action or a final answer."""
+
+    def reset(self, instruction: Instruction, observation: Observation) -> None:
+        """Called at the start of an episode. Optional; default does nothing."""
+
+    @abstractmethod
+    def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
+        """The next action, an answer, or ``None`` when the agent considers the task done."""
+
+
+INTERFACES: dict[str, type] = {
+    "renderer": Renderer,
+    "planner": MotionPlanner,
+    "primitive": PrimitiveAction,
+    "sensor": Sensor,
+    "task": Task,
+    "object_set": ObjectSet,
+    "agent": Agent,
+}

@@ -1,0 +1,308 @@
+"""SHOP-VRB2 scene files: parse and validate dictionaries into ``SceneGraph`` and back, losslessly."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from muble.core.errors import SceneValidationError
+from muble.core.scene import RLE, SceneGraph, SceneObject
+
+_OBJ_REQUIRED_STR = ("file", "name", "shape", "size", "material", "colour")
+_OBJ_REQUIRED_BOOL = ("stackable", "stack_base", "pickupable")
+# Optional typed keys of an object: key -> attribute. Written back only when present.
+_OBJ_OPTIONAL = {
+    "rotation": "rotation",
+    "pixel_coords": "pixel_coords",
+    "movability": "movability",
+    "bbox": "bbox",
+    "scale_factor": "scale_factor",
+    "mask": "mask",
+    "stiffness": "stiffness",
+}
+_OBJ_KNOWN = set(_OBJ_REQUIRED_STR) | set(_OBJ_REQUIRED_BOOL) | set(_OBJ_OPTIONAL) | {
+    "3d_coords", "orientation", "weight_gt", "weight", "id",
+}
+_SCENE_KNOWN = {
+    "split", "image_index", "image_filename", "objects", "directions", "camera_params", "lamp_params",
+    "table", "robot", "relationships",
+}
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _number(x: Any, *, obj: int | None, field: str, positive: bool = False) -> float:
+    if not _is_number(x):
+        raise SceneValidationError(f"expected a number, got {type(x).__name__} {x!r:.40}", obj=obj, field=field)
+    value = float(x)
+    if not math.isfinite(value):
+        raise SceneValidationError(f"must be finite, got {value}", obj=obj, field=field)
+    if positive and value <= 0:
+        raise SceneValidationError(f"must be positive, got {value}", obj=obj, field=field)
+    return value
+
+
+def _vector(x: Any, n: int, *, obj: int | None, field: str) -> np.ndarray:
+    if not isinstance(x, list) or len(x) != n:
+        raise SceneValidationError(f"expected a list of {n} numbers, got {x!r:.60}", obj=obj, field=field)
+    return np.array([_number(v, obj=obj, field=field) for v in x], dtype=float)
+
+
+def _string(x: Any, *, obj: int | None, field: str) -> str:
+    if not isinstance(x, str):
+        raise SceneValidationError(f"expected a string, got {type(x).__name__}", obj=obj, field=field)
+    return x
+
+
+def _bool(x: Any, *, obj: int | None, field: str) -> bool:
+    if not isinstance(x, bool):
+        raise SceneValidationError(f"expected true or false, got {x!r:.40}", obj=obj, field=field)
+    return x
+
+
+def _rle(x: Any, *, obj: int | None, field: str) -> RLE:
+    if not isinstance(x, dict) or set(x) != {"size", "counts"}:
+        raise SceneValidationError("expected a COCO RLE {size: [h, w], counts: str}", obj=obj, field=field)
+    size = x["size"]
+    if (not isinstance(size, list) or len(size) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in size)):
+        raise SceneValidationError(f"RLE size must be [height, width], got {size!r:.40}", obj=obj, field=field)
+    if not isinstance(x["counts"], str):
+        raise SceneValidationError("RLE counts must be a string (compressed COCO RLE)", obj=obj, field=field)
+    return RLE(size=list(size), counts=x["counts"])
+
+
+def _bbox(x: Any, *, obj: int) -> dict[str, float] | list:
+    if isinstance(x, dict):
+        if set(x) != {"x", "y", "z"}:
+            raise SceneValidationError("bbox extents need exactly the keys x, y, z", obj=obj, field="bbox")
+        return {k: _number(x[k], obj=obj, field="bbox") for k in ("x", "y", "z")}
+    if isinstance(x, list) and len(x) == 8:
+        return [_vector(c, 3, obj=obj, field="bbox").tolist() for c in x]
+    raise SceneValidationError("bbox must be extents {x, y, z} or a list of 8 corners", obj=obj, field="bbox")
+
+
+_OPTIONAL_PARSERS: dict[str, Callable[[Any, int], Any]] = {
+    "rotation": lambda v, i: _number(v, obj=i, field="rotation"),
+    "pixel_coords": lambda v, i: (_vector(v, 3, obj=i, field="pixel_coords"), list(v))[1],
+    "movability": lambda v, i: _string(v, obj=i, field="movability"),
+    "bbox": lambda v, i: _bbox(v, obj=i),
+    "scale_factor": lambda v, i: _number(v, obj=i, field="scale_factor", positive=True),
+    "mask": lambda v, i: _rle(v, obj=i, field="mask"),
+    "stiffness": lambda v, i: _number(v, obj=i, field="stiffness", positive=True),
+}
+
+
+def object_from_dict(d: Any, index: int) -> SceneObject:
+    if not isinstance(d, dict):
+        raise SceneValidationError(f"expected an object (dict), got {type(d).__name__}", obj=index)
+    for key in (*_OBJ_REQUIRED_STR, *_OBJ_REQUIRED_BOOL, "3d_coords", "orientation", "weight_gt"):
+        if key not in d:
+            raise SceneValidationError("missing required field", obj=index, field=key)
+    strings = {k: _string(d[k], obj=index, field=k) for k in _OBJ_REQUIRED_STR}
+    flags = {k: _bool(d[k], obj=index, field=k) for k in _OBJ_REQUIRED_BOOL}
+    position = _vector(d["3d_coords"], 3, obj=index, field="3d_coords")
+    orientation = _vector(d["orientation"], 4, obj=index, field="orientation")
+    norm = float(np.linalg.norm(orientation))
+    if abs(norm - 1.0) > 1e-2:
+        raise SceneValidationError(f"quaternion must have unit norm, has {norm:.4f}", obj=index, field="orientation")
+    weight = d.get("weight")
+    if weight is not None:
+        weight = _number(weight, obj=index, field="weight")
+    obj_id = d.get("id", index)
+    if not isinstance(obj_id, int) or isinstance(obj_id, bool) or obj_id < 0:
+        raise SceneValidationError(f"id must be a non-negative integer, got {obj_id!r:.40}", obj=index, field="id")
+    optional = {attr: _OPTIONAL_PARSERS[key](d[key], index) for key, attr in _OBJ_OPTIONAL.items() if key in d}
+    return SceneObject(
+        id=obj_id,
+        model=strings["file"],
+        name=strings["name"],
+        shape=strings["shape"],
+        size=strings["size"],
+        material=strings["material"],
+        colour=strings["colour"],
+        position=position,
+        orientation=orientation,
+        weight_gt=_number(d["weight_gt"], obj=index, field="weight_gt", positive=True),
+        weight=weight,
+        **flags,
+        **optional,
+        extra={k: v for k, v in d.items() if k not in _OBJ_KNOWN},
+        explicit_id="id" in d,
+    )
+
+
+def object_to_dict(o: SceneObject) -> dict[str, Any]:
+    d: dict[str, Any] = {}
+    if o.explicit_id:
+        d["id"] = o.id
+    d.update(file=o.model, name=o.name, shape=o.shape, size=o.size, material=o.material)
+    d["3d_coords"] = o.position.tolist()
+    d["orientation"] = o.orientation.tolist()
+    if o.rotation is not None:
+        d["rotation"] = o.rotation
+    if o.pixel_coords is not None:
+        d["pixel_coords"] = list(o.pixel_coords)
+    d["colour"] = o.colour
+    d["weight_gt"] = o.weight_gt
+    d["weight"] = o.weight
+    for key in ("movability", "bbox", "scale_factor"):
+        if getattr(o, key) is not None:
+            d[key] = getattr(o, key)
+    d.update(stackable=o.stackable, stack_base=o.stack_base, pickupable=o.pickupable)
+    if o.mask is not None:
+        d["mask"] = o.mask.to_dict()
+    if o.stiffness is not None:
+        d["stiffness"] = o.stiffness
+    d.update(o.extra)
+    return d
+
+
+def _relationships(x: Any, n_ids: set[int]) -> dict[str, list[list[int]]]:
+    if not isinstance(x, dict):
+        raise SceneValidationError("expected a dict of relation -> lists", field="relationships")
+    out = {}
+    for rel, rows in x.items():
+        if not isinstance(rows, list) or not all(isinstance(r, list) for r in rows):
+            raise SceneValidationError(f"relation '{rel}' must be a list of lists of ids", field="relationships")
+        for row in rows:
+            for v in row:
+                if not isinstance(v, int) or isinstance(v, bool) or v not in n_ids:
+                    raise SceneValidationError(f"relation '{rel}' names unknown object {v!r:.20}",
+                                               field="relationships")
+        out[rel] = [list(r) for r in rows]
+    return out
+
+
+def _masked_part(x: Any, field: str) -> dict[str, Any]:
+    if not isinstance(x, dict):
+        raise SceneValidationError("expected a dict such as {mask: RLE}", field=field)
+    return {k: _rle(v, obj=None, field=f"{field}.mask") if k == "mask" else v for k, v in x.items()}
+
+
+def _unmasked_part(x: dict[str, Any]) -> dict[str, Any]:
+    return {k: v.to_dict() if isinstance(v, RLE) else v for k, v in x.items()}
+
+
+def scene_from_dict(d: Any) -> SceneGraph:
+    """Parse one scene dictionary; raises ``SceneValidationError`` naming the object and field at fault."""
+    if not isinstance(d, dict):
+        raise SceneValidationError(f"a scene must be a JSON object, got {type(d).__name__}")
+    if "objects" not in d:
+        raise SceneValidationError("missing required field", field="objects")
+    if not isinstance(d["objects"], list):
+        raise SceneValidationError("expected a list of objects", field="objects")
+    objects = [object_from_dict(o, i) for i, o in enumerate(d["objects"])]
+    seen: dict[int, int] = {}
+    for i, o in enumerate(objects):
+        if o.id in seen:
+            raise SceneValidationError(f"duplicate id {o.id} (also used by object {seen[o.id]})", obj=i, field="id")
+        seen[o.id] = i
+    scene = SceneGraph(objects=objects, extra={k: v for k, v in d.items() if k not in _SCENE_KNOWN})
+    if "split" in d:
+        scene.split = _string(d["split"], obj=None, field="split")
+    if "image_filename" in d:
+        scene.image_filename = _string(d["image_filename"], obj=None, field="image_filename")
+    if "image_index" in d:
+        if not isinstance(d["image_index"], int) or isinstance(d["image_index"], bool):
+            raise SceneValidationError("expected an integer", field="image_index")
+        scene.image_index = d["image_index"]
+    if "directions" in d:
+        if not isinstance(d["directions"], dict):
+            raise SceneValidationError("expected a dict of direction -> [x, y, z]", field="directions")
+        scene.directions = {k: _vector(v, 3, obj=None, field=f"directions.{k}").tolist()
+                            for k, v in d["directions"].items()}
+    for key in ("camera_params", "lamp_params"):
+        if key in d:
+            if not isinstance(d[key], dict):
+                raise SceneValidationError("expected a dict", field=key)
+            setattr(scene, key, d[key])
+    if "table" in d:
+        scene.table = _masked_part(d["table"], "table")
+    if "robot" in d:
+        scene.robot = _masked_part(d["robot"], "robot")
+    if "relationships" in d:
+        scene.relationships = _relationships(d["relationships"], set(seen))
+    return scene
+
+
+def scene_to_dict(s: SceneGraph) -> dict[str, Any]:
+    """The SHOP-VRB2 dictionary of a scene (key order as in the original release)."""
+    d: dict[str, Any] = {"split": s.split, "image_index": s.image_index, "image_filename": s.image_filename,
+                         "objects": [object_to_dict(o) for o in s.objects]}
+    if s.directions is not None:
+        d["directions"] = s.directions
+    if s.camera_params is not None:
+        d["camera_params"] = s.camera_params
+    if s.lamp_params is not None:
+        d["lamp_params"] = s.lamp_params
+    if s.table is not None:
+        d["table"] = _unmasked_part(s.table)
+    if s.robot is not None:
+        d["robot"] = _unmasked_part(s.robot)
+    if s.relationships is not None:
+        d["relationships"] = s.relationships
+    d.update(s.extra)
+    return d
+
+
+def _read_json(path: str | Path) -> Any:
+    try:
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except json.JSONDecodeError as e:
+        raise SceneValidationError(f"{path} is not valid JSON: {e}") from e
+
+
+def load_scene(path: str | Path) -> SceneGraph:
+    """Load a single-scene file."""
+    return scene_from_dict(_read_json(path))
+
+
+def load_scenes(path: str | Path) -> tuple[dict[str, Any], list[SceneGraph]]:
+    """Load a combined ``{info, scenes}`` file; returns the info block and the scenes."""
+    data = _read_json(path)
+    if not isinstance(data, dict) or not isinstance(data.get("scenes"), list):
+        raise SceneValidationError(f"{path}: a combined scene file needs a 'scenes' list", field="scenes")
+    info = data.get("info", {})
+    if not isinstance(info, dict):
+        raise SceneValidationError("expected a dict", field="info")
+    scenes = []
+    for i, s in enumerate(data["scenes"]):
+        try:
+            scenes.append(scene_from_dict(s))
+        except SceneValidationError as e:
+            raise SceneValidationError(f"scene {i}: {e}", obj=None, field=None) from e
+    return info, scenes
+
+
+def write_json_atomic(path: str | Path, data: Any, **dump_kwargs: Any) -> None:
+    """Write JSON to ``path`` through a temporary file and a rename: readers never see a partial file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(data, f, **dump_kwargs)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def save_scene(path: str | Path, scene: SceneGraph) -> None:
+    write_json_atomic(path, scene_to_dict(scene))
+
+
+def save_scenes(path: str | Path, scenes: list[SceneGraph], info: dict[str, Any] | None = None) -> None:
+    write_json_atomic(path, {"info": info or {}, "scenes": [scene_to_dict(s) for s in scenes]})

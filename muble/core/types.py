@@ -1,0 +1,144 @@
+"""Value types exchanged through the core interfaces."""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+# Segmentation labels besides object ids (objects use their scene id, >= 0).
+SEG_BACKGROUND = -1
+SEG_TABLE = -2
+SEG_ROBOT = -3
+
+
+@dataclass
+class Frame:
+    """One rendered view. ``depth`` is metric distance along the optical axis (metres).
+
+    ``segmentation`` holds, per pixel, the scene id of the object seen there, or one of
+    ``SEG_BACKGROUND``, ``SEG_TABLE``, ``SEG_ROBOT``.
+    """
+
+    camera: str
+    rgb: np.ndarray  # (H, W, 3) uint8
+    depth: np.ndarray | None = None  # (H, W) float32, metres
+    segmentation: np.ndarray | None = None  # (H, W) int32
+    normals: np.ndarray | None = None  # (H, W, 3) float32, world frame
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.rgb.shape[0], self.rgb.shape[1]
+
+    def mask(self, label: int) -> np.ndarray:
+        """Boolean mask of one segmentation label."""
+        if self.segmentation is None:
+            raise ValueError(f"frame from camera '{self.camera}' was rendered without segmentation")
+        return self.segmentation == label
+
+
+@dataclass
+class Pose:
+    """Position (metres) and orientation as a unit quaternion (w, x, y, z), world frame."""
+
+    pos: np.ndarray
+    quat: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+
+    def __post_init__(self) -> None:
+        self.pos = np.asarray(self.pos, dtype=float).reshape(3)
+        self.quat = np.asarray(self.quat, dtype=float).reshape(4)
+
+
+@dataclass
+class JointGoal:
+    """A motion goal given directly as a joint configuration."""
+
+    q: np.ndarray
+
+
+@dataclass
+class PoseGoal:
+    """A motion goal given as an end-effector pose; the planner solves IK."""
+
+    pose: Pose
+    position_tolerance: float = 0.005
+    orientation_tolerance: float = 0.05  # radians
+
+
+@dataclass
+class Trajectory:
+    """A joint-space path with timing: ``q[i]`` is to be reached at ``t[i]`` seconds."""
+
+    q: np.ndarray  # (N, dof)
+    t: np.ndarray  # (N,)
+    joint_names: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        self.q = np.atleast_2d(np.asarray(self.q, dtype=float))
+        self.t = np.asarray(self.t, dtype=float).reshape(-1)
+        if len(self.q) != len(self.t):
+            raise ValueError(f"trajectory has {len(self.q)} waypoints but {len(self.t)} times")
+        if len(self.t) > 1 and np.any(np.diff(self.t) <= 0):
+            raise ValueError("trajectory times must increase strictly")
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self.t) else 0.0
+
+    def sample(self, time: float) -> np.ndarray:
+        """Joint configuration at ``time`` (linear interpolation, clamped at both ends)."""
+        return np.array([np.interp(time, self.t, self.q[:, j]) for j in range(self.q.shape[1])])
+
+
+class Outcome(str, enum.Enum):
+    """Episode outcomes; everything but SUCCESS is a failure class of the taxonomy."""
+
+    SUCCESS = "success"
+    PROGRAM_FAILURE = "program_failure"
+    INCORRECT_ANSWER = "incorrect_answer"
+    EXECUTION_ERROR = "execution_error"
+    SCENE_INCONSISTENCY = "scene_inconsistency"
+    LOOP_DETECTED = "loop_detected"
+    TIMEOUT = "timeout"
+    BROKEN_SCENE = "broken_scene"
+
+
+@dataclass
+class ActionCall:
+    """A primitive action by registry name with its parameters, e.g. ``ActionCall("approach", {"target": 3})``."""
+
+    name: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+    def __str__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.params.items())
+        return f"{self.name}({args})"
+
+
+@dataclass
+class Answer:
+    """A final answer to a query instruction (e.g. measured weights in grams)."""
+
+    value: Any
+
+
+@dataclass
+class ActionResult:
+    """What a primitive reports back to the action loop."""
+
+    success: bool
+    measurement: Any = None
+    failure_reason: str | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Observation:
+    """What an agent sees after each primitive: images, scene graph, measurements, last result."""
+
+    scene: Any  # muble.core.scene.SceneGraph
+    images: dict[str, Frame] = field(default_factory=dict)
+    measurements: dict[str, Any] = field(default_factory=dict)
+    last_result: ActionResult | None = None
+    step: int = 0

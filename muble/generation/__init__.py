@@ -1,0 +1,1 @@
+"""Procedural generation of SHOP-VRB2 scenes."""

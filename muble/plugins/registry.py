@@ -1,0 +1,93 @@
+"""The registry: every plugin record by kind and name, gathered once from the plugin manager."""
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from muble.core.errors import ConfigError, PluginError, unknown_name
+from muble.plugins.manager import MublePluginManager, get_plugin_manager
+from muble.plugins.records import KINDS, PluginRecord, Provided
+
+
+class Registry:
+    """Plugin records by kind and name. Two providers of one name are an error naming both."""
+
+    def __init__(self, pm: MublePluginManager):
+        self.pm = pm
+        self._by_kind: dict[str, dict[str, Provided]] = {}
+        for kind, hook_name in KINDS.items():
+            providers: dict[str, list[Provided]] = {}
+            hook = getattr(pm.hook, hook_name)
+            for impl in hook.get_hookimpls():
+                records = impl.function() or []
+                for record in records:
+                    if not isinstance(record, PluginRecord):
+                        raise PluginError(
+                            f"plugin '{impl.plugin_name}' returned {type(record).__name__} from {hook_name}; "
+                            "registration hooks must return a list of muble.PluginRecord"
+                        )
+                    providers.setdefault(record.name, []).append(
+                        Provided(kind, record, impl.plugin_name, pm.distribution_of(impl.plugin_name))
+                    )
+            clashes = {n: ps for n, ps in providers.items() if len(ps) > 1}
+            if clashes:
+                lines = [
+                    f"{kind} '{n}' is provided by " + " and ".join(f"plugin '{p.plugin}' ({p.distribution})" for p in ps)
+                    for n, ps in sorted(clashes.items())
+                ]
+                raise PluginError("duplicate plugin names: " + "; ".join(lines) + ". Rename one or uninstall it.")
+            self._by_kind[kind] = {n: ps[0] for n, ps in providers.items()}
+
+    def _check_kind(self, kind: str) -> None:
+        if kind not in self._by_kind:
+            raise PluginError(unknown_name("plugin kind", kind, list(KINDS)))
+
+    def names(self, kind: str) -> list[str]:
+        self._check_kind(kind)
+        return sorted(self._by_kind[kind])
+
+    def get(self, kind: str, name: str) -> Provided:
+        self._check_kind(kind)
+        try:
+            return self._by_kind[kind][name]
+        except KeyError:
+            raise PluginError(unknown_name(kind, name, self.names(kind))) from None
+
+    def all(self) -> list[Provided]:
+        return [p for kind in KINDS for _, p in sorted(self._by_kind[kind].items())]
+
+    def create(self, kind: str, name: str, params: dict[str, Any] | DictConfig | None = None) -> Any:
+        """Build the ``kind`` plugin called ``name`` from ``params``, checked against its config schema."""
+        record = self.get(kind, name).record
+        kwargs = validate_params(kind, record, params or {})
+        return record.factory(**kwargs)
+
+
+def validate_params(kind: str, record: PluginRecord, params: dict[str, Any] | DictConfig) -> dict[str, Any]:
+    """Merge ``params`` onto the record's config dataclass: an unknown key is an error listing the valid ones."""
+    if isinstance(params, DictConfig):
+        params = OmegaConf.to_container(params, resolve=True)
+    params = {k: v for k, v in dict(params).items() if k != "name"}
+    if record.config is None:
+        return params
+    valid = [f.name for f in dataclasses.fields(record.config)]
+    unknown = sorted(set(params) - set(valid))
+    if unknown:
+        raise ConfigError(
+            f"{kind} '{record.name}' has no option(s) {unknown}; valid options: {', '.join(valid) or '(none)'}"
+        )
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(record.config), params)
+    except OmegaConfBaseException as e:
+        raise ConfigError(f"{kind} '{record.name}': {e}") from e
+    return OmegaConf.to_container(merged, resolve=True)
+
+
+@functools.cache
+def get_registry() -> Registry:
+    """The process-wide registry over ``get_plugin_manager()``; ``get_registry.cache_clear()`` resets it."""
+    return Registry(get_plugin_manager())

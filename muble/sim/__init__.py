@@ -1,0 +1,1 @@
+"""Simulation: MuJoCo models built from scene graphs, the robosuite tabletop environment, the physics loop."""

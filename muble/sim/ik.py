@@ -1,0 +1,139 @@
+"""Inverse kinematics for a MuJoCo arm: damped least squares on MuJoCo Jacobians, several seeds, joint limits.
+
+The solver works on its own ``MjData`` so the live simulation state is never touched. Only the arm's joints
+move; everything else in ``data`` (gripper fingers, objects) stays where it is.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+
+def quat_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
+    """Rotation vector (world frame, radians) that turns ``current`` into ``target`` (both w, x, y, z)."""
+    conj = np.empty(4)
+    mujoco.mju_negQuat(conj, current)
+    diff = np.empty(4)
+    mujoco.mju_mulQuat(diff, target, conj)
+    if diff[0] < 0.0:  # the shorter way round
+        diff = -diff
+    err = np.empty(3)
+    mujoco.mju_quat2Vel(err, diff, 1.0)
+    return err
+
+
+@dataclass
+class IKResult:
+    q: np.ndarray
+    position_error: float
+    orientation_error: float
+    iterations: int
+
+    def within(self, position_tolerance: float, orientation_tolerance: float) -> bool:
+        return self.position_error <= position_tolerance and self.orientation_error <= orientation_tolerance
+
+
+class ArmKinematics:
+    """Forward and inverse kinematics of the joints ``joint_names`` to the site ``site_name``.
+
+    ``data`` is a scratch ``MjData`` of ``model`` owned by the caller; every call overwrites the arm's qpos in it.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, joint_names: list[str], site_name: str):
+        self.model = model
+        self.data = data
+        self.joint_names = tuple(joint_names)
+        joints = [model.joint(n) for n in joint_names]
+        for j in joints:
+            if model.jnt_type[j.id] not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+                raise ValueError(f"joint '{j.name}' is not a hinge or slide joint; IK handles 1-DoF arm joints")
+        self.qpos_adr = np.array([model.jnt_qposadr[j.id] for j in joints])
+        self.dof_adr = np.array([model.jnt_dofadr[j.id] for j in joints])
+        self.site_id = model.site(site_name).id
+        limited = np.array([model.jnt_limited[j.id] for j in joints], dtype=bool)
+        ranges = np.array([model.jnt_range[j.id] for j in joints], dtype=float)
+        # Unlimited joints get one turn either way: enough for any pose, bounded for sampling.
+        ranges[~limited] = (-np.pi, np.pi)
+        self.limits = ranges
+        self._jacp = np.zeros((3, model.nv))
+        self._jacr = np.zeros((3, model.nv))
+
+    @property
+    def dof(self) -> int:
+        return len(self.joint_names)
+
+    def set_q(self, q: np.ndarray) -> None:
+        self.data.qpos[self.qpos_adr] = q
+        mujoco.mj_kinematics(self.model, self.data)
+
+    def site_pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Site position (3,) and orientation (w, x, y, z) at ``q``."""
+        self.set_q(q)
+        return self._site_pose()
+
+    def _site_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        pos = self.data.site_xpos[self.site_id].copy()
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, self.data.site_xmat[self.site_id])
+        return pos, quat
+
+    def solve(
+        self,
+        target_pos: np.ndarray,
+        target_quat: np.ndarray | None,
+        seed: np.ndarray,
+        *,
+        position_tolerance: float = 1e-3,
+        orientation_tolerance: float = 1e-2,
+        max_iterations: int = 150,
+        damping: float = 1e-3,
+        max_step: float = 0.2,
+    ) -> IKResult:
+        """Damped least squares from ``seed``, clamped to the joint limits at every step.
+
+        Orientation is ignored when ``target_quat`` is None. Returns the best configuration found; the caller
+        checks ``IKResult.within`` (the solver never raises, so seeds can be tried cheaply in turn).
+        """
+        q = np.clip(np.asarray(seed, dtype=float).copy(), self.limits[:, 0], self.limits[:, 1])
+        lo, hi = self.limits[:, 0], self.limits[:, 1]
+        rows = 3 if target_quat is None else 6
+        err = np.zeros(rows)
+        pos_err = rot_err = np.inf
+        it = 0
+        for it in range(1, max_iterations + 1):
+            self.set_q(q)
+            pos, quat = self._site_pose()
+            err[:3] = target_pos - pos
+            pos_err = float(np.linalg.norm(err[:3]))
+            if target_quat is not None:
+                err[3:] = quat_error(target_quat, quat)
+                rot_err = float(np.linalg.norm(err[3:]))
+            else:
+                rot_err = 0.0
+            if pos_err <= position_tolerance and rot_err <= orientation_tolerance:
+                break
+            mujoco.mj_comPos(self.model, self.data)  # mj_jacSite needs the com-based frames
+            mujoco.mj_jacSite(self.model, self.data, self._jacp, self._jacr, self.site_id)
+            jac = self._jacp[:, self.dof_adr] if rows == 3 else np.vstack(
+                (self._jacp[:, self.dof_adr], self._jacr[:, self.dof_adr])
+            )
+            # Weight rotation so 1 rad of error counts like 0.2 m: keeps position dominant near the goal.
+            if rows == 6:
+                err_w = err.copy()
+                err_w[3:] *= 0.2
+                jac_w = jac.copy()
+                jac_w[3:] *= 0.2
+            else:
+                err_w, jac_w = err, jac
+            jjt = jac_w @ jac_w.T + damping * np.eye(rows)
+            dq = jac_w.T @ np.linalg.solve(jjt, err_w)
+            step = np.max(np.abs(dq))
+            if step > max_step:
+                dq *= max_step / step
+            q = np.clip(q + dq, lo, hi)
+        return IKResult(q, pos_err, rot_err, it)

@@ -1,0 +1,1 @@
+"""MuBlE built-in plugins. Each subpackage registers through the ``muble`` entry point group."""

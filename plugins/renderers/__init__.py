@@ -1,0 +1,19 @@
+"""Built-in renderers: MuJoCo (fast, headless GL) and Blender (photoreal, bpy in-process).
+
+Both are imported only when the registry asks for the records; neither imports a GL or Blender module at
+import time (that happens in ``setup``).
+"""
+from muble import PluginRecord, hookimpl
+
+
+@hookimpl
+def muble_register_renderers() -> list[PluginRecord]:
+    from muble_plugins.renderers.blender import BlenderRenderer, BlenderRendererConfig
+    from muble_plugins.renderers.mujoco import MujocoRenderer, MujocoRendererConfig
+
+    return [
+        PluginRecord("mujoco", MujocoRenderer, "MuJoCo OpenGL renderer: fast RGB, depth, segmentation",
+                     MujocoRendererConfig),
+        PluginRecord("blender", BlenderRenderer, "Blender Cycles/EEVEE photoreal keyframes with GT passes",
+                     BlenderRendererConfig),
+    ]

@@ -1,0 +1,20 @@
+"""Shared test fixtures."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+REFERENCE_DIR = REPO_ROOT.parent / "shared" / "reference" / "muble-demo"
+
+
+@pytest.fixture(scope="session")
+def reference_dir() -> Path:
+    """The original SHOP-VRB2/MuBlE release files (kept beside the repository, never copied into it)."""
+    if not REFERENCE_DIR.is_dir():
+        pytest.skip(f"reference files not found at {REFERENCE_DIR}")
+    return REFERENCE_DIR
