@@ -66,6 +66,7 @@ class MubleConfig:
     agent: Any = MISSING
     seed: int = 0
     scene_index: int = 0
+    dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing
     output: OutputConfig = field(default_factory=OutputConfig)
 
 

@@ -35,6 +35,10 @@ def job(cfg: DictConfig) -> dict:
                              OmegaConf.to_container(cfg, resolve=True))
     write_json_atomic(out_dir / "manifest.json", manifest, indent=2)
     summary = {kind: type(c).__name__ for kind, c in components.items() if kind != "sensors"}
+    if cfg.dry_run:
+        print(f"muble run: dry run; built {', '.join(f'{k}={v}' for k, v in summary.items())}; "
+              f"manifest in {out_dir}")
+        return summary
     log.info("components: %s", json.dumps(summary))
     print(f"muble run: built {', '.join(f'{k}={v}' for k, v in summary.items())}; manifest in {out_dir}")
     return summary

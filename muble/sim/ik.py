@@ -50,7 +50,7 @@ class ArmKinematics:
         self.joint_names = tuple(joint_names)
         joints = [model.joint(n) for n in joint_names]
         for j in joints:
-            if model.jnt_type[j.id] not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            if int(model.jnt_type[j.id]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
                 raise ValueError(f"joint '{j.name}' is not a hinge or slide joint; IK handles 1-DoF arm joints")
         self.qpos_adr = np.array([model.jnt_qposadr[j.id] for j in joints])
         self.dof_adr = np.array([model.jnt_dofadr[j.id] for j in joints])

@@ -1,0 +1,240 @@
+"""The CLEVR-IEP program executor over a scene graph.
+
+A SHOP-VRB2 program is a list of steps ``{type, input, input_value, output}``. Steps run as chains: ``scene``
+starts a chain with every object id, each filter narrows the previous step's output, and ``stack`` collects the
+final output of every chain before it (top of the stack first). The recorded ``input`` field is informative
+only; execution always follows the chain.
+
+Weights are known only once measured: in ``"measured"`` mode a step that needs the weight of an object whose
+``weight`` is still ``None`` stops execution and reports those objects as measurement sub-goals. In
+``"ground_truth"`` mode weights come from ``weight_gt`` (generation, reference checks).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from muble.core.errors import ConfigError, PlanningError, unknown_name
+from muble.core.scene import SceneGraph, SceneObject
+
+WEIGHT_MODES = ("measured", "ground_truth")
+# Table partition in world coordinates: the robot looks along +x, "left" is -y (as in SHOP-VRB2 scene
+# directions). The split lines pass through the table centre.
+TABLE_CENTRE = (0.5, 0.0)
+TABLE_CENTRE_RADIUS = 0.08  # metres; objects this close to the centre are also in "centre"
+OPPOSITE_PART = {"left": "right", "right": "left", "front": "back", "back": "front"}
+# Attribute filters: step type -> SceneObject field.
+ATTRIBUTE_FILTERS = {
+    "filter_size": "size",
+    "filter_colour": "colour",
+    "filter_material": "material",
+    "filter_shape": "shape",
+    "filter_name": "name",
+}
+WEIGHT_SUPERLATIVES = ("heaviest", "lightest")
+WEIGHT_ORDERS = ("ascending", "descending")
+
+
+def table_parts_of(obj: SceneObject, scene: SceneGraph | None = None) -> frozenset[str]:
+    """The named table parts an object stands in (a point belongs to one side of each split line).
+
+    The scene's ``directions`` (unit vectors for left/front) orient the split when present.
+    """
+    dx = float(obj.position[0]) - TABLE_CENTRE[0]
+    dy = float(obj.position[1]) - TABLE_CENTRE[1]
+    left_dir, front_dir = (0.0, -1.0), (1.0, 0.0)
+    if scene is not None and scene.directions:
+        if "left" in scene.directions:
+            left_dir = tuple(scene.directions["left"][:2])
+        if "front" in scene.directions:
+            front_dir = tuple(scene.directions["front"][:2])
+    along_left = dx * left_dir[0] + dy * left_dir[1]
+    along_front = dx * front_dir[0] + dy * front_dir[1]
+    parts = {"left" if along_left > 0 else "right", "front" if along_front > 0 else "back"}
+    if dx * dx + dy * dy <= TABLE_CENTRE_RADIUS ** 2:
+        parts.add("centre")
+    return frozenset(parts)
+
+
+@dataclass
+class ProgramTrace:
+    """The result of running a program: one output per executed step.
+
+    ``pending_weights`` lists the objects whose weight must be measured before the step at ``len(outputs)``
+    can run; it is empty when the program ran to the end.
+    """
+
+    outputs: list[Any] = field(default_factory=list)
+    pending_weights: tuple[int, ...] = ()
+    steps: int = 0
+
+    @property
+    def complete(self) -> bool:
+        return not self.pending_weights and len(self.outputs) == self.steps
+
+    @property
+    def final(self) -> Any:
+        if not self.complete:
+            raise PlanningError(
+                f"program stopped at step {len(self.outputs)}: weigh objects {list(self.pending_weights)} first"
+            )
+        return self.outputs[-1]
+
+
+class _NeedWeights(Exception):
+    """Internal: a step needs unmeasured weights."""
+
+    def __init__(self, ids: list[int]):
+        self.ids = tuple(ids)
+
+
+class _Context:
+    def __init__(self, scene: SceneGraph, weights: str, known: dict[int, float] | None):
+        if weights not in WEIGHT_MODES:
+            raise ConfigError(unknown_name("weight mode", weights, WEIGHT_MODES))
+        self.scene = scene
+        self.by_id = {o.id: o for o in scene.objects}
+        self.ground_truth = weights == "ground_truth"
+        self.known = known or {}
+        self.chains: list[Any] = []
+
+    def weights(self, ids: list[int]) -> list[float]:
+        if self.ground_truth:
+            return [self.by_id[i].weight_gt for i in ids]
+        out, missing = [], []
+        for i in ids:
+            w = self.known.get(i, self.by_id[i].weight)
+            if w is None:
+                missing.append(i)
+            out.append(w)
+        if missing:
+            raise _NeedWeights(missing)
+        return out
+
+
+def _ids(value: Any, step: dict[str, Any], index: int) -> list[int]:
+    if not isinstance(value, list) or not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
+        raise PlanningError(f"step {index} ({step.get('type')}) needs a list of object ids from the step before, "
+                            f"got {value!r:.60}; put a 'scene' or filter step before it")
+    return value
+
+
+def _step_scene(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    return [o.id for o in ctx.scene.objects]
+
+
+def _attribute_filter(attribute: str) -> Callable:
+    def run(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+        value = step.get("input_value")
+        return [i for i in _ids(prev, step, index) if getattr(ctx.by_id[i], attribute) == value]
+
+    return run
+
+
+def _step_filter_table_part(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    part = step.get("input_value")
+    if part not in OPPOSITE_PART and part != "centre":
+        raise PlanningError(unknown_name("table part", str(part), [*OPPOSITE_PART, "centre"]))
+    return [i for i in _ids(prev, step, index) if part in table_parts_of(ctx.by_id[i], ctx.scene)]
+
+
+def _step_filter_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    ids = _ids(prev, step, index)
+    which = step.get("input_value")
+    if which not in WEIGHT_SUPERLATIVES:
+        raise PlanningError(unknown_name("weight superlative", str(which), WEIGHT_SUPERLATIVES))
+    if not ids:
+        return []
+    weights = ctx.weights(ids)
+    pick = max if which == "heaviest" else min
+    best = pick(range(len(ids)), key=lambda k: weights[k])
+    return [ids[best]]
+
+
+def _step_order_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    ids = _ids(prev, step, index)
+    order = step.get("input_value")
+    if order not in WEIGHT_ORDERS:
+        raise PlanningError(unknown_name("weight order", str(order), WEIGHT_ORDERS))
+    weights = ctx.weights(ids)
+    ranked = sorted(range(len(ids)), key=lambda k: weights[k], reverse=order == "descending")
+    return [ids[k] for k in ranked]
+
+
+def _step_query_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list[float]:
+    return list(ctx.weights(_ids(prev, step, index)))
+
+
+def _step_pass_targets(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    # Action steps (pick_up, move_to) name their targets; the world changes only when the plan runs.
+    ids = _ids(prev, step, index)
+    if not ids:
+        raise PlanningError(f"step {index} ({step['type']}) has no target: the filters before it match nothing")
+    return list(ids)
+
+
+def _step_stack(ctx: _Context, step: dict, prev: Any, index: int) -> list[list[int]]:
+    chains = [list(c) for c in (*ctx.chains, prev)] if prev is not None else []
+    if not chains or any(not c for c in chains):
+        raise PlanningError(f"step {index} (stack) needs non-empty object chains before it, got {chains}")
+    return chains
+
+
+STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
+    "scene": _step_scene,
+    **{name: _attribute_filter(attr) for name, attr in ATTRIBUTE_FILTERS.items()},
+    "filter_table_part": _step_filter_table_part,
+    "filter_weight": _step_filter_weight,
+    "order_weight": _step_order_weight,
+    "query_weight": _step_query_weight,
+    "pick_up": _step_pass_targets,
+    "move_to": _step_pass_targets,
+    "stack": _step_stack,
+}
+WEIGHT_STEPS = frozenset({"filter_weight", "order_weight", "query_weight"})
+
+
+def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = "measured",
+            known_weights: dict[int, float] | None = None) -> ProgramTrace:
+    """Run ``program`` on ``scene``.
+
+    ``known_weights`` adds measurements not yet written into the scene graph (object id -> grams).
+    Raises ``PlanningError`` when the program cannot run on this scene (unknown object, no target) and
+    ``ConfigError`` for an unknown step type.
+    """
+    ctx = _Context(scene, weights, known_weights)
+    trace = ProgramTrace(steps=len(program))
+    prev: Any = None
+    for index, step in enumerate(program):
+        kind = step.get("type")
+        run = STEP_TYPES.get(kind)
+        if run is None:
+            raise ConfigError(unknown_name("program step type", str(kind), list(STEP_TYPES)))
+        if kind == "scene" and prev is not None and index > 0 and program[index - 1]["type"] != "stack":
+            ctx.chains.append(prev)
+        try:
+            out = run(ctx, step, prev, index)
+        except _NeedWeights as need:
+            trace.pending_weights = need.ids
+            return trace
+        except KeyError as e:
+            raise PlanningError(f"step {index} ({kind}) refers to object {e} that this scene lacks") from None
+        if kind == "stack":
+            ctx.chains = []
+        trace.outputs.append(out)
+        prev = out
+    return trace
+
+
+def _close(a: Any, b: Any, tol: float) -> bool:
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_close(x, y, tol) for x, y in zip(a, b))
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+        return abs(a - b) <= tol
+    return a == b
+
+
+def outputs_match(program: list[dict[str, Any]], trace: ProgramTrace, tol: float = 1e-6) -> list[int]:
+    """Indices of steps whose recorded ``output`` differs from the trace (empty when all agree)."""
+    return [i for i, step in enumerate(program)
+            if i >= len(trace.outputs) or not _close(step.get("output"), trace.outputs[i], tol)]

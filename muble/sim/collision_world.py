@@ -1,0 +1,272 @@
+"""A ``CollisionWorld`` over a MuJoCo model: the arm, its gripper and a held object against everything else.
+
+Checks run on a private copy of the model and a private ``MjData`` so the live simulation is never touched.
+In the copy, the robot's geoms and the rest of the world sit in different collision classes so that contacts
+between resting objects (which are not the planner's business) are never even generated, and the robot's
+geoms get a margin so that a configuration closer than ``clearance`` to an obstacle already counts as a hit.
+"""
+from __future__ import annotations
+
+import copy
+import logging
+from collections.abc import Iterable
+
+import mujoco
+import numpy as np
+
+from muble.core.errors import PlanningError
+from muble.core.interfaces import CollisionWorld
+from muble.core.types import Pose, PoseGoal
+from muble.sim.ik import ArmKinematics
+
+logger = logging.getLogger(__name__)
+
+_ROBOT_CLASS = 1  # contype bit of robot (and held object) geoms; conaffinity of everything is 1
+_WORLD_CLASS = 2  # contype bit of world geoms: world & world never collide in the check model
+
+
+def _subtree_bodies(model: mujoco.MjModel, root: int) -> set[int]:
+    bodies = {root}
+    for b in range(root + 1, model.nbody):
+        if model.body_parentid[b] in bodies:
+            bodies.add(b)
+    return bodies
+
+
+def _tree_distance(model: mujoco.MjModel, a: int, b: int) -> int:
+    def chain(x: int) -> list[int]:
+        out = [x]
+        while x != 0:
+            x = int(model.body_parentid[x])
+            out.append(x)
+        return out
+
+    ca, cb = chain(a), chain(b)
+    common = set(ca) & set(cb)
+    return min(ca.index(c) + cb.index(c) for c in common)
+
+
+class MujocoCollisionWorld(CollisionWorld):
+    """Collision checking and IK for one arm of a MuJoCo model.
+
+    ``robot_root`` is the body whose subtree is the robot (arm links and gripper); ``gripper_root`` the body
+    whose subtree is the gripper. ``data`` is the live state: object poses and finger positions are copied from
+    it now and on every ``sync``; it is never written.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        arm_joints: list[str],
+        ee_site: str,
+        robot_root: str,
+        gripper_root: str,
+        *,
+        clearance: float = 0.005,
+        ik_restarts: int = 12,
+        seed: int = 0,
+    ):
+        self.model = copy.deepcopy(model)
+        self.data = mujoco.MjData(self.model)
+        self.kinematics = ArmKinematics(self.model, self.data, arm_joints, ee_site)
+        self.clearance = clearance
+        self.ik_restarts = ik_restarts
+        self._rng = np.random.default_rng(seed)
+        m = self.model
+        self.robot_bodies = _subtree_bodies(m, m.body(robot_root).id)
+        self.gripper_bodies = _subtree_bodies(m, m.body(gripper_root).id)
+        self._geom_body = m.geom_bodyid.copy()
+        collidable = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
+        self._robot_geoms = np.array([collidable[g] and m.geom_bodyid[g] in self.robot_bodies for g in range(m.ngeom)])
+        self._gripper_geoms = np.array([m.geom_bodyid[g] in self.gripper_bodies for g in range(m.ngeom)])
+        self._world_geoms = collidable & ~self._robot_geoms
+        m.geom_contype[self._robot_geoms] = _ROBOT_CLASS
+        m.geom_conaffinity[self._robot_geoms] = 1
+        m.geom_contype[self._world_geoms] = _WORLD_CLASS
+        m.geom_conaffinity[self._world_geoms] = 1
+        m.geom_margin[self._robot_geoms] = clearance
+        m.geom_gap[:] = 0.0
+        self._held_body: int | None = None
+        self._held_geoms = np.zeros(m.ngeom, dtype=bool)
+        self._held_qpos_adr: int | None = None
+        self._held_offset: tuple[np.ndarray, np.ndarray] | None = None
+        self._allowed_bodies: set[int] = set()
+        self.sync(data)
+        self._self_ignore = self._self_collision_filter()
+        self.last_contacts: list[tuple[str, str]] = []
+
+    # ----------------------------------------------------------------- state
+    def sync(self, data: mujoco.MjData) -> None:
+        """Copy the live state (objects, fingers, arm) into the checking data."""
+        self.data.qpos[:] = data.qpos
+        mujoco.mj_kinematics(self.model, self.data)
+        if self._held_body is not None:
+            self._capture_held_offset()
+
+    @property
+    def arm_q(self) -> np.ndarray:
+        """The arm configuration of the last synced state."""
+        return self.data.qpos[self.kinematics.qpos_adr].copy()
+
+    def _self_collision_filter(self) -> np.ndarray:
+        """Robot-robot geom pairs never counted: neighbours in the kinematic tree and pairs touching at rest."""
+        m = self.model
+        robot = np.flatnonzero(self._robot_geoms)
+        ignore = np.zeros((m.ngeom, m.ngeom), dtype=bool)
+        for i in robot:
+            for j in robot:
+                bi, bj = m.geom_bodyid[i], m.geom_bodyid[j]
+                # Links two joints apart can touch at their shells without real interference; fingers too.
+                near = _tree_distance(m, bi, bj) <= 2
+                both_gripper = self._gripper_geoms[i] and self._gripper_geoms[j]
+                if near or both_gripper:
+                    ignore[i, j] = True
+        mujoco.mj_collision(m, self.data)
+        for c in self.data.contact[: self.data.ncon]:
+            g1, g2 = c.geom
+            if self._robot_geoms[g1] and self._robot_geoms[g2]:
+                ignore[g1, g2] = ignore[g2, g1] = True
+        return ignore
+
+    # ----------------------------------------------------------------- grasp handling
+    def allow_contact(self, bodies: Iterable[str | int]) -> None:
+        """Contacts of the gripper and the held object with these bodies are allowed (grasp target, support)."""
+        self._allowed_bodies = {self.model.body(b).id if isinstance(b, str) else int(b) for b in bodies}
+
+    def hold(self, body: str | int | None) -> None:
+        """The object ``body`` moves rigidly with the hand from now on (``None`` releases it).
+
+        Its pose relative to the end-effector is taken from the last synced state.
+        """
+        m = self.model
+        if self._held_body is not None:
+            m.geom_contype[self._held_geoms] = _WORLD_CLASS
+            m.geom_margin[self._held_geoms] = 0.0
+        if body is None:
+            self._held_body, self._held_qpos_adr, self._held_offset = None, None, None
+            self._held_geoms[:] = False
+            return
+        bid = m.body(body).id if isinstance(body, str) else int(body)
+        jnt = m.body_jntadr[bid]
+        if jnt < 0 or int(m.jnt_type[jnt]) != int(mujoco.mjtJoint.mjJNT_FREE):
+            raise PlanningError(f"body '{m.body(bid).name}' has no free joint; only free objects can be held")
+        self._held_body = bid
+        self._held_qpos_adr = int(m.jnt_qposadr[jnt])
+        self._held_geoms = (m.geom_bodyid == bid) & self._world_geoms
+        m.geom_contype[self._held_geoms] = _ROBOT_CLASS
+        m.geom_margin[self._held_geoms] = self.clearance
+        self._capture_held_offset()
+
+    def _capture_held_offset(self) -> None:
+        d, site = self.data, self.kinematics.site_id
+        ee_pos, ee_mat = d.site_xpos[site], d.site_xmat[site].reshape(3, 3)
+        obj_pos, obj_mat = d.xpos[self._held_body], d.xmat[self._held_body].reshape(3, 3)
+        self._held_offset = (ee_mat.T @ (obj_pos - ee_pos), ee_mat.T @ obj_mat)
+
+    def _place_held(self) -> None:
+        d, site = self.data, self.kinematics.site_id
+        ee_pos, ee_mat = d.site_xpos[site], d.site_xmat[site].reshape(3, 3)
+        rel_pos, rel_mat = self._held_offset
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, (ee_mat @ rel_mat).ravel())
+        a = self._held_qpos_adr
+        d.qpos[a : a + 3] = ee_pos + ee_mat @ rel_pos
+        d.qpos[a + 3 : a + 7] = quat
+        mujoco.mj_kinematics(self.model, d)
+
+    # ----------------------------------------------------------------- CollisionWorld
+    @property
+    def joint_limits(self) -> np.ndarray:
+        return self.kinematics.limits.copy()
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.kinematics.joint_names
+
+    def contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
+        """Names of the body pairs in collision at ``q`` (empty when valid)."""
+        self._collide(q)
+        return list(self.last_contacts)
+
+    def _collide(self, q: np.ndarray) -> bool:
+        self.kinematics.set_q(q)
+        if self._held_body is not None:
+            self._place_held()
+        m, d = self.model, self.data
+        mujoco.mj_collision(m, d)
+        self.last_contacts = []
+        n = d.ncon
+        if n == 0:
+            return True
+        geoms = d.contact.geom[:n]
+        dist = d.contact.dist[:n]
+        ok = True
+        for (g1, g2), depth in zip(geoms, dist):
+            if depth > self.clearance:
+                continue
+            if self._ignored(g1, g2):
+                continue
+            ok = False
+            self.last_contacts.append((m.body(m.geom_bodyid[g1]).name, m.body(m.geom_bodyid[g2]).name))
+        return ok
+
+    def _ignored(self, g1: int, g2: int) -> bool:
+        robot1 = self._robot_geoms[g1] or self._held_geoms[g1]
+        robot2 = self._robot_geoms[g2] or self._held_geoms[g2]
+        if robot1 and robot2:
+            if self._held_geoms[g1] or self._held_geoms[g2]:
+                # the held object against the gripper holding it
+                return bool(self._gripper_geoms[g1] or self._gripper_geoms[g2])
+            return bool(self._self_ignore[g1, g2])
+        own, other = (g1, g2) if robot1 else (g2, g1)
+        if self._geom_body[other] in self._allowed_bodies:
+            return bool(self._gripper_geoms[own] or self._held_geoms[own])
+        return False
+
+    def is_valid(self, q: np.ndarray) -> bool:
+        lim = self.kinematics.limits
+        if np.any(q < lim[:, 0] - 1e-9) or np.any(q > lim[:, 1] + 1e-9):
+            return False
+        return self._collide(np.asarray(q, dtype=float))
+
+    def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
+        return self.kinematics.site_pose(q)[0]
+
+    def ee_pose(self, q: np.ndarray) -> Pose:
+        pos, quat = self.kinematics.site_pose(q)
+        return Pose(pos, quat)
+
+    def inverse_kinematics(self, goal: PoseGoal, seeds: np.ndarray | None = None) -> np.ndarray:
+        """Seeds in order (the synced arm configuration when none), then random restarts within the limits.
+
+        The first solution within tolerance that is also collision-free wins, so a good seed gives the nearby
+        solution. Raises ``PlanningError`` saying whether the pose was out of reach or only reached in collision.
+        """
+        lim = self.kinematics.limits
+        ordered = [np.asarray(s, dtype=float) for s in (np.atleast_2d(seeds) if seeds is not None else [self.arm_q])]
+        restarts = self._rng.uniform(lim[:, 0], lim[:, 1], size=(self.ik_restarts, len(lim)))
+        reached_in_collision: list[tuple[str, str]] | None = None
+        best_pos_err = np.inf
+        for seed in [*ordered, *restarts]:
+            res = self.kinematics.solve(
+                goal.pose.pos, goal.pose.quat, seed,
+                position_tolerance=goal.position_tolerance * 0.5,
+                orientation_tolerance=goal.orientation_tolerance * 0.5,
+            )
+            best_pos_err = min(best_pos_err, res.position_error)
+            if not res.within(goal.position_tolerance, goal.orientation_tolerance):
+                continue
+            if self.is_valid(res.q):
+                return res.q
+            reached_in_collision = list(self.last_contacts)
+        where = np.round(goal.pose.pos, 3).tolist()
+        if reached_in_collision is not None:
+            raise PlanningError(
+                f"pose at {where} is reachable only in collision ({reached_in_collision[:3]}); "
+                "choose a pose with more clearance from other objects"
+            )
+        raise PlanningError(
+            f"pose at {where} is out of reach of the arm (closest IK solution {best_pos_err * 1000:.0f} mm away); "
+            "choose a target nearer the robot base or another orientation"
+        )

@@ -1,0 +1,209 @@
+"""MJCF for object models: one free body per object, convex collision geoms, a visual mesh, exact mass.
+
+Public API
+----------
+``object_mjcf(model, object_id, pos, quat) -> ObjectMjcf``
+    The ``<asset>`` children (``ObjectMjcf.asset_xml``) and the ``<body>`` element (``ObjectMjcf.body_xml``) of
+    one object. Mesh data is written inline (``vertex``/``face`` attributes), so no asset files or asset
+    dictionaries are needed: the strings can be pasted into any MJCF (robosuite's ``MujocoXML`` merge included)
+    or compiled with ``mujoco.MjModel.from_xml_string``.
+``test_world_xml(placements, ...) -> str``
+    A standalone world: a table box whose top surface is at ``z = table_height`` plus the given objects, with
+    robosuite's global physics options. ``placements`` is a list of ``(model, pos, quat)``; object ids are the
+    list indices.
+``contact_solref(stiffness, damping_ratio, mass) -> (solref, solimp)`` and ``realised_stiffness(...)``
+    The mapping between a physical contact stiffness (N/m) and MuJoCo's direct-mode ``solref``.
+``object_id_from_name(name) -> int | None``
+    The object id encoded in a body, geom, joint or site name (``None`` for non-object names).
+
+Naming convention (object ``i``)
+--------------------------------
+- body ``obj{i}``, free joint ``obj{i}_joint``
+- collision geoms ``obj{i}_col{k}`` (k = 0 … n-1, one per convex part), meshes ``obj{i}_col{k}_mesh``
+- visual geom ``obj{i}_visual``, mesh ``obj{i}_visual_mesh``
+- grasp sites ``obj{i}_grasp{k}`` in the order of ``ObjectModel.grasp_frames``
+Every name starts with ``obj{i}`` followed by ``_`` or the end, so segmentation (geom id → name → object id)
+and contact reports map back to the scene graph by ``object_id_from_name``.
+
+Groups: collision geoms are in geom group 3 (hidden by default, they collide: ``contype=conaffinity=1``);
+the visual geom is in group 2 and collides with nothing (``contype=conaffinity=0``); grasp sites are group 4.
+
+Contact stiffness
+-----------------
+MuJoCo's direct ``solref = (-k, -b)`` sets a reference *acceleration* ``a_ref = -b·v - k·d·r`` and regularises
+the contact with ``R = (1-d)/d · A``, where ``A`` is the inverse effective mass of the contact (``d`` the
+impedance from ``solimp``, held constant here). At rest ``k·d·r = R·f``, so the contact behaves like a spring
+of stiffness ``K = f/r = d²·k / ((1-d)·A)``. We choose ``k`` so that ``K`` equals the object's ground-truth
+stiffness when ``A = 1/m`` (the object pressed against an immovable surface, or by a finger whose joint inertia
+is large, as the Panda's armature makes it). The mass-independent rest penetration of one contact carrying the
+whole weight is then ``m·g/K``. ``k`` is capped so that the contact's time constant ``1/sqrt(k)`` stays above
+two 2 ms physics steps; the stiffness actually realised is stored back in ``ObjectModel.stiffness`` by the
+object sets. When two geoms meet and either uses direct mode, MuJoCo takes the element-wise minimum of the two
+solrefs: the object's (negative) values win against the table's and the fingers' standard solrefs.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from muble.core.objects import ObjectModel
+
+# Constant impedance: stiffness must not depend on penetration depth, or squeeze would see a non-linear spring.
+CONTACT_IMPEDANCE = 0.95
+# Time constant floor of 2 physics steps (2 ms each, robosuite's default), MuJoCo's stability rule of thumb.
+MIN_TIME_CONSTANT = 0.004
+MAX_ACCEL_STIFFNESS = 1.0 / MIN_TIME_CONSTANT**2
+
+COLLISION_GROUP = 3
+VISUAL_GROUP = 2
+SITE_GROUP = 4
+
+_NAME_RE = re.compile(r"^obj(\d+)(?:_|$)")
+
+
+@dataclass
+class ObjectMjcf:
+    """The MJCF fragments of one object."""
+
+    asset_xml: str  # <mesh …/> elements for the <asset> section
+    body_xml: str  # the <body> element for <worldbody>
+    body_name: str
+    geom_names: list[str]  # collision geoms first, visual geom last
+
+
+def object_body_name(object_id: int) -> str:
+    return f"obj{object_id}"
+
+
+def object_id_from_name(name: str | None) -> int | None:
+    """The object id encoded in an MJCF name (``obj3_col2`` → 3), or ``None`` for anything else."""
+    if not name:
+        return None
+    match = _NAME_RE.match(name)
+    return int(match.group(1)) if match else None
+
+
+def contact_solref(stiffness: float, damping_ratio: float, mass: float) -> tuple[tuple[float, float], tuple]:
+    """Direct-mode ``solref`` and constant ``solimp`` that make a contact behave as a spring of ``stiffness``.
+
+    ``stiffness`` in N/m, ``mass`` in kg (the object's), ``damping_ratio`` 1 = critically damped.
+    """
+    d = CONTACT_IMPEDANCE
+    k = stiffness * (1.0 - d) / (d * d * mass)
+    k = min(k, MAX_ACCEL_STIFFNESS)
+    b = 2.0 * damping_ratio * math.sqrt(k)
+    solimp = (d, d, 0.001, 0.5, 2.0)
+    return (-k, -b), solimp
+
+
+def realised_stiffness(stiffness: float, mass: float) -> float:
+    """The stiffness (N/m) ``contact_solref`` actually realises for an object of ``mass`` (after the cap)."""
+    (k, _), _ = contact_solref(stiffness, 1.0, mass)
+    d = CONTACT_IMPEDANCE
+    return -k * d * d * mass / (1.0 - d)
+
+
+def realised_damping(stiffness: float, damping_ratio: float, mass: float) -> float:
+    """The contact damping (N·s/m) that goes with ``contact_solref`` for an object of ``mass``."""
+    (_, b), _ = contact_solref(stiffness, damping_ratio, mass)
+    d = CONTACT_IMPEDANCE
+    return -b * d * d * mass / (1.0 - d)
+
+
+def _floats(values) -> str:
+    return " ".join(f"{float(v):.6g}" for v in np.asarray(values, dtype=float).ravel())
+
+
+def _ints(values) -> str:
+    return " ".join(str(int(v)) for v in np.asarray(values).ravel())
+
+
+def _mesh_xml(name: str, vertices: np.ndarray, faces: np.ndarray) -> str:
+    # inertia="convex": the geoms carry no mass (the body has an explicit <inertial>), and the convex rule
+    # never fails on open or thin visual meshes the way the exact volume rule can.
+    return f'<mesh name="{name}" inertia="convex" vertex="{_floats(vertices)}" face="{_ints(faces)}"/>'
+
+
+def _rgba(rgba) -> str:
+    return _floats(rgba)
+
+
+def object_mjcf(model: ObjectModel, object_id: int, pos=(0.0, 0.0, 0.0), quat=(1.0, 0.0, 0.0, 0.0),
+                damping_ratio: float = 1.0) -> ObjectMjcf:
+    """The MJCF of ``model`` as object ``object_id`` at ``pos`` with orientation ``quat`` (w, x, y, z).
+
+    The body's mass is ``model.mass`` exactly and its inertia ``model.inertia`` about ``model.com``.
+    """
+    body = object_body_name(object_id)
+    solref, solimp = contact_solref(model.stiffness, damping_ratio, model.mass)
+    friction = f"{model.friction:.6g} 0.005 0.0001"
+    assets: list[str] = []
+    geoms: list[str] = []
+    names: list[str] = []
+    for k, part in enumerate(model.collision_parts):
+        geom = f"{body}_col{k}"
+        assets.append(_mesh_xml(f"{geom}_mesh", part.vertices, part.faces))
+        geoms.append(
+            f'<geom name="{geom}" type="mesh" mesh="{geom}_mesh" group="{COLLISION_GROUP}" contype="1" '
+            f'conaffinity="1" condim="4" friction="{friction}" solref="{solref[0]:.9g} {solref[1]:.9g}" '
+            f'solimp="{_floats(solimp)}" rgba="{_rgba(model.rgba)}"/>'
+        )
+        names.append(geom)
+    visual = f"{body}_visual"
+    assets.append(_mesh_xml(f"{visual}_mesh", model.visual.vertices, model.visual.faces))
+    geoms.append(
+        f'<geom name="{visual}" type="mesh" mesh="{visual}_mesh" group="{VISUAL_GROUP}" contype="0" '
+        f'conaffinity="0" rgba="{_rgba(model.rgba)}"/>'
+    )
+    names.append(visual)
+    sites = []
+    for k, frame in enumerate(model.grasp_frames):
+        sites.append(
+            f'<site name="{body}_grasp{k}" pos="{_floats(frame.position)}" quat="{_floats(frame.quat)}" '
+            f'size="0.004" group="{SITE_GROUP}" rgba="0 1 0 0.5"/>'
+        )
+    inertia = np.asarray(model.inertia, dtype=float)
+    full = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+    inertial = (
+        f'<inertial pos="{_floats(model.com)}" mass="{model.mass:.17g}" '
+        f'fullinertia="{" ".join(f"{v:.10g}" for v in full)}"/>'
+    )
+    body_xml = (
+        f'<body name="{body}" pos="{_floats(pos)}" quat="{_floats(quat)}">'
+        f'<freejoint name="{body}_joint"/>{inertial}{"".join(geoms)}{"".join(sites)}</body>'
+    )
+    return ObjectMjcf(asset_xml="".join(assets), body_xml=body_xml, body_name=body, geom_names=names)
+
+
+def test_world_xml(placements, table_height: float = 0.0, table_half_size=(0.5, 0.5),
+                   timestep: float = 0.002) -> str:
+    """A standalone MJCF world: a table box (top at ``table_height``) and the objects ``(model, pos, quat)``.
+
+    Global options copy robosuite's base model (elliptic cones, ``impratio`` 20) so drop and stacking tests
+    see the same contact model as the environment. The table uses robosuite's table friction.
+    """
+    assets, bodies = [], []
+    for i, (model, pos, quat) in enumerate(placements):
+        mjcf = object_mjcf(model, i, pos, quat)
+        assets.append(mjcf.asset_xml)
+        bodies.append(mjcf.body_xml)
+    hx, hy = table_half_size
+    return (
+        '<mujoco model="object_test_world">'
+        '<compiler angle="radian" autolimits="true"/>'
+        f'<option timestep="{timestep}" impratio="20" cone="elliptic"/>'
+        f'<asset>{"".join(assets)}</asset>'
+        '<worldbody>'
+        '<light pos="0 0 3" dir="0 0 -1"/>'
+        f'<geom name="table" type="box" size="{hx} {hy} 0.025" pos="0 0 {table_height - 0.025}" '
+        'friction="1 0.005 0.0001" rgba="0.6 0.5 0.4 1"/>'
+        f'{"".join(bodies)}'
+        '</worldbody></mujoco>'
+    )
+
+
+# Pytest would otherwise collect the world builder as a test when it is imported into a test module.
+test_world_xml.__test__ = False

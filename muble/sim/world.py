@@ -1,0 +1,206 @@
+"""The tabletop world as MJCF: a robosuite table arena, a robosuite single-arm robot with its gripper, the scene's
+objects, cameras and lights, compiled to one ``MjModel``.
+
+Frames: the MuJoCo world frame *is* the scene frame of SHOP-VRB2: the table top is the plane z = 0, the robot's
+root sits at the origin (x forward over the table), and object positions are the scene graph's ``3d_coords``.
+robosuite builds its arena with the floor at z = 0; everything it places is shifted down by the table height.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from muble.core.errors import ConfigError, unknown_name
+from muble.core.objects import ObjectModel
+from muble.core.scene import SceneGraph
+
+logger = logging.getLogger(__name__)
+
+ROBOTS = ("Panda", "Sawyer", "UR5e", "Kinova3", "IIWA")
+TABLE_HEIGHT = 0.8  # m, robosuite's table; the floor lies this far below the table top
+TABLE_SIZE = (0.9, 1.2, 0.05)  # m, full x/y/z size of the table
+FRONT_CAMERA = "front"
+WRIST_CAMERA = "wrist"
+# The SHOP-VRB2 front camera (position in m, Blender XYZ Euler angles in degrees) used when a scene has none.
+DEFAULT_CAMERA = {"position": [1.15, -0.14, 0.22], "rotation": [83.0, 0.0, 89.0], "fovy": 50.0}
+
+
+def object_body_name(obj_id: int) -> str:
+    return f"object{obj_id}"
+
+
+def object_weld_name(obj_id: int) -> str:
+    return f"grasp_object{obj_id}"
+
+
+@dataclass
+class WorldNames:
+    """Names and addresses in the compiled model that the environment, sensors and planners use."""
+
+    robot: str
+    arm_joints: list[str]
+    arm_actuators: list[str]
+    gripper_joints: list[str]
+    gripper_actuators: list[str]
+    ee_site: str  # the grip site between the fingers
+    hand_body: str  # body the F/T sensor measures and grasped objects weld to
+    force_sensor: str
+    torque_sensor: str
+    left_pads: list[str]  # finger pad geoms
+    right_pads: list[str]
+    robot_geom_prefixes: tuple[str, ...]
+    objects: dict[int, str] = field(default_factory=dict)  # scene id -> body name
+    welds: dict[int, str] = field(default_factory=dict)  # scene id -> weld equality name
+    cameras: dict[str, str] = field(default_factory=dict)  # role -> MuJoCo camera name
+    init_qpos: np.ndarray | None = None
+    gripper_format: object = None  # the robosuite gripper model (its ``format_action`` maps -1..1)
+
+
+def euler_xyz_deg_to_quat(angles: list[float]) -> np.ndarray:
+    """Quaternion (w, x, y, z) of Blender's XYZ Euler angles in degrees (rotate about x, then y, then z)."""
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    for axis, angle in zip(np.eye(3), angles):
+        q = np.empty(4)
+        mujoco.mju_axisAngle2Quat(q, axis, math.radians(angle))
+        out = np.empty(4)
+        mujoco.mju_mulQuat(out, q, quat)  # later rotations act in the world frame: left-multiply
+        quat = out
+    return quat
+
+
+def _fmt(values) -> str:
+    return " ".join(f"{float(v):.9g}" for v in np.asarray(values).reshape(-1))
+
+
+def _shift_down(worldbody: ET.Element, dz: float) -> None:
+    for child in worldbody:
+        if child.tag in ("body", "geom", "site", "camera", "light"):
+            pos = np.fromstring(child.get("pos", "0 0 0"), sep=" ")
+            pos[2] -= dz
+            child.set("pos", _fmt(pos))
+
+
+def object_body(model: ObjectModel, obj_id: int, pos, quat, asset: ET.Element) -> ET.Element:
+    """An MJCF body for ``model``: free joint, exact mass and inertia, convex collision meshes, a visual mesh.
+
+    Contact stiffness and damping go into ``solref`` as direct (negative) values.
+    """
+    name = object_body_name(obj_id)
+    body = ET.Element("body", name=name, pos=_fmt(pos), quat=_fmt(quat))
+    ET.SubElement(body, "freejoint", name=f"{name}_joint")
+    inertia = np.asarray(model.inertia, dtype=float)
+    ET.SubElement(body, "inertial", pos=_fmt(model.com), mass=f"{model.mass:.9g}",
+                  fullinertia=_fmt([inertia[0, 0], inertia[1, 1], inertia[2, 2],
+                                    inertia[0, 1], inertia[0, 2], inertia[1, 2]]))
+    solref = _fmt([-model.stiffness, -model.damping])
+    for i, part in enumerate(model.collision_parts):
+        mesh = f"{name}_collision{i}"
+        ET.SubElement(asset, "mesh", name=mesh, vertex=_fmt(part.vertices), face=_fmt(part.faces.astype(int)))
+        ET.SubElement(body, "geom", name=f"{name}_collision{i}", type="mesh", mesh=mesh, group="3",
+                      friction=_fmt([model.friction, 0.005, 0.0001]), solref=solref,
+                      solimp="0.95 0.99 0.001", condim="4", rgba="0 0 0 0", density="0", contype="1",
+                      conaffinity="1")
+    ET.SubElement(asset, "mesh", name=f"{name}_visual", vertex=_fmt(model.visual.vertices),
+                  face=_fmt(model.visual.faces.astype(int)))
+    ET.SubElement(body, "geom", name=f"{name}_visual", type="mesh", mesh=f"{name}_visual", group="1",
+                  contype="0", conaffinity="0", density="0", rgba=_fmt(model.rgba))
+    return body
+
+
+def _camera_element(name: str, params: dict) -> ET.Element:
+    quat = euler_xyz_deg_to_quat(params.get("rotation", DEFAULT_CAMERA["rotation"]))
+    fovy = params.get("fovy", DEFAULT_CAMERA["fovy"])
+    return ET.Element("camera", name=name, mode="fixed", pos=_fmt(params.get("position")), quat=_fmt(quat),
+                      fovy=f"{fovy:.6g}")
+
+
+def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = "Panda",
+                gripper: str | None = None, timestep: float = 0.002) -> tuple[mujoco.MjModel, WorldNames]:
+    """Compile the tabletop world of ``scene``; ``models`` maps each scene object id to its built model."""
+    if robot not in ROBOTS:
+        raise ConfigError(unknown_name("robot", robot, ROBOTS))
+    from robosuite.models import MujocoWorldBase
+    from robosuite.models.arenas import TableArena
+    from robosuite.models.bases import robot_base_factory
+    from robosuite.models.grippers import gripper_factory
+    from robosuite.models.robots import create_robot
+
+    robot_model = create_robot(robot, idn=0)
+    robot_model.add_base(base=robot_base_factory(robot_model.default_base, idn=0))
+    gripper_name = gripper or robot_model.default_gripper["right"]
+    try:
+        gripper_model = gripper_factory(gripper_name, idn="0_right")
+    except Exception as e:  # robosuite raises a bare ValueError listing nothing
+        raise ConfigError(f"robosuite has no gripper '{gripper_name}' ({e}); leave robot.gripper unset for the "
+                          f"robot's default") from e
+    robot_model.add_gripper(gripper_model, robot_model.eef_name["right"])
+    offset = np.asarray(robot_model.base_xpos_offset["table"](TABLE_SIZE[0]), dtype=float)
+    robot_model.set_base_xpos([0.0, 0.0, offset[2]])  # the table centre moves instead, to x = -offset
+    arena = TableArena(table_full_size=TABLE_SIZE, table_offset=(-offset[0], -offset[1], TABLE_HEIGHT))
+
+    world = MujocoWorldBase()
+    world.merge(arena)
+    world.merge(robot_model)
+    _shift_down(world.worldbody, TABLE_HEIGHT)
+
+    names = WorldNames(
+        robot=robot,
+        arm_joints=list(robot_model.joints),
+        arm_actuators=list(robot_model.actuators),
+        gripper_joints=list(gripper_model.joints),
+        gripper_actuators=list(gripper_model.actuators),
+        ee_site=gripper_model.important_sites["grip_site"],
+        hand_body="",
+        force_sensor=gripper_model.naming_prefix + "force_ee",
+        torque_sensor=gripper_model.naming_prefix + "torque_ee",
+        left_pads=list(gripper_model.important_geoms["left_fingerpad"]),
+        right_pads=list(gripper_model.important_geoms["right_fingerpad"]),
+        robot_geom_prefixes=(robot_model.naming_prefix, gripper_model.naming_prefix, "mount0_"),
+        init_qpos=np.asarray(robot_model.init_qpos, dtype=float),
+        gripper_format=gripper_model,
+    )
+
+    camera = dict(DEFAULT_CAMERA)
+    if scene.camera_params:
+        camera.update({k: v for k, v in scene.camera_params.items() if k in ("position", "rotation", "fovy")})
+    world.worldbody.append(_camera_element(FRONT_CAMERA, camera))
+    names.cameras = {FRONT_CAMERA: FRONT_CAMERA, WRIST_CAMERA: robot_model.naming_prefix + "eye_in_hand"}
+    for lamp, pos in (scene.lamp_params or {}).items():
+        if isinstance(pos, (list, tuple)) and len(pos) == 3:
+            ET.SubElement(world.worldbody, "light", name=f"lamp_{lamp}", pos=_fmt(pos), dir=_fmt(-np.asarray(pos)),
+                          directional="false", castshadow="true", diffuse="0.4 0.4 0.4")
+
+    missing = [o.id for o in scene.objects if o.id not in models]
+    if missing:
+        raise ConfigError(f"no object model for scene object(s) {missing}; build one per scene object")
+    for obj in scene.objects:
+        world.worldbody.append(object_body(models[obj.id], obj.id, obj.position, obj.orientation, world.asset))
+        names.objects[obj.id] = object_body_name(obj.id)
+
+    model = _compile(world, names, timestep)
+    return model, names
+
+
+def _compile(world, names: WorldNames, timestep: float) -> mujoco.MjModel:
+    equality = world.equality
+    # The hand body is the one carrying the F/T sensor site: a weld to it loads the sensor with the held weight.
+    xml = world.get_xml()
+    probe = mujoco.MjModel.from_xml_string(xml)
+    site = probe.sensor(names.force_sensor).objid[0]
+    names.hand_body = probe.body(probe.site_bodyid[site]).name
+    for obj_id, body in names.objects.items():
+        weld = object_weld_name(obj_id)
+        # Declared inactive; the environment sets the relative pose and switches it on at grasp time.
+        ET.SubElement(equality, "weld", name=weld, body1=names.hand_body, body2=body, active="false",
+                      solref="0.004 1", solimp="0.99 0.999 0.001")
+        names.welds[obj_id] = weld
+    model = mujoco.MjModel.from_xml_string(world.get_xml())
+    model.opt.timestep = timestep
+    # Implicit-in-velocity integration keeps the stiff joint servos and contact damping stable at 2 ms.
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    return model

@@ -1,0 +1,118 @@
+"""Joint-space sampling-based planning with OMPL (RRTConnect by default), path simplification and timing."""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from muble import CollisionWorld, ConfigError, JointGoal, MotionPlanner, PlanningError, PoseGoal, Trajectory
+from muble.core.errors import unknown_name
+from muble_plugins.planners.timing import time_parameterise
+
+logger = logging.getLogger(__name__)
+
+# OMPL geometric planners that solve a single query from one start to one goal state.
+OMPL_PLANNERS = ("RRTConnect", "RRT", "RRTstar", "InformedRRTstar", "SORRTstar", "AORRTC", "BITstar", "KPIECE1",
+                 "BKPIECE1", "LBKPIECE1", "PRM", "PRMstar", "FMT", "BFMT")
+
+
+@dataclass
+class OmplPlannerConfig:
+    """Options of the OMPL joint-space planner."""
+
+    planner: str = "RRTConnect"  # any name in OMPL_PLANNERS
+    time_limit: float = 2.0  # s of planning before PlanningError
+    simplify_time: float = 0.1  # s spent shortening the path (0 = keep the raw path)
+    check_step: float = 0.02  # rad: largest joint step between two collision checks along a motion
+    max_velocity: float = 1.0  # rad/s per joint
+    max_acceleration: float = 2.0  # rad/s^2 per joint
+    sample_period: float = 0.02  # s between trajectory samples
+    try_direct: bool = True  # first check the straight joint-space segment; plan only if it is blocked
+
+
+class OmplPlanner(MotionPlanner):
+    """Plans in joint space against ``world.is_valid``; a pose goal is turned into joints with the world's IK."""
+
+    def __init__(self, **options):
+        self.config = OmplPlannerConfig(**options)
+        if self.config.planner not in OMPL_PLANNERS:
+            raise ConfigError(unknown_name("OMPL planner", self.config.planner, OMPL_PLANNERS))
+        self.last_planning_time = 0.0
+        self.last_used_sampling = False
+
+    # The validity of every state along a segment, at most ``check_step`` apart.
+    def segment_valid(self, world: CollisionWorld, a: np.ndarray, b: np.ndarray) -> bool:
+        n = max(1, int(np.ceil(np.max(np.abs(b - a)) / self.config.check_step)))
+        return all(world.is_valid(a + (b - a) * (i / n)) for i in range(1, n + 1))
+
+    def resolve_goal(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> np.ndarray:
+        if isinstance(goal, JointGoal):
+            q = np.asarray(goal.q, dtype=float)
+            if not world.is_valid(q):
+                contacts = getattr(world, "last_contacts", [])
+                raise PlanningError(f"goal configuration is in collision or outside the joint limits {contacts[:3]}; "
+                                    "choose another goal")
+            return q
+        return world.inverse_kinematics(goal, seeds=np.asarray(start_q, dtype=float)[None])
+
+    def plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory:
+        began = time.perf_counter()
+        start_q = np.asarray(start_q, dtype=float)
+        if not world.is_valid(start_q):
+            contacts = getattr(world, "last_contacts", [])
+            raise PlanningError(f"start configuration is in collision {contacts[:3]}; move the arm clear first "
+                                "(e.g. a straight-line retreat) or allow the contact")
+        goal_q = self.resolve_goal(start_q, goal, world)
+        self.last_used_sampling = False
+        if self.config.try_direct and self.segment_valid(world, start_q, goal_q):
+            path = np.array([start_q, goal_q])
+        else:
+            self.last_used_sampling = True
+            path = self._sample_path(start_q, goal_q, world)
+        self.last_planning_time = time.perf_counter() - began
+        logger.debug("planned %d waypoints in %.1f ms", len(path), self.last_planning_time * 1e3)
+        names = tuple(getattr(world, "joint_names", ()))
+        return time_parameterise(path, self.config.max_velocity, self.config.max_acceleration,
+                                 self.config.sample_period, names)
+
+    def _sample_path(self, start_q: np.ndarray, goal_q: np.ndarray, world: CollisionWorld) -> np.ndarray:
+        import ompl.base as ob
+        import ompl.geometric as og
+        import ompl.util as ou
+
+        ou.setLogLevel(ou.LOG_WARN)  # OMPL logs every solve at INFO on stdout
+        limits = world.joint_limits
+        dof = len(limits)
+        space = ob.RealVectorStateSpace(dof)
+        bounds = ob.RealVectorBounds(dof)
+        for i, (lo, hi) in enumerate(limits):
+            bounds.setLow(i, float(lo))
+            bounds.setHigh(i, float(hi))
+        space.setBounds(bounds)
+        setup = og.SimpleSetup(space)
+
+        def valid(state) -> bool:
+            return bool(world.is_valid(np.fromiter((state[i] for i in range(dof)), float, dof)))
+
+        setup.setStateValidityChecker(valid)
+        info = setup.getSpaceInformation()
+        # OMPL's resolution is a fraction of the space's largest extent; convert from radians.
+        info.setStateValidityCheckingResolution(self.config.check_step / space.getMaximumExtent())
+        setup.setPlanner(getattr(og, self.config.planner)(info))
+        start, target = space.allocState(), space.allocState()
+        for i in range(dof):
+            start[i] = float(start_q[i])
+            target[i] = float(goal_q[i])
+        setup.setStartAndGoalStates(start, target)
+        status = setup.solve(self.config.time_limit)
+        if not setup.haveExactSolutionPath():
+            raise PlanningError(
+                f"no collision-free path found in {self.config.time_limit:.1f} s ({status.asString()}); the goal "
+                "may be enclosed by obstacles: clear the way or raise planner.time_limit"
+            )
+        if self.config.simplify_time > 0:
+            setup.simplifySolution(self.config.simplify_time)
+        states = setup.getSolutionPath().getStates()
+        return np.array([[s[i] for i in range(dof)] for s in states])

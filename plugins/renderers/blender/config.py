@@ -1,0 +1,45 @@
+"""Options of the Blender renderer; the Hydra schema of ``conf/renderer/blender.yaml``."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+ENGINES = ("CYCLES", "BLENDER_EEVEE")
+DEVICES = ("CPU", "GPU", "auto")
+DENOISER_QUALITIES = ("FAST", "BALANCED", "HIGH")
+VIEW_TRANSFORMS = ("Standard",)
+
+
+@dataclass
+class BlenderRendererConfig:
+    """Quality, passes and scene dressing of the Blender renderer.
+
+    The defaults are the speed/quality point measured by ``benchmarks/render.py``: 640×480, 16 Cycles samples
+    with adaptive sampling and the fast OpenImageDenoise preset.
+    """
+
+    width: int = 640
+    height: int = 480
+    engine: str = "CYCLES"  # CYCLES or BLENDER_EEVEE (EEVEE wants a GPU or a display)
+    device: str = "CPU"  # CPU, GPU (CUDA/OptiX/HIP/oneAPI/Metal, first found) or auto (GPU if any)
+    samples: int = 16
+    adaptive_sampling: bool = True
+    adaptive_threshold: float = 0.05
+    denoise: bool = True
+    denoiser_quality: str = "FAST"  # OpenImageDenoise quality: FAST, BALANCED, HIGH
+    max_bounces: int = 4
+    transmission_bounces: int = 6  # glass needs more than the other bounce kinds
+    threads: int = 0  # 0 = all cores
+    # Ground-truth passes, read from the same render as the RGB.
+    depth: bool = True
+    segmentation: bool = True
+    normals: bool = False
+    # Scene dressing.
+    geom_groups: list[int] = field(default_factory=lambda: [1])  # MuJoCo geom groups drawn (robosuite: 1 = visual)
+    floor: bool = True  # draw the world body's geoms (floor, walls)
+    table_material: str = "wood"
+    background_rgb: list[float] = field(default_factory=lambda: [0.78, 0.80, 0.84])
+    background_strength: float = 0.5
+    light_energy: float = 1.0  # multiplies the key/fill/back rig
+    light_jitter: float = 0.1  # relative jitter of light position and energy, drawn per scene from ``seed``
+    seed: int = 0
+    exposure: float = 0.0  # stops

@@ -1,0 +1,169 @@
+"""Procedural materials, one recipe per material class, built from shader nodes (no image textures).
+
+Every recipe takes the object's base colour, so a red plastic and a red rubber differ only in how they
+reflect light: sheen, roughness, transmission, grain. Materials are cached by (class, colour) within a scene.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+
+from muble.core.errors import unknown_name
+from muble.core.objects import MATERIAL_CLASSES
+
+log = logging.getLogger(__name__)
+
+# Classes beyond the object classes, for the robot's paint and plain coloured geoms.
+EXTRA_CLASSES = ("painted",)
+
+# SHOP-VRB2 material words that map onto a class under another name.
+MATERIAL_ALIASES = {"porcelain": "ceramic", "steel": "metal", "aluminium": "metal", "aluminum": "metal"}
+
+
+def material_class(word: str | None) -> str:
+    """The material class for a scene object's ``material`` word; unknown words fall back to plastic."""
+    if not word:
+        return "plastic"
+    word = word.lower()
+    word = MATERIAL_ALIASES.get(word, word)
+    if word in MATERIAL_CLASSES:
+        return word
+    log.warning("%s; drawing it as plastic", unknown_name("material", word, MATERIAL_CLASSES))
+    return "plastic"
+
+
+def _principled(mat: Any) -> Any:
+    for node in mat.node_tree.nodes:
+        if node.bl_idname == "ShaderNodeBsdfPrincipled":
+            return node
+    raise LookupError("new material has no Principled BSDF")
+
+
+def _set(node: Any, **inputs: Any) -> None:
+    for key, value in inputs.items():
+        node.inputs[key.replace("_", " ")].default_value = value
+
+
+def _object_coords(nodes: Any, links: Any) -> Any:
+    coords = nodes.new("ShaderNodeTexCoord")
+    return coords.outputs["Object"]
+
+
+def _bump(nodes: Any, links: Any, bsdf: Any, height: Any, strength: float, distance: float) -> None:
+    bump = nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = strength
+    bump.inputs["Distance"].default_value = distance
+    links.new(height, bump.inputs["Height"])
+    links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+
+
+def _plastic(mat, bsdf, rgb, nodes, links):
+    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.32, Specular_IOR_Level=0.5, IOR=1.46)
+
+
+def _painted(mat, bsdf, rgb, nodes, links):
+    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.45, Specular_IOR_Level=0.4)
+
+
+def _rubber(mat, bsdf, rgb, nodes, links):
+    # Matte, dark-ish, with a fine pebbled surface that breaks up the highlights.
+    _set(bsdf, Base_Color=(*(0.8 * np.asarray(rgb)), 1), Roughness=0.85, Specular_IOR_Level=0.15,
+         Sheen_Weight=0.3, Sheen_Roughness=0.6)
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 400.0
+    links.new(_object_coords(nodes, links), noise.inputs["Vector"])
+    _bump(nodes, links, bsdf, noise.outputs["Fac"], 0.25, 0.002)
+
+
+def _metal(mat, bsdf, rgb, nodes, links):
+    # Brushed metal: anisotropic highlights and roughness streaks stretched along the object's z axis.
+    tint = 0.35 + 0.65 * np.asarray(rgb)
+    _set(bsdf, Base_Color=(*tint, 1), Metallic=1.0, Anisotropic=0.6)
+    coords = _object_coords(nodes, links)
+    stretch = nodes.new("ShaderNodeMapping")
+    stretch.inputs["Scale"].default_value = (300.0, 300.0, 4.0)
+    links.new(coords, stretch.inputs["Vector"])
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 1.0
+    links.new(stretch.outputs["Vector"], noise.inputs["Vector"])
+    ramp = nodes.new("ShaderNodeMapRange")
+    ramp.inputs["To Min"].default_value = 0.12
+    ramp.inputs["To Max"].default_value = 0.3
+    links.new(noise.outputs["Fac"], ramp.inputs["Value"])
+    links.new(ramp.outputs["Result"], bsdf.inputs["Roughness"])
+
+
+def _glass(mat, bsdf, rgb, nodes, links):
+    # Clear glass with a light tint of the object's colour.
+    tint = 0.6 + 0.4 * np.asarray(rgb)
+    _set(bsdf, Base_Color=(*tint, 1), Roughness=0.02, IOR=1.5, Transmission_Weight=1.0)
+
+
+def _ceramic(mat, bsdf, rgb, nodes, links):
+    # Glazed: a diffuse body under a sharp clear coat, with a touch of subsurface light.
+    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.4, Coat_Weight=1.0, Coat_Roughness=0.03, Coat_IOR=1.5,
+         Subsurface_Weight=0.1, Subsurface_Scale=0.01)
+
+
+def _wood(mat, bsdf, rgb, nodes, links):
+    # Growth rings from a distorted wave texture, pulled between a light and a dark tone of the colour.
+    coords = _object_coords(nodes, links)
+    wave = nodes.new("ShaderNodeTexWave")
+    wave.wave_type = "RINGS"
+    wave.rings_direction = "Z"
+    wave.inputs["Scale"].default_value = 18.0
+    wave.inputs["Distortion"].default_value = 6.0
+    wave.inputs["Detail"].default_value = 3.0
+    wave.inputs["Detail Scale"].default_value = 1.5
+    links.new(coords, wave.inputs["Vector"])
+    ramp = nodes.new("ShaderNodeValToRGB")
+    rgb = np.asarray(rgb)
+    ramp.color_ramp.elements[0].color = (*(0.45 * rgb), 1)
+    ramp.color_ramp.elements[1].color = (*np.clip(1.1 * rgb, 0, 1), 1)
+    links.new(wave.outputs["Fac"], ramp.inputs["Fac"])
+    links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    _set(bsdf, Roughness=0.55, Specular_IOR_Level=0.35)
+    _bump(nodes, links, bsdf, wave.outputs["Fac"], 0.08, 0.001)
+
+
+RECIPES = {"plastic": _plastic, "metal": _metal, "glass": _glass, "rubber": _rubber, "wood": _wood,
+           "ceramic": _ceramic, "painted": _painted}
+
+
+class MaterialLibrary:
+    """Builds and caches the materials of one scene; ``clear`` removes them from Blender."""
+
+    def __init__(self) -> None:
+        self._cache: dict[tuple[str, tuple[float, ...]], Any] = {}
+
+    def get(self, cls: str, rgba: np.ndarray | tuple[float, ...]) -> Any:
+        import bpy
+
+        if cls not in RECIPES:
+            from muble.core.errors import ConfigError
+
+            raise ConfigError(unknown_name("material class", cls, tuple(RECIPES)))
+        rgb = tuple(round(float(c), 3) for c in np.asarray(rgba, dtype=float)[:3])
+        key = (cls, rgb)
+        if key not in self._cache:
+            mat = bpy.data.materials.new(f"muble_{cls}_{len(self._cache)}")
+            bsdf = _principled(mat)
+            RECIPES[cls](mat, bsdf, _srgb_to_linear(np.asarray(rgb)), mat.node_tree.nodes, mat.node_tree.links)
+            self._cache[key] = mat
+        return self._cache[key]
+
+    def clear(self) -> None:
+        import bpy
+
+        for mat in self._cache.values():
+            bpy.data.materials.remove(mat)
+        self._cache.clear()
+
+
+def _srgb_to_linear(rgb: np.ndarray) -> tuple[float, float, float]:
+    """MuJoCo colours are display (sRGB) values; Blender shades in linear light."""
+    rgb = np.clip(rgb, 0.0, 1.0)
+    lin = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    return tuple(float(c) for c in lin)

@@ -1,0 +1,85 @@
+"""A mesh atlas: GPU-side mesh storage reused across scenes that share meshes.
+
+Uploading a model to the GPU (``MjrContext``) costs ~70 ms here, far more than drawing a small frame, and a
+scene generator builds a new model for every scene from a small catalogue of meshes. The atlas is a model that
+holds each distinct mesh once; a scene model whose meshes are all in it is drawn with the atlas's context by
+renumbering its mesh ids. Meshes are matched by their compiled vertex and face bytes, so a match is exact.
+"""
+from __future__ import annotations
+
+import hashlib
+import logging
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+
+def mesh_keys(model) -> list[bytes]:
+    """A content key per mesh of ``model`` (vertices and faces)."""
+    keys = []
+    for i in range(model.nmesh):
+        v0, nv = model.mesh_vertadr[i], model.mesh_vertnum[i]
+        f0, nf = model.mesh_faceadr[i], model.mesh_facenum[i]
+        h = hashlib.blake2b(digest_size=16)
+        h.update(np.ascontiguousarray(model.mesh_vert[v0:v0 + nv]).tobytes())
+        h.update(np.ascontiguousarray(model.mesh_face[f0:f0 + nf]).tobytes())
+        keys.append(h.digest())
+    return keys
+
+
+def atlas_compatible(model) -> bool:
+    """Only untextured, material-free models can borrow another model's GPU data."""
+    return model.ntex == 0 and model.nmat == 0 and model.nskin == 0 and model.nhfield == 0 and model.nflex == 0
+
+
+class MeshAtlas:
+    """Distinct meshes seen so far, compiled into one model (``self.model``) that a GL context is made from."""
+
+    def __init__(self, max_meshes: int = 1024):
+        self.max_meshes = max_meshes
+        self.model = None
+        self._index: dict[bytes, int] = {}
+        self._sources: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def remap(self, model) -> np.ndarray | None:
+        """Atlas mesh id of each mesh of ``model``, or ``None`` when some mesh is not in the atlas yet."""
+        ids = [self._index.get(k) for k in mesh_keys(model)]
+        if any(i is None for i in ids):
+            return None
+        return np.array(ids, dtype=np.int32)
+
+    def extend(self, model, width: int, height: int) -> np.ndarray:
+        """Add ``model``'s missing meshes, recompile the atlas model and return the mesh id remap."""
+        import mujoco
+
+        keys = mesh_keys(model)
+        if len(self._index) + len(keys) > self.max_meshes:
+            self._index.clear()
+            self._sources.clear()
+        for i, key in enumerate(keys):
+            if key in self._index:
+                continue
+            v0, nv = model.mesh_vertadr[i], model.mesh_vertnum[i]
+            f0, nf = model.mesh_faceadr[i], model.mesh_facenum[i]
+            self._index[key] = len(self._sources)
+            self._sources.append((np.array(model.mesh_vert[v0:v0 + nv], dtype=np.float64),
+                                  np.array(model.mesh_face[f0:f0 + nf], dtype=np.int32)))
+        spec = mujoco.MjSpec()
+        spec.visual.global_.offwidth = int(width)
+        spec.visual.global_.offheight = int(height)
+        body = spec.worldbody.add_body(name="atlas")
+        for j, (verts, faces) in enumerate(self._sources):
+            spec.add_mesh(name=f"atlas_mesh_{j}", uservert=verts.ravel().tolist(), userface=faces.ravel().tolist())
+            body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"atlas_mesh_{j}", contype=0, conaffinity=0,
+                          density=0)
+        self.model = spec.compile()
+        # Compiled meshes are already centred, so recompiling must leave them in place; check rather than trust.
+        for j, (verts, _) in enumerate(self._sources):
+            a0, an = self.model.mesh_vertadr[j], self.model.mesh_vertnum[j]
+            if an != len(verts) or np.abs(self.model.mesh_vert[a0:a0 + an] - verts).max() > 1e-6:
+                log.debug("atlas mesh %d moved when recompiled; this model is drawn from its own context", j)
+                self.model = None
+                return None
+        log.debug("mesh atlas now holds %d meshes", len(self._sources))
+        return self.remap(model)
