@@ -167,8 +167,9 @@ def _step_query_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list
 
 def _step_pass_targets(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
     # Action steps (pick_up, move_to) name their targets; the world changes only when the plan runs.
+    # move_to may find nothing left to move (a "remove" that is done); pick_up always needs an object.
     ids = _ids(prev, step, index)
-    if not ids:
+    if not ids and step["type"] == "pick_up":
         raise PlanningError(f"step {index} ({step['type']}) has no target: the filters before it match nothing")
     return list(ids)
 

@@ -64,7 +64,7 @@ class MujocoCollisionWorld(CollisionWorld):
         gripper_root: str,
         *,
         clearance: float = 0.005,
-        ik_restarts: int = 12,
+        ik_restarts: int = 40,
         seed: int = 0,
     ):
         self.model = copy.deepcopy(model)
@@ -72,7 +72,7 @@ class MujocoCollisionWorld(CollisionWorld):
         self.kinematics = ArmKinematics(self.model, self.data, arm_joints, ee_site)
         self.clearance = clearance
         self.ik_restarts = ik_restarts
-        self._rng = np.random.default_rng(seed)
+        self.seed = seed
         m = self.model
         self.robot_bodies = _subtree_bodies(m, m.body(robot_root).id)
         self.gripper_bodies = _subtree_bodies(m, m.body(gripper_root).id)
@@ -94,6 +94,7 @@ class MujocoCollisionWorld(CollisionWorld):
         self._allowed_bodies: set[int] = set()
         self.sync(data)
         self._self_ignore = self._self_collision_filter()
+        self._update_ignore()
         self.last_contacts: list[tuple[str, str]] = []
 
     # ----------------------------------------------------------------- state
@@ -133,6 +134,7 @@ class MujocoCollisionWorld(CollisionWorld):
     def allow_contact(self, bodies: Iterable[str | int]) -> None:
         """Contacts of the gripper and the held object with these bodies are allowed (grasp target, support)."""
         self._allowed_bodies = {self.model.body(b).id if isinstance(b, str) else int(b) for b in bodies}
+        self._update_ignore()
 
     def hold(self, body: str | int | None) -> None:
         """The object ``body`` moves rigidly with the hand from now on (``None`` releases it).
@@ -146,6 +148,7 @@ class MujocoCollisionWorld(CollisionWorld):
         if body is None:
             self._held_body, self._held_qpos_adr, self._held_offset = None, None, None
             self._held_geoms[:] = False
+            self._update_ignore()
             return
         bid = m.body(body).id if isinstance(body, str) else int(body)
         jnt = m.body_jntadr[bid]
@@ -157,6 +160,7 @@ class MujocoCollisionWorld(CollisionWorld):
         m.geom_contype[self._held_geoms] = _ROBOT_CLASS
         m.geom_margin[self._held_geoms] = self.clearance
         self._capture_held_offset()
+        self._update_ignore()
 
     def _capture_held_offset(self) -> None:
         d, site = self.data, self.kinematics.site_id
@@ -200,29 +204,26 @@ class MujocoCollisionWorld(CollisionWorld):
         if n == 0:
             return True
         geoms = d.contact.geom[:n]
-        dist = d.contact.dist[:n]
-        ok = True
-        for (g1, g2), depth in zip(geoms, dist):
-            if depth > self.clearance:
-                continue
-            if self._ignored(g1, g2):
-                continue
-            ok = False
-            self.last_contacts.append((m.body(m.geom_bodyid[g1]).name, m.body(m.geom_bodyid[g2]).name))
-        return ok
-
-    def _ignored(self, g1: int, g2: int) -> bool:
-        robot1 = self._robot_geoms[g1] or self._held_geoms[g1]
-        robot2 = self._robot_geoms[g2] or self._held_geoms[g2]
-        if robot1 and robot2:
-            if self._held_geoms[g1] or self._held_geoms[g2]:
-                # the held object against the gripper holding it
-                return bool(self._gripper_geoms[g1] or self._gripper_geoms[g2])
-            return bool(self._self_ignore[g1, g2])
-        own, other = (g1, g2) if robot1 else (g2, g1)
-        if self._geom_body[other] in self._allowed_bodies:
-            return bool(self._gripper_geoms[own] or self._held_geoms[own])
+        hits = ~self._ignore[geoms[:, 0], geoms[:, 1]] & (d.contact.dist[:n] <= self.clearance)
+        if not hits.any():
+            return True
+        self.last_contacts = [
+            (m.body(m.geom_bodyid[g1]).name, m.body(m.geom_bodyid[g2]).name) for g1, g2 in geoms[hits]
+        ]
         return False
+
+    def _update_ignore(self) -> None:
+        """The geom-pair table of contacts that never count, rebuilt when the held object or allowances change."""
+        m = self.model
+        robot = self._robot_geoms | self._held_geoms
+        ignore = self._self_ignore.copy()
+        held_gripper = np.outer(self._held_geoms, self._gripper_geoms)
+        ignore |= held_gripper | held_gripper.T
+        allowed = np.isin(m.geom_bodyid, list(self._allowed_bodies)) & ~robot
+        own = self._gripper_geoms | self._held_geoms
+        allowed_pairs = np.outer(own, allowed)
+        ignore |= allowed_pairs | allowed_pairs.T
+        self._ignore = ignore
 
     def is_valid(self, q: np.ndarray) -> bool:
         lim = self.kinematics.limits
@@ -237,6 +238,19 @@ class MujocoCollisionWorld(CollisionWorld):
         pos, quat = self.kinematics.site_pose(q)
         return Pose(pos, quat)
 
+    def local_inverse_kinematics(self, goal: PoseGoal, seed: np.ndarray) -> np.ndarray:
+        """The solution reached from ``seed`` alone (no restarts): continuous motion along a Cartesian path."""
+        res = self.kinematics.solve(goal.pose.pos, goal.pose.quat, seed,
+                                    position_tolerance=goal.position_tolerance * 0.5,
+                                    orientation_tolerance=goal.orientation_tolerance * 0.5)
+        where = np.round(goal.pose.pos, 3).tolist()
+        if not res.within(goal.position_tolerance, goal.orientation_tolerance):
+            raise PlanningError(f"pose at {where} not reached from the previous configuration "
+                                f"({res.position_error * 1000:.1f} mm off): joint limit or singularity")
+        if not self.is_valid(res.q):
+            raise PlanningError(f"pose at {where} is in collision {self.last_contacts[:3]}")
+        return res.q
+
     def inverse_kinematics(self, goal: PoseGoal, seeds: np.ndarray | None = None) -> np.ndarray:
         """Seeds in order (the synced arm configuration when none), then random restarts within the limits.
 
@@ -245,7 +259,8 @@ class MujocoCollisionWorld(CollisionWorld):
         """
         lim = self.kinematics.limits
         ordered = [np.asarray(s, dtype=float) for s in (np.atleast_2d(seeds) if seeds is not None else [self.arm_q])]
-        restarts = self._rng.uniform(lim[:, 0], lim[:, 1], size=(self.ik_restarts, len(lim)))
+        # A fresh generator per call: the same query always gets the same answer, whatever came before.
+        restarts = np.random.default_rng(self.seed).uniform(lim[:, 0], lim[:, 1], size=(self.ik_restarts, len(lim)))
         reached_in_collision: list[tuple[str, str]] | None = None
         best_pos_err = np.inf
         for seed in [*ordered, *restarts]:

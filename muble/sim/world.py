@@ -18,6 +18,7 @@ import numpy as np
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
+from muble.sim.object_mjcf import object_body_name, object_mjcf
 
 logger = logging.getLogger(__name__)
 
@@ -28,10 +29,6 @@ FRONT_CAMERA = "front"
 WRIST_CAMERA = "wrist"
 # The SHOP-VRB2 front camera (position in m, Blender XYZ Euler angles in degrees) used when a scene has none.
 DEFAULT_CAMERA = {"position": [1.15, -0.14, 0.22], "rotation": [83.0, 0.0, 89.0], "fovy": 50.0}
-
-
-def object_body_name(obj_id: int) -> str:
-    return f"object{obj_id}"
 
 
 def object_weld_name(obj_id: int) -> str:
@@ -83,33 +80,6 @@ def _shift_down(worldbody: ET.Element, dz: float) -> None:
             pos = np.fromstring(child.get("pos", "0 0 0"), sep=" ")
             pos[2] -= dz
             child.set("pos", _fmt(pos))
-
-
-def object_body(model: ObjectModel, obj_id: int, pos, quat, asset: ET.Element) -> ET.Element:
-    """An MJCF body for ``model``: free joint, exact mass and inertia, convex collision meshes, a visual mesh.
-
-    Contact stiffness and damping go into ``solref`` as direct (negative) values.
-    """
-    name = object_body_name(obj_id)
-    body = ET.Element("body", name=name, pos=_fmt(pos), quat=_fmt(quat))
-    ET.SubElement(body, "freejoint", name=f"{name}_joint")
-    inertia = np.asarray(model.inertia, dtype=float)
-    ET.SubElement(body, "inertial", pos=_fmt(model.com), mass=f"{model.mass:.9g}",
-                  fullinertia=_fmt([inertia[0, 0], inertia[1, 1], inertia[2, 2],
-                                    inertia[0, 1], inertia[0, 2], inertia[1, 2]]))
-    solref = _fmt([-model.stiffness, -model.damping])
-    for i, part in enumerate(model.collision_parts):
-        mesh = f"{name}_collision{i}"
-        ET.SubElement(asset, "mesh", name=mesh, vertex=_fmt(part.vertices), face=_fmt(part.faces.astype(int)))
-        ET.SubElement(body, "geom", name=f"{name}_collision{i}", type="mesh", mesh=mesh, group="3",
-                      friction=_fmt([model.friction, 0.005, 0.0001]), solref=solref,
-                      solimp="0.95 0.99 0.001", condim="4", rgba="0 0 0 0", density="0", contype="1",
-                      conaffinity="1")
-    ET.SubElement(asset, "mesh", name=f"{name}_visual", vertex=_fmt(model.visual.vertices),
-                  face=_fmt(model.visual.faces.astype(int)))
-    ET.SubElement(body, "geom", name=f"{name}_visual", type="mesh", mesh=f"{name}_visual", group="1",
-                  contype="0", conaffinity="0", density="0", rgba=_fmt(model.rgba))
-    return body
 
 
 def _camera_element(name: str, params: dict) -> ET.Element:
@@ -179,8 +149,17 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
     if missing:
         raise ConfigError(f"no object model for scene object(s) {missing}; build one per scene object")
     for obj in scene.objects:
-        world.worldbody.append(object_body(models[obj.id], obj.id, obj.position, obj.orientation, world.asset))
-        names.objects[obj.id] = object_body_name(obj.id)
+        fragment = object_mjcf(models[obj.id], obj.id, obj.position, obj.orientation)
+        for mesh in ET.fromstring(f"<asset>{fragment.asset_xml}</asset>"):
+            world.asset.append(mesh)
+        world.worldbody.append(ET.fromstring(fragment.body_xml))
+        names.objects[obj.id] = fragment.body_name
+
+    # MuJoCo cancels gravity on the robot's links (its bodies must be marked before compiling: the compiler
+    # counts them); held objects are not compensated, their weight is what the wrist sensor measures.
+    for body in world.worldbody.iter("body"):
+        if body.get("name", "").startswith(names.robot_geom_prefixes[:2]):
+            body.set("gravcomp", "1")
 
     model = _compile(world, names, timestep)
     return model, names

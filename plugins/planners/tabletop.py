@@ -24,6 +24,7 @@ class Tabletop:
     home_q: np.ndarray
     table_top_z: float
     box_bodies: list[str] = field(default_factory=list)
+    object_bodies: list[str] = field(default_factory=list)
 
     def collision_world(self, **options):
         from muble.sim.collision_world import MujocoCollisionWorld
@@ -38,10 +39,12 @@ def build_tabletop(
     boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]] = (),
     table_size: tuple[float, float, float] = (0.8, 0.8, 0.05),
     table_height: float = 0.8,
+    free_boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]] = (),
 ) -> Tabletop:
     """Compile ``robot`` beside a table carrying ``boxes`` given as ((x, y, z) centre, (hx, hy, hz) half-size).
 
-    Box centres are in world coordinates; boxes are fixed obstacles (no joint), so they stay put.
+    Box centres are in world coordinates; ``boxes`` are fixed obstacles (no joint), ``free_boxes`` have a free
+    joint (objects that can be grasped and held) and are named ``object<i>_main``.
     """
     from robosuite.models.arenas import TableArena
     from robosuite.models.bases import robot_base_factory
@@ -60,7 +63,9 @@ def build_tabletop(
     arena = TableArena(table_full_size=table_size, table_offset=(0, 0, table_height))
     objects = [BoxObject(name=f"obstacle{i}", size=list(half), rgba=[0.8, 0.2, 0.2, 1], joints=None)
                for i, (_, half) in enumerate(boxes)]
-    task = ManipulationTask(mujoco_arena=arena, mujoco_robots=[arm], mujoco_objects=objects)
+    free = [BoxObject(name=f"object{i}", size=list(half), rgba=[0.2, 0.6, 0.2, 1])
+            for i, (_, half) in enumerate(free_boxes)]
+    task = ManipulationTask(mujoco_arena=arena, mujoco_robots=[arm], mujoco_objects=objects + free)
     for obj, (centre, _) in zip(objects, boxes):
         obj.get_obj().set("pos", " ".join(str(v) for v in centre))
     model = task.get_model(mode="mujoco")
@@ -69,6 +74,9 @@ def build_tabletop(
     home = np.asarray(arm.init_qpos, dtype=float)
     for name, value in zip(arm_joints, home):
         data.qpos[model.joint(name).qposadr[0]] = value
+    for obj, (centre, _) in zip(free, free_boxes):
+        adr = model.joint(obj.joints[0]).qposadr[0]
+        data.qpos[adr : adr + 7] = [*centre, 1.0, 0.0, 0.0, 0.0]
     mujoco.mj_forward(model, data)
     return Tabletop(
         model=model,
@@ -80,4 +88,5 @@ def build_tabletop(
         home_q=home,
         table_top_z=table_height,
         box_bodies=[o.root_body for o in objects],
+        object_bodies=[o.root_body for o in free],
     )

@@ -1,21 +1,8 @@
-"""Blender renderer plugin (being written)."""
-from dataclasses import dataclass
+"""Blender renderer plugin: photoreal keyframes of MuJoCo states with depth and segmentation passes.
 
-from muble import Renderer
+``bpy`` is imported inside ``setup``/``render`` only, so registering the plugin costs nothing.
+"""
+from .config import BlenderRendererConfig
+from .renderer import BlenderRenderer
 
-
-@dataclass
-class BlenderRendererConfig:
-    width: int = 640
-    height: int = 480
-
-
-class BlenderRenderer(Renderer):
-    def __init__(self, **options):
-        self.options = options
-
-    def setup(self, scene, model):
-        raise NotImplementedError
-
-    def render(self, data, camera):
-        raise NotImplementedError
+__all__ = ["BlenderRenderer", "BlenderRendererConfig"]

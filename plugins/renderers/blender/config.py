@@ -37,8 +37,9 @@ class BlenderRendererConfig:
     geom_groups: list[int] = field(default_factory=lambda: [1])  # MuJoCo geom groups drawn (robosuite: 1 = visual)
     floor: bool = True  # draw the world body's geoms (floor, walls)
     table_material: str = "wood"
+    table_rgb: list[float] | None = field(default_factory=lambda: [0.62, 0.45, 0.3])  # None: MuJoCo's colour
     background_rgb: list[float] = field(default_factory=lambda: [0.78, 0.80, 0.84])
-    background_strength: float = 0.5
+    background_strength: float = 0.3
     light_energy: float = 1.0  # multiplies the key/fill/back rig
     light_jitter: float = 0.1  # relative jitter of light position and energy, drawn per scene from ``seed``
     seed: int = 0

@@ -34,15 +34,8 @@ def _channel_list(value: bytes) -> list[tuple[str, int]]:
     return channels
 
 
-def read_exr(path: str | Path) -> dict[str, np.ndarray]:
-    """All channels of an uncompressed EXR as float32 or uint32 arrays of shape (height, width), top row first."""
-    buf = Path(path).read_bytes()
-    magic, version = struct.unpack_from("<ii", buf, 0)
-    if magic != _MAGIC:
-        raise RenderError(f"{path} is not an OpenEXR file")
-    if version & 0x1200:  # tiled (0x200) or multi-part (0x1000)
-        raise RenderError(f"{path} is tiled or multi-part; write render passes as scan lines, single part")
-    pos, attrs = 8, {}
+def _read_header(buf: bytes, pos: int) -> tuple[dict[str, bytes], int]:
+    attrs = {}
     while buf[pos] != 0:
         name, pos = _read_cstring(buf, pos)
         _type, pos = _read_cstring(buf, pos)
@@ -50,26 +43,55 @@ def read_exr(path: str | Path) -> dict[str, np.ndarray]:
         pos += 4
         attrs[name] = buf[pos:pos + size]
         pos += size
-    pos += 1
+    return attrs, pos + 1
+
+
+def _part_layout(path: Path, attrs: dict[str, bytes]) -> tuple[int, int, list[tuple[str, int]]]:
     if attrs["compression"][0] != 0:
         raise RenderError(f"{path} is compressed (codec {attrs['compression'][0]}); set exr_codec='NONE'")
+    if b"tiled" in attrs.get("type", b""):
+        raise RenderError(f"{path} is tiled; write render passes as scan lines")
     xmin, ymin, xmax, ymax = struct.unpack("<iiii", attrs["dataWindow"])
-    width, height = xmax - xmin + 1, ymax - ymin + 1
-    channels = _channel_list(attrs["channels"])
-    # One scan line per chunk when uncompressed; each holds every channel's row, in channel-list order.
-    row = np.dtype([(name, _PIXEL_TYPES[ptype], (width,)) for name, ptype in channels])
-    offsets = np.frombuffer(buf, dtype="<u8", count=height, offset=pos)
-    chunk = np.dtype([("y", "<i4"), ("size", "<i4"), ("row", row)])
-    first = int(offsets[0])
-    if np.all(np.diff(offsets.astype(np.int64)) == chunk.itemsize):
-        # Chunks are contiguous: read them all in one strided view (the common case).
-        chunks = np.frombuffer(buf, dtype=chunk, count=height, offset=first)
-    else:
-        chunks = np.stack([np.frombuffer(buf, dtype=chunk, count=1, offset=int(o))[0] for o in offsets])
-    order = np.argsort(chunks["y"])
-    rows = chunks["row"][order]
-    out = {}
-    for name, ptype in channels:
-        data = rows[name]
-        out[name] = data.astype(np.float32) if ptype == 1 else np.ascontiguousarray(data)
+    return xmax - xmin + 1, ymax - ymin + 1, _channel_list(attrs["channels"])
+
+
+def read_exr(path: str | Path) -> dict[str, np.ndarray]:
+    """All channels of an uncompressed scan-line EXR (single or multi-part) as float32 or uint32 arrays of
+    shape (height, width), top row first."""
+    path = Path(path)
+    buf = path.read_bytes()
+    magic, version = struct.unpack_from("<ii", buf, 0)
+    if magic != _MAGIC:
+        raise RenderError(f"{path} is not an OpenEXR file")
+    if version & 0x200:
+        raise RenderError(f"{path} is tiled; write render passes as scan lines")
+    multipart = bool(version & 0x1000)
+    headers, pos = [], 8
+    while True:
+        attrs, pos = _read_header(buf, pos)
+        headers.append(attrs)
+        if not multipart or buf[pos] == 0:
+            break
+    if multipart:
+        pos += 1  # the empty header that ends the list
+    layouts = [_part_layout(path, attrs) for attrs in headers]
+    tables = []
+    for _width, height, _channels in layouts:
+        tables.append(np.frombuffer(buf, dtype="<u8", count=height, offset=pos).astype(np.int64))
+        pos += 8 * height
+    out: dict[str, np.ndarray] = {}
+    for (width, height, channels), offsets in zip(layouts, tables):
+        # One scan line per chunk when uncompressed; each holds every channel's row, in channel-list order.
+        row = np.dtype([(name, _PIXEL_TYPES[ptype], (width,)) for name, ptype in channels])
+        prefix = [("part", "<i4")] if multipart else []
+        chunk = np.dtype([*prefix, ("y", "<i4"), ("size", "<i4"), ("row", row)])
+        if np.all(np.diff(offsets) == chunk.itemsize):
+            # Chunks are contiguous: read them in one strided view (what Blender writes).
+            chunks = np.frombuffer(buf, dtype=chunk, count=height, offset=int(offsets[0]))
+        else:
+            chunks = np.concatenate([np.frombuffer(buf, dtype=chunk, count=1, offset=int(o)) for o in offsets])
+        rows = chunks["row"][np.argsort(chunks["y"], kind="stable")]
+        for name, ptype in channels:
+            data = rows[name]
+            out[name] = data.astype(np.float32) if ptype == 1 else np.ascontiguousarray(data)
     return out

@@ -108,24 +108,25 @@ def _ceramic(mat, bsdf, rgb, nodes, links):
 
 
 def _wood(mat, bsdf, rgb, nodes, links):
-    # Growth rings from a distorted wave texture, pulled between a light and a dark tone of the colour.
-    coords = _object_coords(nodes, links)
+    # Grain: distorted bands across the object's bounding box, pulled between a dark and a light tone of
+    # the colour, with a faint bump. Box-relative coordinates keep the grain size in proportion to the object.
+    coords = nodes.new("ShaderNodeTexCoord").outputs["Generated"]
     wave = nodes.new("ShaderNodeTexWave")
-    wave.wave_type = "RINGS"
-    wave.rings_direction = "Z"
-    wave.inputs["Scale"].default_value = 18.0
-    wave.inputs["Distortion"].default_value = 6.0
-    wave.inputs["Detail"].default_value = 3.0
-    wave.inputs["Detail Scale"].default_value = 1.5
+    wave.wave_type = "BANDS"
+    wave.bands_direction = "X"
+    wave.inputs["Scale"].default_value = 3.0
+    wave.inputs["Distortion"].default_value = 9.0
+    wave.inputs["Detail"].default_value = 4.0
+    wave.inputs["Detail Scale"].default_value = 1.2
     links.new(coords, wave.inputs["Vector"])
     ramp = nodes.new("ShaderNodeValToRGB")
     rgb = np.asarray(rgb)
-    ramp.color_ramp.elements[0].color = (*(0.45 * rgb), 1)
-    ramp.color_ramp.elements[1].color = (*np.clip(1.1 * rgb, 0, 1), 1)
+    ramp.color_ramp.elements[0].color = (*(0.4 * rgb), 1)
+    ramp.color_ramp.elements[1].color = (*np.clip(1.15 * rgb, 0, 1), 1)
     links.new(wave.outputs["Fac"], ramp.inputs["Fac"])
     links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
     _set(bsdf, Roughness=0.55, Specular_IOR_Level=0.35)
-    _bump(nodes, links, bsdf, wave.outputs["Fac"], 0.08, 0.001)
+    _bump(nodes, links, bsdf, wave.outputs["Fac"], 0.05, 0.001)
 
 
 RECIPES = {"plastic": _plastic, "metal": _metal, "glass": _glass, "rubber": _rubber, "wood": _wood,

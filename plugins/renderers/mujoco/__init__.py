@@ -1,21 +1,4 @@
-"""Mujoco renderer plugin (being written)."""
-from dataclasses import dataclass
+"""The MuJoCo renderer: fast headless RGB, depth and segmentation for previews, tests and occlusion checks."""
+from muble_plugins.renderers.mujoco.renderer import MujocoRenderer, MujocoRendererConfig
 
-from muble import Renderer
-
-
-@dataclass
-class MujocoRendererConfig:
-    width: int = 640
-    height: int = 480
-
-
-class MujocoRenderer(Renderer):
-    def __init__(self, **options):
-        self.options = options
-
-    def setup(self, scene, model):
-        raise NotImplementedError
-
-    def render(self, data, camera):
-        raise NotImplementedError
+__all__ = ["MujocoRenderer", "MujocoRendererConfig"]

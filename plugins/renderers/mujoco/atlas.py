@@ -80,6 +80,8 @@ class MeshAtlas:
             if an != len(verts) or np.abs(self.model.mesh_vert[a0:a0 + an] - verts).max() > 1e-6:
                 log.debug("atlas mesh %d moved when recompiled; this model is drawn from its own context", j)
                 self.model = None
+                self._index.clear()
+                self._sources.clear()
                 return None
         log.debug("mesh atlas now holds %d meshes", len(self._sources))
         return self.remap(model)

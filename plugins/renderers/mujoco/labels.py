@@ -1,6 +1,7 @@
 """Which segmentation label each MuJoCo geom gets, decided from body and geom names.
 
-Objects are bodies named ``object_<id>`` (the scene id; child bodies and geoms of that body inherit it). The
+Objects are bodies named ``obj<id>`` (``muble.sim.object_mjcf``), ``object<id>`` or ``object_<id>`` (the scene
+id; child bodies and geoms of that body inherit it). The
 table is anything whose body or geom name contains ``table``. The robot is everything robosuite prefixes with
 ``robot<k>_``, ``gripper<k>_``, ``mount<k>_`` or ``fixed_mount<k>_``. Everything else (floor, walls, world
 geoms) is background.
@@ -13,7 +14,7 @@ import numpy as np
 
 from muble import SEG_BACKGROUND, SEG_ROBOT, SEG_TABLE
 
-OBJECT_NAME = re.compile(r"^object_(\d+)(?:$|[_/.])")
+OBJECT_NAME = re.compile(r"^obj(?:ect)?_?(\d+)(?:$|[_/.])")
 ROBOT_NAME = re.compile(r"^(?:robot|gripper|mount|fixed_mount)\d*_")
 
 

@@ -1,0 +1,1 @@
+"""Dataset production at scale: deterministic per-index work, atomic outputs, resumable shards, executors."""

@@ -1,0 +1,93 @@
+"""The two physical checks of a layout: what the task camera sees, and whether the objects rest.
+
+Both build MuJoCo models from the object models: a light one (visual meshes, table, camera) for the renderer,
+and a full one (convex collision parts, exact masses, contact stiffness from ``muble.sim.object_mjcf``) that is
+stepped for ``settle_time`` seconds.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from muble.core.camera import CameraParams
+from muble.core.objects import ObjectModel
+from muble.generation.placement import Placement
+
+CAMERA_NAME = "front"
+TABLE_THICKNESS = 0.05
+
+
+def _table_geom_args(table_x, table_y) -> dict:
+    import mujoco
+
+    hx, hy = (table_x[1] - table_x[0]) / 2.0, (table_y[1] - table_y[0]) / 2.0
+    centre = [(table_x[0] + table_x[1]) / 2.0, (table_y[0] + table_y[1]) / 2.0, -TABLE_THICKNESS / 2.0]
+    return dict(name="table", type=mujoco.mjtGeom.mjGEOM_BOX, size=[hx, hy, TABLE_THICKNESS / 2.0], pos=centre,
+                rgba=[0.6, 0.5, 0.4, 1.0])
+
+
+def view_model(models: list[ObjectModel], placements: list[Placement], camera: CameraParams, table_x, table_y):
+    """A render-only MuJoCo model: the table top at z = 0, object ``i`` as body ``obj{i}``, camera ``front``."""
+    import mujoco
+
+    spec = mujoco.MjSpec()
+    spec.visual.global_.offwidth = int(camera.width)
+    spec.visual.global_.offheight = int(camera.height)
+    spec.worldbody.add_light(pos=[0.4, 0.0, 3.0], dir=[0.0, 0.0, -1.0])
+    spec.worldbody.add_geom(**_table_geom_args(table_x, table_y))
+    for i, (model, placement) in enumerate(zip(models, placements)):
+        spec.add_mesh(name=f"obj{i}_visual_mesh", uservert=np.asarray(model.visual.vertices, float).ravel().tolist(),
+                      userface=np.asarray(model.visual.faces, np.int32).ravel().tolist())
+        body = spec.worldbody.add_body(name=f"obj{i}", pos=placement.position.tolist(), quat=placement.quat.tolist())
+        body.add_geom(name=f"obj{i}_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"obj{i}_visual_mesh",
+                      contype=0, conaffinity=0, density=0, rgba=list(model.rgba))
+    spec.worldbody.add_camera(name=CAMERA_NAME, pos=camera.position.tolist(), quat=camera.mujoco_quat.tolist(),
+                              fovy=camera.fovy_deg)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def visible_pixels(segmentation: np.ndarray, n_objects: int) -> np.ndarray:
+    """Pixels per object id 0 … n-1."""
+    labels = segmentation[segmentation >= 0]
+    return np.bincount(labels, minlength=n_objects)[:n_objects]
+
+
+def physics_world_xml(models: list[ObjectModel], placements: list[Placement], table_x, table_y,
+                      timestep: float) -> str:
+    """The objects (``muble.sim.object_mjcf``) on a table box, with robosuite's contact options."""
+    from muble.sim.object_mjcf import object_mjcf
+
+    assets, bodies = [], []
+    for i, (model, placement) in enumerate(zip(models, placements)):
+        mjcf = object_mjcf(model, i, placement.position, placement.quat)
+        assets.append(mjcf.asset_xml)
+        bodies.append(mjcf.body_xml)
+    t = _table_geom_args(table_x, table_y)
+    return (
+        '<mujoco model="settling">'
+        f'<option timestep="{timestep}" impratio="20" cone="elliptic"/>'
+        f'<asset>{"".join(assets)}</asset><worldbody>'
+        f'<geom name="table" type="box" size="{" ".join(map(str, t["size"]))}" '
+        f'pos="{" ".join(map(str, t["pos"]))}" friction="1 0.005 0.0001"/>'
+        f'{"".join(bodies)}</worldbody></mujoco>'
+    )
+
+
+def settle(models: list[ObjectModel], placements: list[Placement], table_x, table_y, timestep: float,
+           settle_time: float) -> np.ndarray:
+    """How far (m) each object's base centre and centre of mass moved in ``settle_time`` seconds of physics."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(physics_world_xml(models, placements, table_x, table_y, timestep))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    bodies = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"obj{i}") for i in range(len(models))]
+    origin0, com0 = data.xpos[bodies].copy(), data.xipos[bodies].copy()
+    mujoco.mj_step(model, data, nstep=max(1, int(round(settle_time / timestep))))
+    if not np.all(np.isfinite(data.qpos)):
+        return np.full(len(models), np.inf)
+    moved = np.maximum(np.linalg.norm(data.xpos[bodies] - origin0, axis=1),
+                       np.linalg.norm(data.xipos[bodies] - com0, axis=1))
+    return moved

@@ -1,0 +1,52 @@
+"""The scene generator's options (a structured config: a mistyped key is an error)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_LENS_MM, DEFAULT_POSITION, DEFAULT_ROTATION_DEG, DEFAULT_WIDTH
+
+
+@dataclass
+class GeneratorConfig:
+    """How SHOP-VRB2 scenes are sampled, placed and checked.
+
+    ``count_probabilities`` gives the chance of each object count from ``min_objects`` up (SHOP-VRB2: 47.3% of
+    scenes hold 4 objects, 52.7% hold 5). Objects are placed with their base centre inside ``reach_x`` x
+    ``reach_y`` (the arm's reachable part of the table, metres in the robot frame) and their whole footprint on
+    the table; ``margin`` is the least mesh-to-mesh distance between objects. ``min_visible_pixels`` is counted
+    on the full-size image; the check renders at ``occlusion_scale`` of it.
+    """
+
+    object_set: str = "shopvrb2"
+    object_set_options: dict[str, Any] = field(default_factory=dict)
+    split: str = "train"
+    min_objects: int = 4
+    count_probabilities: list[float] = field(default_factory=lambda: [0.473, 0.527])
+    reach_x: list[float] = field(default_factory=lambda: [0.28, 0.72])
+    reach_y: list[float] = field(default_factory=lambda: [-0.36, 0.12])
+    table_x: list[float] = field(default_factory=lambda: [0.0, 0.9])
+    table_y: list[float] = field(default_factory=lambda: [-0.6, 0.6])
+    margin: float = 0.01  # m
+    min_weight_gap: float = 5.0  # g
+    min_visible_pixels: int = 200
+    occlusion_scale: float = 1.0
+    masks: bool = True
+    stability: bool = True
+    settle_time: float = 1.0  # s
+    stability_tolerance: float = 0.005  # m
+    timestep: float = 0.002  # s
+    placement_tries: int = 60  # positions tried per object before the layout is restarted
+    layout_tries: int = 25  # layouts (fresh samples) tried per scene before giving up
+    camera_position: list[float] = field(default_factory=lambda: list(DEFAULT_POSITION))
+    camera_rotation: list[float] = field(default_factory=lambda: list(DEFAULT_ROTATION_DEG))  # Blender EulerXYZ
+    image_width: int = DEFAULT_WIDTH
+    image_height: int = DEFAULT_HEIGHT
+    lens_mm: float = DEFAULT_LENS_MM
+
+
+def register_generator_config() -> None:
+    """Store the schema as ``generator/generator_schema`` so ``conf/generator/*.yaml`` can extend it."""
+    from hydra.core.config_store import ConfigStore
+
+    ConfigStore.instance().store(group="generator", name="generator_schema", node=GeneratorConfig)

@@ -1,0 +1,214 @@
+"""The SHOP-VRB2 scene generator: sample objects, place them mesh-exactly, check visibility and rest, record GT.
+
+Every scene is a pure function of (``seed``, ``index``): the random stream is ``numpy.random.default_rng([seed,
+index])`` and every retry draws from it, so the same pair always yields the same JSON, and a shard of indices
+can be generated anywhere in any order.
+"""
+from __future__ import annotations
+
+import collections
+import dataclasses
+import logging
+import math
+import time
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from muble.core.camera import CameraParams, euler_xyz_to_matrix
+from muble.core.errors import ConfigError
+from muble.core.objects import ObjectModel, ObjectSpec
+from muble.core.scene import SceneGraph, SceneObject
+from muble.generation import checks, ground_truth
+from muble.generation.config import GeneratorConfig
+from muble.generation.placement import CollisionMesh, Placement, TableLayout
+
+log = logging.getLogger(__name__)
+
+# Key, back and fill lamps (metres, robot frame) that the Blender renderer lights the table with.
+LAMPS = {"Lamp_Key": [3.2, -2.1, 2.2], "Lamp_Back": [-1.8, 2.0, 2.3], "Lamp_Fill": [-2.4, -3.0, 2.5]}
+WEIGHT_RESAMPLES = 30
+
+
+def _config(config: GeneratorConfig | dict | DictConfig | None) -> GeneratorConfig:
+    if isinstance(config, GeneratorConfig):
+        return config
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(GeneratorConfig), config or {})
+    except Exception as e:  # omegaconf raises several types for a bad key or value
+        valid = ", ".join(f.name for f in dataclasses.fields(GeneratorConfig))
+        raise ConfigError(f"generator config: {e}; valid options: {valid}") from e
+    return OmegaConf.to_object(merged)
+
+
+class SceneGenerator:
+    """Generates scenes by index. ``object_set`` and ``renderer`` default to registry plugins named in the config."""
+
+    def __init__(self, config: GeneratorConfig | dict | DictConfig | None = None, seed: int = 0,
+                 object_set: Any = None, renderer: Any = None):
+        self.config = cfg = _config(config)
+        self.seed = int(seed)
+        self._check_config(cfg)
+        if object_set is None:
+            from muble.plugins.registry import get_registry
+
+            object_set = get_registry().create("object_set", cfg.object_set, cfg.object_set_options)
+        self.object_set = object_set
+        self.camera = CameraParams(np.array(cfg.camera_position, float), euler_xyz_to_matrix(cfg.camera_rotation),
+                                   cfg.image_width, cfg.image_height, cfg.lens_mm)
+        self.check_camera = self.camera.scaled(cfg.occlusion_scale) if cfg.occlusion_scale != 1.0 else self.camera
+        self._renderer = renderer
+        self._mask_renderer = None
+        self.directions = ground_truth.directions(self.camera)
+        self.failures: collections.Counter[str] = collections.Counter()  # why layouts were rejected, all scenes
+        self.timings: collections.Counter[str] = collections.Counter()  # seconds spent per stage, all scenes
+
+    @staticmethod
+    def _check_config(cfg: GeneratorConfig) -> None:
+        table_w = min(cfg.table_x[1] - cfg.table_x[0], cfg.table_y[1] - cfg.table_y[0])
+        if cfg.margin < 0 or cfg.margin >= table_w:
+            raise ConfigError(f"margin {cfg.margin} m must be >= 0 and narrower than the table ({table_w:.2f} m); "
+                              "lower generator.margin")
+        if cfg.reach_x[0] >= cfg.reach_x[1] or cfg.reach_y[0] >= cfg.reach_y[1]:
+            raise ConfigError(f"reach_x {cfg.reach_x} and reach_y {cfg.reach_y} must be [low, high] ranges")
+        if cfg.min_objects < 1 or not cfg.count_probabilities or abs(sum(cfg.count_probabilities) - 1) > 1e-6:
+            raise ConfigError("need min_objects >= 1 and count_probabilities that sum to 1, "
+                              f"got {cfg.min_objects} and {cfg.count_probabilities}")
+        if cfg.layout_tries < 1 or cfg.placement_tries < 1:
+            raise ConfigError("layout_tries and placement_tries must be >= 1")
+        if not 0 < cfg.occlusion_scale <= 1:
+            raise ConfigError(f"occlusion_scale must be in (0, 1], got {cfg.occlusion_scale}")
+
+    # --- renderers --------------------------------------------------------------------------------------------
+    def _renderer_for(self, camera: CameraParams):
+        from muble.plugins.registry import get_registry
+
+        return get_registry().create("renderer", "mujoco", {"width": camera.width, "height": camera.height,
+                                                            "rgb": False, "depth": False, "segmentation": True})
+
+    @property
+    def renderer(self):
+        if self._renderer is None:
+            self._renderer = self._renderer_for(self.check_camera)
+        return self._renderer
+
+    def close(self) -> None:
+        for r in (self._renderer, self._mask_renderer):
+            if r is not None:
+                r.close()
+        self._renderer = self._mask_renderer = None
+
+    # --- sampling ---------------------------------------------------------------------------------------------
+    def _sample_specs(self, rng: np.random.Generator) -> list[ObjectSpec] | None:
+        cfg = self.config
+        count = cfg.min_objects + int(rng.choice(len(cfg.count_probabilities), p=cfg.count_probabilities))
+        specs: list[ObjectSpec] = []
+        for _ in range(count):
+            for _ in range(WEIGHT_RESAMPLES):
+                spec = self.object_set.sample(rng)
+                spec.weight_g = round(float(spec.weight_g), 1)  # the file keeps 0.1 g; the gap is checked on that
+                if all(abs(spec.weight_g - s.weight_g) >= cfg.min_weight_gap for s in specs):
+                    specs.append(spec)
+                    break
+            else:
+                return None
+        return specs
+
+    def _layout(self, models: list[ObjectModel], rng: np.random.Generator) -> list[Placement] | None:
+        cfg = self.config
+        layout = TableLayout(cfg.reach_x, cfg.reach_y, cfg.table_x, cfg.table_y, cfg.margin)
+        meshes = [CollisionMesh(m) for m in models]
+        placements: list[Placement | None] = [None] * len(models)
+        for i in sorted(range(len(models)), key=lambda k: -meshes[k].radius):  # big footprints first pack best
+            placements[i] = layout.try_place(meshes[i], rng, cfg.placement_tries)
+            if placements[i] is None:
+                return None
+        return placements  # type: ignore[return-value]
+
+    # --- one scene --------------------------------------------------------------------------------------------
+    def generate(self, index: int) -> SceneGraph:
+        """The scene for ``index``; raises ``ConfigError`` naming the failing check if no layout passes."""
+        cfg = self.config
+        rng = np.random.default_rng([self.seed, int(index)])
+        reasons: collections.Counter[str] = collections.Counter()
+        for _ in range(cfg.layout_tries):
+            specs = self._sample_specs(rng)
+            if specs is None:
+                reasons["weights"] += 1
+                continue
+            t0 = time.perf_counter()
+            models = [self.object_set.build(s) for s in specs]
+            t1 = time.perf_counter()
+            placements = self._layout(models, rng)
+            t2 = time.perf_counter()
+            self.timings["build"] += t1 - t0
+            self.timings["placement"] += t2 - t1
+            if placements is None:
+                reasons["placement"] += 1
+                continue
+            view, data = checks.view_model(models, placements, self.check_camera, cfg.table_x, cfg.table_y)
+            t3 = time.perf_counter()
+            self.renderer.setup(None, view)
+            frame = self.renderer.render(data, checks.CAMERA_NAME)
+            t4 = time.perf_counter()
+            self.timings["view_model"] += t3 - t2
+            self.timings["render"] += t4 - t3
+            need = cfg.min_visible_pixels * (self.check_camera.width * self.check_camera.height) / (
+                self.camera.width * self.camera.height)
+            if np.any(checks.visible_pixels(frame.segmentation, len(models)) < need):
+                reasons["occlusion"] += 1
+                continue
+            if cfg.stability:
+                moved = checks.settle(models, placements, cfg.table_x, cfg.table_y, cfg.timestep, cfg.settle_time)
+                self.timings["stability"] += time.perf_counter() - t4
+                if np.any(moved > cfg.stability_tolerance):
+                    reasons["stability"] += 1
+                    continue
+            masks = self._masks(models, placements, frame) if cfg.masks else None
+            return self._scene(index, specs, models, placements, masks)
+        self.failures.update(reasons)
+        detail = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items()))
+        raise ConfigError(
+            f"scene {index}: no valid layout in {cfg.layout_tries} tries ({detail}). Place fewer or smaller "
+            "objects, lower generator.margin or generator.min_visible_pixels, or widen reach_x/reach_y")
+
+    def _masks(self, models, placements, frame) -> np.ndarray:
+        if self.check_camera is self.camera:
+            return frame.segmentation
+        if self._mask_renderer is None:
+            self._mask_renderer = self._renderer_for(self.camera)
+        view, data = checks.view_model(models, placements, self.camera, self.config.table_x, self.config.table_y)
+        self._mask_renderer.setup(None, view)
+        return self._mask_renderer.render(data, checks.CAMERA_NAME).segmentation
+
+    def _scene(self, index, specs, models, placements, segmentation) -> SceneGraph:
+        cfg = self.config
+        objects = []
+        for i, (spec, model, p) in enumerate(zip(specs, models, placements)):
+            ext = np.asarray(model.extents, float)
+            objects.append(SceneObject(
+                id=i, model=spec.model, name=spec.category, shape=spec.shape, size=spec.size,
+                material=spec.material, colour=spec.colour, position=p.position, orientation=p.quat,
+                weight_gt=spec.weight_g, stackable=bool(model.stackable), stack_base=bool(model.stack_base),
+                pickupable=bool(model.pickupable), rotation=math.degrees(p.yaw) % 360.0,
+                pixel_coords=ground_truth.pixel_coords(self.camera, p.position),
+                movability="portable" if model.pickupable else "stationary",
+                bbox={"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])},
+                scale_factor=float(spec.scale),
+                mask=ground_truth.encode_mask(segmentation == i) if segmentation is not None else None,
+                stiffness=float(model.stiffness),
+            ))
+        name = f"SHOPVRB2_{cfg.split}_{index:06d}.png"
+        scene = SceneGraph(
+            objects=objects, split=cfg.split, image_index=int(index), image_filename=name,
+            directions=self.directions, camera_params=self.camera.to_scene_params(),
+            lamp_params={k: list(v) for k, v in LAMPS.items()},
+            relationships=ground_truth.relationships([o.position for o in objects], self.directions),
+            extra={"generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set}},
+        )
+        if segmentation is not None:
+            from muble.core.types import SEG_TABLE
+
+            scene.table = {"mask": ground_truth.encode_mask(segmentation == SEG_TABLE)}
+        return scene

@@ -1,0 +1,54 @@
+"""Scene-level ground truth in the SHOP-VRB2 schema: directions, relationships, pixel coordinates, COCO masks."""
+from __future__ import annotations
+
+import numpy as np
+
+from muble.core.camera import CameraParams
+from muble.core.scene import RLE
+
+
+def directions(camera: CameraParams) -> dict[str, list[float]]:
+    """Unit vectors of behind/front/left/right/above/below as the camera sees the table plane.
+
+    "behind" is the camera's viewing direction flattened onto the table, "right" the image's +x axis flattened.
+    """
+    forward = -camera.rotation[:, 2]
+    right = camera.rotation[:, 0]
+    behind = np.array([forward[0], forward[1], 0.0])
+    behind /= np.linalg.norm(behind)
+    right = np.array([right[0], right[1], 0.0])
+    right /= np.linalg.norm(right)
+    out = {"behind": behind, "front": -behind, "left": -right, "right": right,
+           "above": np.array([0.0, 0.0, 1.0]), "below": np.array([0.0, 0.0, -1.0])}
+    return {k: [float(x) for x in v] for k, v in out.items()}
+
+
+def relationships(positions: list[np.ndarray], dirs: dict[str, list[float]], eps: float = 0.0
+                  ) -> dict[str, list[list[int]]]:
+    """For each relation and object i, the objects j that lie in that direction from i (CLEVR's rule)."""
+    out: dict[str, list[list[int]]] = {}
+    for rel in ("behind", "front", "left", "right"):
+        d = np.asarray(dirs[rel])
+        out[rel] = [[j for j, pj in enumerate(positions) if j != i and float(np.dot(pj - pi, d)) > eps]
+                    for i, pi in enumerate(positions)]
+    return out
+
+
+def pixel_coords(camera: CameraParams, position: np.ndarray) -> list:
+    """[u, v, depth] of a world point: integer pixel column and row, depth along the view axis in metres."""
+    u, v, depth = camera.project(np.asarray(position)[None])[0]
+    return [int(round(u)), int(round(v)), float(depth)]
+
+
+def encode_mask(mask: np.ndarray) -> RLE:
+    """A boolean (H, W) mask as compressed COCO RLE."""
+    from pycocotools import mask as coco
+
+    rle = coco.encode(np.asfortranarray(mask.astype(np.uint8)))
+    return RLE(size=[int(v) for v in rle["size"]], counts=rle["counts"].decode("ascii"))
+
+
+def decode_mask(rle: RLE) -> np.ndarray:
+    from pycocotools import mask as coco
+
+    return coco.decode({"size": list(rle.size), "counts": rle.counts.encode("ascii")}).astype(bool)

@@ -1,0 +1,342 @@
+"""The tabletop environment: reset from a scene, Gymnasium-style ``step``, fast trajectory ``follow``, grasp,
+wrist force/torque, snapshots and scene-graph sync. See docs/environment.md for the API."""
+from __future__ import annotations
+
+import copy
+import logging
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import mujoco
+import numpy as np
+
+from muble.core.errors import ConfigError, PhysicsError, unknown_name
+from muble.core.interfaces import Sensor
+from muble.core.objects import ObjectModel
+from muble.core.scene import SceneGraph
+from muble.core.types import Outcome, Pose, Trajectory
+from muble.sim.control import OSC_OUTPUT_MAX, ArmServos, OperationalSpace, gripper_endpoints
+from muble.sim.faults import FaultDetector
+from muble.sim.grasp import GRASP_MODES, GraspModel
+from muble.sim.spaces import Box
+from muble.sim.world import build_world
+
+logger = logging.getLogger(__name__)
+
+CONTROLLERS = ("OSC_POSE",)
+GRAVITY = 9.81
+
+
+@dataclass
+class Snapshot:
+    """Everything needed to put the simulation back exactly: MuJoCo state, weld poses, controller state."""
+
+    state: np.ndarray
+    eq_data: np.ndarray
+    held: int | None
+    gripper_command: float
+    tare: np.ndarray | None
+    steps: int
+
+
+@dataclass
+class FollowResult:
+    """How a trajectory was tracked: final joint error (rad, max over joints) and simulated time (s)."""
+
+    final_error: float
+    duration: float
+    stopped_early: bool = False
+
+
+class TabletopEnv:
+    """A robosuite tabletop with one arm, built from a scene graph and one ``ObjectModel`` per scene object.
+
+    ``robot`` is a ``muble.app.config.RobotConfig`` (or anything with the same attributes); keyword overrides
+    replace its fields (``TabletopEnv(scene, models, name="Sawyer", grasp="friction")``).
+    """
+
+    def __init__(self, scene: SceneGraph, models: dict[int, ObjectModel], robot: Any = None,
+                 sensors: dict[str, Sensor] | None = None, **overrides: Any):
+        cfg = _robot_settings(robot, overrides)
+        if cfg["controller"] not in CONTROLLERS:
+            raise ConfigError(unknown_name("controller", cfg["controller"], CONTROLLERS))
+        if cfg["grasp"] not in GRASP_MODES:
+            raise ConfigError(unknown_name("grasp mode", cfg["grasp"], GRASP_MODES))
+        substeps = 1.0 / (cfg["control_freq"] * cfg["timestep"])
+        if substeps < 1 or abs(substeps - round(substeps)) > 1e-6:
+            raise ConfigError(f"control period 1/{cfg['control_freq']} s is not a whole number of "
+                              f"{cfg['timestep']} s physics steps; change robot.control_freq or robot.timestep")
+        self.config = cfg
+        self.scene = copy.deepcopy(scene)
+        self.object_models = dict(models)
+        self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"])
+        self.data = mujoco.MjData(self.model)
+        self.n_substeps = int(round(substeps))
+        self.control_dt = self.n_substeps * self.model.opt.timestep
+
+        n = self.names
+        self.servos = ArmServos(self.model, self.data, n.arm_joints, n.arm_actuators, n.init_qpos)
+        self.osc = OperationalSpace(self.model, self.servos, n.ee_site, n.init_qpos)
+        self.gripper_actuator_ids = np.array([self.model.actuator(a).id for a in n.gripper_actuators])
+        self.gripper_open_ctrl, self.gripper_closed_ctrl = gripper_endpoints(
+            self.model, n.gripper_format, self.gripper_actuator_ids)
+        self.gripper_qpos_adr = np.array([self.model.jnt_qposadr[self.model.joint(j).id] for j in n.gripper_joints])
+        self.ee_site_id = self.model.site(n.ee_site).id
+        self.force_adr = self.model.sensor_adr[self.model.sensor(n.force_sensor).id]
+        self.torque_adr = self.model.sensor_adr[self.model.sensor(n.torque_sensor).id]
+        self.ft_site_id = self.model.sensor(n.force_sensor).objid[0]
+        self.grasp = GraspModel(self.model, n, cfg["grasp"])
+        self.faults = FaultDetector(self.model, n)
+        self.eq_data0 = self.model.eq_data.copy()
+        self.sensors: dict[str, Sensor] = dict(sensors or {})
+
+        self.action_space = Box(-np.ones(7), np.ones(7))
+        self.gripper_command = -1.0
+        self.tare_force: np.ndarray | None = None
+        # Measured values per scene id ({"weight": g, "stiffness": N/m}), filled by muble.sim.measure.
+        self.measurements: dict[int, dict[str, float]] = {}
+        self.steps = 0
+        self.broken: str | None = None
+        self.reset()
+
+    # ----------------------------------------------------------------------------------------------- episode
+    def reset(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Put every object back at its scene pose and the arm at rest, gripper open; returns (obs, info)."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.model.eq_data[:] = self.eq_data0
+        self.data.qpos[self.servos.qpos_adr] = self.names.init_qpos
+        self.servos.command(self.data, self.names.init_qpos)
+        self.grasp.held = None
+        self.osc.goal_quat = None
+        self.tare_force = None
+        self.measurements = {}
+        self.steps = 0
+        self.broken = None
+        self.set_gripper(-1.0)
+        init_fingers = getattr(self.names.gripper_format, "init_qpos", None)
+        if init_fingers is not None and len(init_fingers) == len(self.gripper_qpos_adr):
+            self.data.qpos[self.gripper_qpos_adr] = init_fingers
+        mujoco.mj_forward(self.model, self.data)
+        for sensor in self.sensors.values():
+            sensor.reset(self)
+        return self.observation(), {"outcome": None}
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """One control step of ``OSC_POSE``: ``action`` = (dx, dy, dz, rx, ry, rz, gripper) in [-1, 1].
+
+        The pose part is scaled to at most 5 cm / 0.5 rad per step (robosuite's defaults); gripper -1 opens,
+        1 closes. A physics fault ends the episode: ``terminated`` is True and ``info["outcome"]`` is
+        ``Outcome.BROKEN_SCENE`` with the reason in ``info["error"]``; call ``reset()`` afterwards.
+        """
+        action = np.asarray(action, dtype=float).reshape(-1)
+        if action.shape != (7,):
+            raise ConfigError(f"action must have 7 values (dx, dy, dz, rx, ry, rz, gripper), got {action.shape}")
+        if self.broken:
+            raise PhysicsError(f"the episode ended with a physics fault ({self.broken}); call reset() first")
+        info: dict[str, Any] = {"outcome": None}
+        try:
+            if not np.all(np.isfinite(action)):
+                raise PhysicsError(f"action contains NaN or infinite values: {action.tolist()}")
+            delta = np.clip(action[:6], -1.0, 1.0) * OSC_OUTPUT_MAX
+            self.servos.command(self.data, self.osc.joint_target(self.data, delta))
+            self.set_gripper(float(np.clip(action[6], -1.0, 1.0)))
+            self.advance(self.control_dt)
+        except PhysicsError as e:
+            self.broken = str(e)
+            info.update(outcome=Outcome.BROKEN_SCENE, error=str(e))
+            return {}, 0.0, True, False, info
+        return self.observation(), 0.0, False, False, info
+
+    # ------------------------------------------------------------------------------------------ physics loop
+    def advance(self, duration: float, on_control: Callable[[int], None] | None = None) -> None:
+        """Run the physics for ``duration`` seconds at the current set-points, ``n_substeps`` per ``mj_step``
+        call; between calls, grasp and faults are checked and ``on_control(k)`` may set new set-points."""
+        count = max(1, int(round(duration / self.control_dt)))
+        for k in range(count):
+            if on_control is not None:
+                on_control(k)
+            mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
+            self._after_control_step()
+
+    def _after_control_step(self) -> None:
+        self.steps += 1
+        self.faults.check(self.data)
+        self.grasp.update(self.data, closing=self.gripper_command > 0.0)
+        for sensor in self.sensors.values():
+            sensor.on_step(self)
+
+    def follow(self, trajectory: Trajectory, rate: float | None = None, settle: float = 0.0,
+               stop: Callable[["TabletopEnv"], bool] | None = None) -> FollowResult:
+        """Track a joint trajectory of the arm: set-points (position + velocity feed-forward) are sampled at
+        ``rate`` Hz (default: the control rate) and held by the in-engine servos between samples.
+
+        ``settle`` seconds at the final set-point follow. ``stop(env)`` is checked at each sample and ends
+        tracking early when it returns True (e.g. contact reached). Raises ``PhysicsError`` on a fault.
+        """
+        if trajectory.q.shape[1] != len(self.servos.qpos_adr):
+            raise ConfigError(f"trajectory has {trajectory.q.shape[1]} joints; the {self.names.robot} arm has "
+                              f"{len(self.servos.qpos_adr)}: {self.names.arm_joints}")
+        if not np.all(np.isfinite(trajectory.q)):
+            raise PhysicsError("trajectory contains NaN or infinite joint values")
+        rate = rate or 1.0 / self.control_dt
+        nstep = max(1, int(round(1.0 / (rate * self.model.opt.timestep))))
+        period = nstep * self.model.opt.timestep
+        t = trajectory.t[0] + np.arange(int(np.ceil(trajectory.duration / period)) + 1) * period
+        q_ref = np.stack([np.interp(t, trajectory.t, trajectory.q[:, j]) for j in range(trajectory.q.shape[1])], 1)
+        qd_ref = np.gradient(q_ref, period, axis=0) if len(t) > 1 else np.zeros_like(q_ref)
+        qd_ref[-1] = 0.0
+        stopped = False
+        start = self.data.time
+        self.osc.goal_quat = None
+        for i in range(len(t)):
+            if stop is not None and stop(self):
+                stopped = True
+                break
+            self.servos.command(self.data, q_ref[i], qd_ref[i])
+            mujoco.mj_step(self.model, self.data, nstep=nstep)
+            self.steps += 1
+            self.faults.check(self.data)
+            self.grasp.update(self.data, closing=self.gripper_command > 0.0)
+        if not stopped:
+            self.servos.command(self.data, q_ref[-1])
+            if settle > 0:
+                self.advance(settle)
+        for sensor in self.sensors.values():
+            sensor.on_step(self)
+        err = float(np.max(np.abs(self.servos.q(self.data) - q_ref[-1]))) if not stopped else float("nan")
+        return FollowResult(err, float(self.data.time - start), stopped)
+
+    def hold(self, duration: float) -> None:
+        """Keep the arm at its current set-point for ``duration`` seconds of simulated time."""
+        self.advance(duration)
+
+    # ---------------------------------------------------------------------------------------------- gripper
+    def set_gripper(self, command: float) -> None:
+        """Gripper command in [-1 (open), 1 (closed)], applied at the next physics step."""
+        command = float(np.clip(command, -1.0, 1.0))
+        self.gripper_command = command
+        s = 0.5 * (command + 1.0)
+        self.data.ctrl[self.gripper_actuator_ids] = (1 - s) * self.gripper_open_ctrl + s * self.gripper_closed_ctrl
+
+    def open_gripper(self) -> None:
+        self.set_gripper(-1.0)
+
+    def close_gripper(self) -> None:
+        self.set_gripper(1.0)
+
+    @property
+    def held_object(self) -> int | None:
+        """Scene id of the object welded to the hand, or None."""
+        return self.grasp.held
+
+    # ------------------------------------------------------------------------------------------------ state
+    @property
+    def arm_joint_names(self) -> list[str]:
+        return list(self.names.arm_joints)
+
+    @property
+    def arm_qpos_adr(self) -> np.ndarray:
+        return self.servos.qpos_adr.copy()
+
+    @property
+    def arm_dof_adr(self) -> np.ndarray:
+        return self.servos.dof_adr.copy()
+
+    @property
+    def joint_limits(self) -> np.ndarray:
+        """(dof, 2) lower and upper limits of the arm joints."""
+        return self.servos.limits.copy()
+
+    @property
+    def ee_site(self) -> str:
+        return self.names.ee_site
+
+    def arm_q(self) -> np.ndarray:
+        return self.servos.q(self.data)
+
+    def arm_qd(self) -> np.ndarray:
+        return self.servos.qd(self.data)
+
+    def ee_pose(self) -> Pose:
+        """Pose of the grip site (between the fingers), world = scene frame."""
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, self.data.site_xmat[self.ee_site_id])
+        return Pose(self.data.site_xpos[self.ee_site_id].copy(), quat)
+
+    def gripper_opening(self) -> float:
+        """Distance between the finger pads (m)."""
+        pads = [self.model.geom(n).id for n in (self.names.left_pads[0], self.names.right_pads[0])]
+        return float(np.linalg.norm(self.data.geom_xpos[pads[0]] - self.data.geom_xpos[pads[1]]))
+
+    def object_pose(self, obj_id: int) -> Pose:
+        b = self.grasp.body_of[obj_id]
+        return Pose(self.data.xpos[b].copy(), self.data.xquat[b].copy())
+
+    def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
+        """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame."""
+        rot = self.data.site_xmat[self.ft_site_id].reshape(3, 3)
+        force = rot @ self.data.sensordata[self.force_adr:self.force_adr + 3]
+        torque = rot @ self.data.sensordata[self.torque_adr:self.torque_adr + 3]
+        return force, torque
+
+    def tare(self) -> np.ndarray:
+        """Remember the current wrist force (hand alone) as the zero for weighing; returns it."""
+        self.tare_force = self.wrist_wrench()[0].copy()
+        return self.tare_force
+
+    def snapshot(self) -> Snapshot:
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self.data, state, spec)
+        return Snapshot(state, self.model.eq_data.copy(), self.grasp.held, self.gripper_command,
+                        None if self.tare_force is None else self.tare_force.copy(), self.steps)
+
+    def restore(self, snap: Snapshot) -> None:
+        """Return to ``snap`` exactly (e.g. after a failed plan)."""
+        mujoco.mj_setState(self.model, self.data, snap.state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        self.model.eq_data[:] = snap.eq_data
+        self.grasp.held = snap.held
+        self.osc.goal_quat = None
+        self.gripper_command = snap.gripper_command
+        self.tare_force = None if snap.tare is None else snap.tare.copy()
+        self.steps = snap.steps
+        self.broken = None
+        mujoco.mj_forward(self.model, self.data)
+
+    # ----------------------------------------------------------------------------------------- observation
+    def observation(self) -> dict[str, Any]:
+        """The built-in proprioception plus every sensor's reading under its name."""
+        pose = self.ee_pose()
+        obs: dict[str, Any] = {
+            "ee_pos": pose.pos, "ee_quat": pose.quat, "joint_pos": self.arm_q(), "joint_vel": self.arm_qd(),
+            "gripper": self.gripper_command, "held_object": self.grasp.held,
+        }
+        for name, sensor in self.sensors.items():
+            obs[name] = sensor.read(self)
+        return obs
+
+    def sync_scene_graph(self) -> SceneGraph:
+        from muble.sim.sync import scene_graph_from_sim
+
+        self.scene = scene_graph_from_sim(self, self.scene)
+        return self.scene
+
+    def close(self) -> None:
+        """Nothing to release (no GL context is opened here); kept for symmetry with renderers."""
+
+
+def _robot_settings(robot: Any, overrides: dict[str, Any]) -> dict[str, Any]:
+    from muble.app.config import RobotConfig
+
+    fields = ("name", "gripper", "controller", "control_freq", "timestep", "grasp")
+    base = RobotConfig(name="Panda")
+    cfg = {f: getattr(base, f) for f in fields}
+    if robot is not None:
+        for f in fields:
+            value = robot.get(f, cfg[f]) if isinstance(robot, dict) or hasattr(robot, "get") else getattr(robot, f, cfg[f])
+            cfg[f] = value
+    unknown = sorted(set(overrides) - set(fields))
+    if unknown:
+        raise ConfigError(f"unknown robot option(s) {unknown}; valid: {', '.join(fields)}")
+    cfg.update(overrides)
+    return cfg

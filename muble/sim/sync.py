@@ -1,0 +1,43 @@
+"""Reading the scene graph back from MuJoCo: poses, world bounding boxes, flags and measured values."""
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+
+from muble.core.scene import SceneGraph
+
+RAISED_HEIGHT = 0.01  # m above its resting height counts as raised
+
+
+def world_bbox(env, obj_id: int) -> dict[str, float]:
+    """Extents (x, y, z) of the object's axis-aligned bounding box in the world frame."""
+    model = env.object_models[obj_id]
+    pose = env.object_pose(obj_id)
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, pose.quat)
+    verts = np.asarray(model.visual.vertices) @ rot.reshape(3, 3).T
+    ext = verts.max(axis=0) - verts.min(axis=0)
+    return {"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])}
+
+
+def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
+    """A copy of ``previous`` with every object's pose, bbox and flags taken from the simulation now."""
+    scene = copy.deepcopy(previous)
+    for obj in scene.objects:
+        pose = env.object_pose(obj.id)
+        rest_z = float(env.model.body_pos[env.grasp.body_of[obj.id]][2])
+        obj.position = pose.pos
+        obj.orientation = pose.quat
+        obj.rotation = float(np.degrees(obj.yaw))
+        obj.bbox = world_bbox(env, obj.id)
+        in_hand = env.held_object == obj.id
+        obj.extra["in_hand"] = in_hand
+        obj.extra["raised"] = bool(pose.pos[2] > rest_z + RAISED_HEIGHT)
+        measured = env.measurements.get(obj.id, {}) if hasattr(env, "measurements") else {}
+        if "weight" in measured:
+            obj.weight = measured["weight"]
+        if "stiffness" in measured:
+            obj.extra["stiffness_measured"] = measured["stiffness"]
+    return scene

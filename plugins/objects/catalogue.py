@@ -1,0 +1,244 @@
+"""The machinery every object catalogue shares: categories, sampling, the mesh cache and model assembly.
+
+A catalogue is a table of ``Category`` entries. Each category lists its shape variants (a geometry function of
+the scale factor), the materials it comes in (each with a weight range and the colours that material takes),
+its flags and grasp type. ``CatalogueObjectSet`` samples specs from the table and builds ``ObjectModel``s,
+caching generated meshes on disk keyed by object set, model, scale and geometry version.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from muble import ConfigError, ObjectSet
+from muble.core.errors import unknown_name
+from muble.core.objects import GraspFrame, MeshPart, ObjectModel, ObjectSpec
+from muble.sim.object_mjcf import realised_damping, realised_stiffness
+
+from muble_plugins.objects.geometry import mass_properties, planar_uv
+
+log = logging.getLogger(__name__)
+
+# Bump when any geometry function changes, so cached meshes from older code are not reused.
+GEOMETRY_VERSION = 1
+
+SIZE_SCALES = {"small": 0.85, "medium-sized": 1.0, "large": 1.15}
+
+# Words used in SHOP-VRB2 files -> the renderers' material classes.
+MATERIAL_CLASS = {"plastic": "plastic", "metal": "metal", "glass": "glass", "rubber": "rubber",
+                  "wooden": "wood", "ceramic": "ceramic"}
+
+COLOUR_RGBA = {
+    "red": (0.80, 0.10, 0.10, 1.0), "blue": (0.12, 0.25, 0.80, 1.0), "green": (0.12, 0.60, 0.20, 1.0),
+    "brown": (0.45, 0.28, 0.14, 1.0), "purple": (0.48, 0.18, 0.65, 1.0), "cyan": (0.10, 0.70, 0.75, 1.0),
+    "yellow": (0.92, 0.80, 0.12, 1.0), "gray": (0.50, 0.50, 0.52, 1.0), "white": (0.92, 0.92, 0.90, 1.0),
+    "black": (0.06, 0.06, 0.07, 1.0), "transparent": (0.85, 0.92, 0.95, 0.30),
+    "metallic": (0.75, 0.76, 0.78, 1.0),
+}
+PAINTS = ("red", "blue", "green", "brown", "purple", "cyan", "yellow")
+
+# Ground-truth contact stiffness (N/m) of the object as a whole when pressed by a gripper jaw or resting on
+# the table: the structural stiffness of thin-walled household items (a squeezed cup wall, a can side wall),
+# not the Young's modulus of the material. Ordered so that squeeze can tell the classes apart; the upper ends
+# stay below what a 2 ms contact time constant allows for objects of ~60 g and more.
+STIFFNESS_RANGE = {
+    "rubber": (4_000.0, 8_000.0),
+    "plastic": (9_000.0, 20_000.0),
+    "metal": (25_000.0, 50_000.0),
+    "wooden": (40_000.0, 70_000.0),
+    "glass": (70_000.0, 110_000.0),
+    "ceramic": (70_000.0, 110_000.0),
+}
+
+# Coulomb friction against the table (typical dry sliding coefficients of the surface materials).
+FRICTION = {"rubber": 1.1, "plastic": 0.6, "metal": 0.5, "wooden": 0.6, "glass": 0.6, "ceramic": 0.6}
+
+
+@dataclass
+class Geometry:
+    """What a shape function produces, in metres, for one scale."""
+
+    visual: MeshPart
+    collision_parts: list[MeshPart]
+    grasp_frames: list[GraspFrame]
+    uv: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Finish:
+    """A material a category comes in, its medium-size weight range (g) and the colours it takes."""
+
+    material: str
+    weight_g: tuple[float, float]
+    colours: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Category:
+    name: str
+    variants: dict[str, tuple[str, Callable[[float], Geometry]]]  # model -> (shape word, geometry(scale))
+    finishes: tuple[Finish, ...]
+    grasp_type: str
+    pickupable: bool
+    stackable: bool
+    stack_base: bool
+    sizes: tuple[str, ...] = ("small", "medium-sized", "large")
+    mass_exponent: float = 2.0  # mass ∝ scale^e: 2 for thin-walled shells, 3 for solid or filled items
+
+
+def top_down(position, yaw: float, width: float) -> GraspFrame:
+    """A top-down grasp: gripper z axis pointing down into the object, fingers closing along the frame's y."""
+    rotation = Rotation.from_euler("z", yaw) * Rotation.from_euler("x", math.pi)
+    x, y, z, w = rotation.as_quat()
+    return GraspFrame(np.asarray(position, dtype=float), np.array([w, x, y, z]), float(width))
+
+
+def side(position, approach_yaw: float, width: float) -> GraspFrame:
+    """A horizontal grasp approaching along ``approach_yaw`` (frame z horizontal), fingers closing sideways."""
+    rotation = Rotation.from_euler("z", approach_yaw) * Rotation.from_euler("y", math.pi / 2)
+    x, y, z, w = rotation.as_quat()
+    return GraspFrame(np.asarray(position, dtype=float), np.array([w, x, y, z]), float(width))
+
+
+class MeshCache:
+    """Generated geometry on disk, one ``.npz`` per (object set, model, scale, geometry version)."""
+
+    def __init__(self, directory: str | os.PathLike | None):
+        self.directory = Path(directory) if directory else None
+
+    @staticmethod
+    def key(object_set: str, model: str, scale: float, params: dict) -> str:
+        text = json.dumps([object_set, model, round(scale, 6), params, GEOMETRY_VERSION], sort_keys=True)
+        return f"{model}-{hashlib.sha1(text.encode()).hexdigest()[:16]}"
+
+    def load(self, key: str) -> Geometry | None:
+        if self.directory is None:
+            return None
+        path = self.directory / f"{key}.npz"
+        if not path.exists():
+            return None
+        with np.load(path) as data:
+            n = int(data["n_parts"])
+            parts = [MeshPart(data[f"cv{i}"], data[f"cf{i}"]) for i in range(n)]
+            frames = [GraspFrame(p, q, float(w)) for p, q, w in zip(data["gp"], data["gq"], data["gw"])]
+            uv = data["uv"] if data["uv"].size else None
+            return Geometry(MeshPart(data["vv"], data["vf"]), parts, frames, uv)
+
+    def store(self, key: str, geometry: Geometry) -> None:
+        if self.directory is None:
+            return
+        self.directory.mkdir(parents=True, exist_ok=True)
+        arrays = {"vv": geometry.visual.vertices, "vf": geometry.visual.faces,
+                  "n_parts": np.array(len(geometry.collision_parts)),
+                  "uv": geometry.uv if geometry.uv is not None else np.zeros((0, 2)),
+                  "gp": np.array([f.position for f in geometry.grasp_frames]).reshape(-1, 3),
+                  "gq": np.array([f.quat for f in geometry.grasp_frames]).reshape(-1, 4),
+                  "gw": np.array([f.width for f in geometry.grasp_frames])}
+        for i, part in enumerate(geometry.collision_parts):
+            arrays[f"cv{i}"], arrays[f"cf{i}"] = part.vertices, part.faces
+        # Write then rename so parallel workers never read a half-written file.
+        tmp = self.directory / f"{key}.{os.getpid()}.tmp.npz"
+        np.savez_compressed(tmp, **arrays)
+        os.replace(tmp, self.directory / f"{key}.npz")
+
+
+def default_cache_dir() -> str:
+    return os.environ.get("MUBLE_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "muble", "objects"))
+
+
+class CatalogueObjectSet(ObjectSet):
+    """An ``ObjectSet`` backed by a table of ``Category`` entries."""
+
+    set_name = ""
+    catalogue: dict[str, Category] = {}
+
+    def __init__(self, cache_dir: str | None = "", categories: list[str] | None = None,
+                 damping_ratio: float = 1.0):
+        # "" = the default cache folder, None = no disk cache.
+        self.cache = MeshCache(default_cache_dir() if cache_dir == "" else cache_dir)
+        self.damping_ratio = damping_ratio
+        self._enabled = list(categories) if categories else list(self.catalogue)
+        for name in self._enabled:
+            self._category(name)
+
+    def categories(self) -> list[str]:
+        return list(self._enabled)
+
+    def models(self, category: str) -> list[str]:
+        return list(self._category(category).variants)
+
+    def _category(self, name: str) -> Category:
+        if name not in self.catalogue:
+            raise ConfigError(unknown_name(f"{self.set_name} category", name, list(self.catalogue)))
+        return self.catalogue[name]
+
+    def sample(self, rng: np.random.Generator, category: str | None = None) -> ObjectSpec:
+        name = category if category is not None else self._enabled[int(rng.integers(len(self._enabled)))]
+        cat = self._category(name)
+        model = list(cat.variants)[int(rng.integers(len(cat.variants)))]
+        finish = cat.finishes[int(rng.integers(len(cat.finishes)))]
+        colour = finish.colours[int(rng.integers(len(finish.colours)))]
+        size = cat.sizes[int(rng.integers(len(cat.sizes)))]
+        scale = SIZE_SCALES[size]
+        low, high = finish.weight_g
+        weight = float(rng.uniform(low, high)) * scale**cat.mass_exponent
+        k_low, k_high = STIFFNESS_RANGE[finish.material]
+        stiffness = float(math.exp(rng.uniform(math.log(k_low), math.log(k_high))))
+        return ObjectSpec(object_set=self.set_name, category=name, model=model, colour=colour,
+                          material=finish.material, size=size, shape=cat.variants[model][0], scale=scale,
+                          weight_g=round(weight, 1), stiffness=round(stiffness, 1),
+                          friction=FRICTION[finish.material])
+
+    def geometry(self, spec: ObjectSpec) -> Geometry:
+        """The (cached) geometry of ``spec``'s model at its scale."""
+        cat = self._category(spec.category)
+        if spec.model not in cat.variants:
+            raise ConfigError(unknown_name(f"'{spec.category}' model", spec.model, list(cat.variants)))
+        key = MeshCache.key(self.set_name, spec.model, spec.scale, spec.params)
+        geometry = self.cache.load(key)
+        if geometry is None:
+            geometry = cat.variants[spec.model][1](spec.scale)
+            self.cache.store(key, geometry)
+            log.debug("generated %s at scale %.3f", spec.model, spec.scale)
+        return geometry
+
+    def build(self, spec: ObjectSpec) -> ObjectModel:
+        cat = self._category(spec.category)
+        geometry = self.geometry(spec)
+        mass = spec.weight_g / 1000.0
+        com, inertia = mass_properties(geometry.collision_parts, mass)
+        stiffness = realised_stiffness(spec.stiffness, mass)
+        if stiffness < spec.stiffness * 0.999:
+            log.warning("%s: %.0f g is too light for %.0f N/m at a 2 ms step; using %.0f N/m",
+                        spec.model, spec.weight_g, spec.stiffness, stiffness)
+        if spec.colour not in COLOUR_RGBA:
+            raise ConfigError(unknown_name("colour", spec.colour, list(COLOUR_RGBA)))
+        vertices = geometry.visual.vertices
+        return ObjectModel(
+            spec=spec, visual=geometry.visual, collision_parts=geometry.collision_parts, mass=mass, com=com,
+            inertia=inertia, friction=spec.friction, stiffness=stiffness,
+            damping=realised_damping(spec.stiffness, self.damping_ratio, mass),
+            rgba=COLOUR_RGBA[spec.colour], material_class=MATERIAL_CLASS[spec.material],
+            grasp_type=cat.grasp_type, grasp_frames=geometry.grasp_frames, pickupable=cat.pickupable,
+            stackable=cat.stackable, stack_base=cat.stack_base,
+            extents=np.ptp(vertices, axis=0),
+            uv=geometry.uv if geometry.uv is not None else planar_uv(vertices),
+        )
+
+
+@dataclass
+class ObjectSetConfig:
+    """Options of a catalogue object set (the Hydra ``objects`` group)."""
+
+    cache_dir: str | None = ""  # "" = $MUBLE_CACHE_DIR or ~/.cache/muble/objects; null = no disk cache
+    categories: list[str] = field(default_factory=list)  # empty = every category of the set
+    damping_ratio: float = 1.0  # contact damping relative to critical

@@ -1,0 +1,161 @@
+"""The stage around the models: render engine settings, the light rig and the world background."""
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+import numpy as np
+
+from muble.core.errors import ConfigError, RenderError, unknown_name
+
+from .config import DENOISER_QUALITIES, DEVICES, ENGINES, BlenderRendererConfig
+
+log = logging.getLogger(__name__)
+
+GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
+
+# Key, fill and back light: azimuth and elevation (degrees) around the scene centre, distance in scene radii,
+# power (W per square metre of distance) and size in scene radii. The camera usually looks from +x.
+LIGHT_RIG = (
+    ("key", 35.0, 50.0, 2.5, 1.5, 0.8),
+    ("fill", -50.0, 30.0, 2.5, 0.5, 1.2),
+    ("back", 180.0, 60.0, 2.5, 1.0, 0.6),
+)
+
+
+def check_config(cfg: BlenderRendererConfig) -> None:
+    """Reject option values Blender would silently misread."""
+    if cfg.engine not in ENGINES:
+        raise ConfigError(unknown_name("render engine", cfg.engine, ENGINES))
+    if cfg.device not in DEVICES:
+        raise ConfigError(unknown_name("render device", cfg.device, DEVICES))
+    if cfg.denoiser_quality not in DENOISER_QUALITIES:
+        raise ConfigError(unknown_name("denoiser quality", cfg.denoiser_quality, DENOISER_QUALITIES))
+    if cfg.width < 1 or cfg.height < 1 or cfg.samples < 1:
+        raise ConfigError(f"width, height and samples must be positive, got {cfg.width}x{cfg.height}, "
+                          f"{cfg.samples} samples")
+    if cfg.engine == "BLENDER_EEVEE" and cfg.segmentation:
+        raise ConfigError("EEVEE has no object-index pass for segmentation; use engine=CYCLES or "
+                          "segmentation=false")
+
+
+def _enable_gpu(device: str) -> bool:
+    """Turn on the first GPU backend Cycles finds; False when there is none."""
+    import bpy
+
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    for backend in GPU_BACKENDS:
+        try:
+            prefs.compute_device_type = backend
+        except TypeError:  # backend not compiled into this build
+            continue
+        prefs.get_devices()
+        gpus = [d for d in prefs.devices if d.type == backend]
+        if gpus:
+            for d in prefs.devices:
+                d.use = d.type == backend
+            log.info("Cycles renders on %s: %s", backend, ", ".join(d.name for d in gpus))
+            return True
+    if device == "GPU":
+        raise RenderError("device=GPU but Cycles found no CUDA/OptiX/HIP/oneAPI/Metal device; use device=CPU")
+    return False
+
+
+def configure_engine(scene: Any, cfg: BlenderRendererConfig) -> None:
+    """Engine, resolution, sampling, denoising, colour management and the pass file format."""
+    import bpy  # noqa: F401  (scene is a bpy.types.Scene)
+
+    render = scene.render
+    render.engine = cfg.engine
+    render.resolution_x, render.resolution_y = cfg.width, cfg.height
+    render.resolution_percentage = 100
+    render.threads_mode = "FIXED" if cfg.threads > 0 else "AUTO"
+    if cfg.threads > 0:
+        render.threads = cfg.threads
+    render.use_persistent_data = True  # keep the BVH and shaders between keyframes of one scene
+    render.film_transparent = False
+    # The pass file: every pass of the render in one uncompressed float EXR (see exr.py).
+    settings = render.image_settings
+    settings.media_type = "MULTI_LAYER_IMAGE"  # Blender 5: multilayer EXR is offered only under this media type
+    settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+    settings.exr_codec = "NONE"
+    render.use_file_extension = True
+    # Standard view transform: the combined pass is turned into sRGB with exactly this transform in numpy.
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    if cfg.engine == "CYCLES":
+        cycles = scene.cycles
+        gpu = cfg.device != "CPU" and _enable_gpu(cfg.device)
+        cycles.device = "GPU" if gpu else "CPU"
+        cycles.samples = cfg.samples
+        cycles.use_adaptive_sampling = cfg.adaptive_sampling
+        cycles.adaptive_threshold = cfg.adaptive_threshold
+        cycles.use_denoising = cfg.denoise
+        if cfg.denoise:
+            cycles.denoiser = "OPENIMAGEDENOISE"
+            cycles.denoising_quality = cfg.denoiser_quality
+            cycles.denoising_prefilter = "FAST" if cfg.denoiser_quality == "FAST" else "ACCURATE"
+            cycles.denoising_input_passes = "RGB_ALBEDO"
+        cycles.max_bounces = cfg.max_bounces
+        cycles.diffuse_bounces = min(cfg.max_bounces, 2)
+        cycles.glossy_bounces = min(cfg.max_bounces, 2)
+        cycles.transmission_bounces = cfg.transmission_bounces
+        cycles.transparent_max_bounces = cfg.transmission_bounces
+        cycles.max_bounces = max(cfg.max_bounces, cfg.transmission_bounces)
+        cycles.caustics_reflective = False
+        cycles.caustics_refractive = False
+        cycles.blur_glossy = 1.0  # filter glossy paths: less fireflies at few samples
+        cycles.seed = cfg.seed
+    else:
+        scene.eevee.taa_render_samples = cfg.samples
+
+
+def set_passes(view_layer: Any, depth: bool, segmentation: bool, normals: bool) -> None:
+    view_layer.use_pass_combined = True
+    view_layer.use_pass_z = depth
+    view_layer.use_pass_object_index = segmentation
+    view_layer.use_pass_normal = normals
+
+
+def build_world(cfg: BlenderRendererConfig) -> Any:
+    """A uniform sky colour: soft ambient light and the background where no geom is drawn."""
+    import bpy
+
+    world = bpy.data.worlds.new("muble_world")
+    if world.node_tree is None:  # worlds made by Python have no node tree before 5.0
+        world.use_nodes = True
+    background = next(n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
+    background.inputs["Color"].default_value = (*cfg.background_rgb, 1.0)
+    background.inputs["Strength"].default_value = cfg.background_strength
+    return world
+
+
+def build_lights(collection: Any, centre: np.ndarray, radius: float, cfg: BlenderRendererConfig,
+                 rng: np.random.Generator) -> list[Any]:
+    """Key, fill and back area lights aimed at the scene centre, jittered in position and power."""
+    import bpy
+    from mathutils import Vector
+
+    lights = []
+    for name, azimuth, elevation, distance, power, size in LIGHT_RIG:
+        jitter = cfg.light_jitter
+        az = math.radians(azimuth + 30.0 * jitter * rng.uniform(-1, 1))
+        el = math.radians(np.clip(elevation + 20.0 * jitter * rng.uniform(-1, 1), 5.0, 89.0))
+        dist = distance * radius * (1.0 + jitter * rng.uniform(-1, 1))
+        data = bpy.data.lights.new(f"muble_{name}", type="AREA")
+        data.shape = "DISK"
+        data.size = size * radius
+        # Power scales with distance squared so the irradiance at the centre does not depend on scene size.
+        data.energy = power * dist**2 * cfg.light_energy * (1.0 + jitter * rng.uniform(-1, 1))
+        light = bpy.data.objects.new(f"muble_{name}", data)
+        light.location = Vector(centre) + dist * Vector((math.cos(el) * math.cos(az),
+                                                         math.cos(el) * math.sin(az), math.sin(el)))
+        direction = Vector(centre) - light.location
+        light.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+        collection.objects.link(light)
+        lights.append(light)
+    return lights

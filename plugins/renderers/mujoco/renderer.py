@@ -1,0 +1,193 @@
+"""The MuJoCo renderer plugin: RGB, metric depth and label segmentation from any camera, headless."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from muble import Frame, RenderError, Renderer, SceneGraph
+from muble.core.errors import unknown_name
+
+from muble_plugins.renderers.mujoco.atlas import MeshAtlas, atlas_compatible
+from muble_plugins.renderers.mujoco.labels import geom_labels
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class MujocoRendererConfig:
+    """Image size and which outputs to draw (RGB is one pass; segmentation and depth share a second one)."""
+
+    width: int = 848
+    height: int = 480
+    rgb: bool = True
+    depth: bool = True
+    segmentation: bool = True
+    reuse_meshes: bool = True  # draw untextured models from a shared mesh atlas (no re-upload per scene)
+
+
+class MujocoRenderer(Renderer):
+    """Draws MuJoCo states with MuJoCo's own OpenGL renderer (EGL, else OSMesa)."""
+
+    def __init__(self, width: int = 848, height: int = 480, rgb: bool = True, depth: bool = True,
+                 segmentation: bool = True, reuse_meshes: bool = True):
+        if width <= 0 or height <= 0:
+            raise RenderError(f"image size must be positive, got {width}x{height}; set renderer.width/height")
+        if not (rgb or depth or segmentation):
+            raise RenderError("nothing to draw: enable at least one of rgb, depth, segmentation")
+        self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes)
+        self._gl = None
+        self._context = None  # MjrContext
+        self._context_model = None  # the model the context was made from
+        self._atlas = MeshAtlas()
+        self._model = None
+        self._scene = None  # MjvScene
+        self._option = None
+        self._mesh_remap: np.ndarray | None = None
+        self._labels: np.ndarray | None = None
+
+    # --- setup ------------------------------------------------------------------------------------------------
+    def setup(self, scene: SceneGraph | None, model) -> None:
+        import mujoco
+
+        from muble_plugins.renderers.mujoco.gl import make_context
+
+        w, h = self.config.width, self.config.height
+        if self._gl is None:
+            self._gl = make_context(w, h)
+        self._gl.make_current()
+        self._model = model
+        self._labels = geom_labels(model)
+        if scene is not None:
+            unknown = sorted(set(int(v) for v in self._labels if v >= 0) - set(scene.ids))
+            if unknown:
+                log.warning("model has object bodies %s that the scene graph does not list", unknown)
+        remap = None
+        if self.config.reuse_meshes and atlas_compatible(model):
+            remap = self._atlas.remap(model)
+            if remap is None:
+                remap = self._atlas.extend(model, w, h)
+                if remap is not None:
+                    self._make_context(self._atlas.model)
+            elif self._context_model is not self._atlas.model:
+                self._make_context(self._atlas.model)
+        if remap is None:
+            model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), w)
+            model.vis.global_.offheight = max(int(model.vis.global_.offheight), h)
+            self._make_context(model)
+        self._mesh_remap = remap
+        self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
+        self._option = mujoco.MjvOption()
+
+    def _make_context(self, model) -> None:
+        import mujoco
+
+        if self._context is not None:
+            self._context.free()
+        self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        self._context_model = model
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
+        # Read depth as reversed z (far = 0), the mapping _metric_depth undoes.
+        self._context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+
+    # --- drawing ----------------------------------------------------------------------------------------------
+    def _camera(self, camera: str):
+        import mujoco
+
+        cam = mujoco.MjvCamera()
+        cam_id = mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        if cam_id < 0:
+            names = [mujoco.mj_id2name(self._model, mujoco.mjtObj.mjOBJ_CAMERA, i) for i in range(self._model.ncam)]
+            raise RenderError(unknown_name("camera", camera, [n for n in names if n]))
+        cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        cam.fixedcamid = cam_id
+        return cam
+
+    def _update_scene(self, data, cam) -> None:
+        import mujoco
+
+        mujoco.mjv_updateScene(self._model, data, self._option, None, cam, mujoco.mjtCatBit.mjCAT_ALL, self._scene)
+        if self._mesh_remap is None:
+            return
+        mesh = int(mujoco.mjtGeom.mjGEOM_MESH)
+        for i in range(self._scene.ngeom):
+            geom = self._scene.geoms[i]
+            if geom.type == mesh and geom.dataid >= 0:
+                # dataid is 2 * mesh id (+1 for the convex hull)
+                geom.dataid = 2 * int(self._mesh_remap[geom.dataid // 2]) + geom.dataid % 2
+
+    def render(self, data, camera: str) -> Frame:
+        import mujoco
+
+        if self._model is None:
+            raise RenderError("render() called before setup(scene, model)")
+        self._gl.make_current()
+        cam = self._camera(camera)
+        w, h = self.config.width, self.config.height
+        rect = mujoco.MjrRect(0, 0, w, h)
+        self._update_scene(data, cam)
+        rgb = depth = seg = None
+        flags = self._scene.flags
+        if self.config.rgb:
+            mujoco.mjr_render(rect, self._scene, self._context)
+            rgb_buf = np.empty((h, w, 3), dtype=np.uint8)
+            mujoco.mjr_readPixels(rgb_buf, None, rect, self._context)
+            rgb = np.flipud(rgb_buf)
+        if self.config.segmentation or self.config.depth:
+            # Depth is read from the segmentation pass: without lighting and blending it is exact at the far end.
+            seg_flag, id_flag = mujoco.mjtRndFlag.mjRND_SEGMENT, mujoco.mjtRndFlag.mjRND_IDCOLOR
+            flags[seg_flag], flags[id_flag] = 1, 1
+            try:
+                mujoco.mjr_render(rect, self._scene, self._context)
+                buf = np.empty((h, w, 3), dtype=np.uint8)
+                depth_buf = np.empty((h, w), dtype=np.float32) if self.config.depth else None
+                mujoco.mjr_readPixels(buf, depth_buf, rect, self._context)
+            finally:
+                flags[seg_flag], flags[id_flag] = 0, 0
+            if self.config.segmentation:
+                seg = self._labels_of(np.flipud(buf))
+            if depth_buf is not None:
+                depth = self._metric_depth(np.flipud(depth_buf))
+        if rgb is None:
+            rgb = np.zeros((h, w, 3), dtype=np.uint8)
+        return Frame(camera=camera, rgb=np.ascontiguousarray(rgb), depth=depth, segmentation=seg)
+
+    def _metric_depth(self, z: np.ndarray) -> np.ndarray:
+        # MuJoCo draws with reversed z; undo its perspective projection in float64 (float32 loses centimetres).
+        extent = self._model.stat.extent
+        near = np.float32(self._model.vis.map.znear * extent)
+        far = np.float32(self._model.vis.map.zfar * extent)
+        c = -(far + near) / (far - near)
+        d = -(np.float32(2) * far * near) / (far - near)
+        c, d = np.float32(-0.5) * c - np.float32(0.5), np.float32(-0.5) * d
+        return (d / (z.astype(np.float64) + c)).astype(np.float32)
+
+    def _labels_of(self, image: np.ndarray) -> np.ndarray:
+        import mujoco
+
+        segimage = image[..., 0].astype(np.int32) | (image[..., 1].astype(np.int32) << 8) | (
+            image[..., 2].astype(np.int32) << 16)
+        n = self._scene.ngeom
+        lut = np.full(n + 1, -1, dtype=np.int32)  # index 0 = nothing drawn
+        geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
+        for i in range(n):
+            g = self._scene.geoms[i]
+            if g.segid >= 0 and g.objtype == geom_type and 0 <= g.objid < len(self._labels):
+                lut[g.segid + 1] = self._labels[g.objid]
+        return lut[np.clip(segimage, 0, n)]
+
+    def close(self) -> None:
+        if self._context is not None:
+            self._context.free()
+            self._context = None
+        if self._gl is not None:
+            self._gl.free()
+            self._gl = None
+        self._model = self._scene = None
+
+    def __del__(self) -> None:  # GL resources left to interpreter exit print EGL errors
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - nothing useful can be done during teardown
+            pass

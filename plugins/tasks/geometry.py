@@ -1,0 +1,87 @@
+"""Table geometry the tasks need: object footprints and heights, free spots in a table part, resting-on tests."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from muble import SceneGraph, SceneObject
+from muble.core.program import TABLE_CENTRE, table_parts_of
+
+# Reachable tabletop area (world x, y in metres) where SHOP-VRB2 scenes place objects.
+TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
+SPLIT_MARGIN = 0.04  # keep placed objects this far from a split line, so their part is not borderline
+DEFAULT_RADIUS = 0.04
+DEFAULT_HEIGHT = 0.06
+BROKEN_BELOW_Z = -0.05  # an object this far below the table top has fallen off
+
+
+def extents(obj: SceneObject) -> tuple[float, float, float]:
+    """Full size along x, y, z from the bbox (extents dict or eight corners), or defaults."""
+    box = obj.bbox
+    if isinstance(box, dict):
+        return float(box["x"]), float(box["y"]), float(box["z"])
+    if isinstance(box, list) and len(box) == 8:
+        pts = np.asarray(box, dtype=float)
+        span = pts.max(axis=0) - pts.min(axis=0)
+        return float(span[0]), float(span[1]), float(span[2])
+    return 2 * DEFAULT_RADIUS, 2 * DEFAULT_RADIUS, DEFAULT_HEIGHT
+
+
+def footprint_radius(obj: SceneObject) -> float:
+    ex, ey, _ = extents(obj)
+    return 0.5 * max(ex, ey)
+
+
+def height(obj: SceneObject) -> float:
+    return extents(obj)[2]
+
+
+def part_region(part: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The x and y ranges of a table part, shrunk away from the split lines."""
+    (x0, x1), (y0, y1) = TABLE_REGION
+    cx, cy = TABLE_CENTRE
+    if part == "left":
+        return (x0, x1), (y0, cy - SPLIT_MARGIN)
+    if part == "right":
+        return (x0, x1), (cy + SPLIT_MARGIN, y1)
+    if part == "front":
+        return (cx + SPLIT_MARGIN, x1), (y0, y1)
+    if part == "back":
+        return (x0, cx - SPLIT_MARGIN), (y0, y1)
+    return (cx - 0.05, cx + 0.05), (cy - 0.05, cy + 0.05)
+
+
+def free_spot(scene: SceneGraph, obj: SceneObject, part: str, step: float = 0.02) -> list[float]:
+    """The point of ``part`` with the most clearance from every other object (deterministic)."""
+    (x0, x1), (y0, y1) = part_region(part)
+    r = footprint_radius(obj)
+    xs = np.arange(x0 + r, x1 - r + 1e-9, step) if x1 - x0 > 2 * r else np.array([(x0 + x1) / 2])
+    ys = np.arange(y0 + r, y1 - r + 1e-9, step) if y1 - y0 > 2 * r else np.array([(y0 + y1) / 2])
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    clearance = np.full(gx.shape, np.inf)
+    for other in scene.objects:
+        if other.id == obj.id:
+            continue
+        d = np.hypot(gx - other.position[0], gy - other.position[1]) - footprint_radius(other) - r
+        clearance = np.minimum(clearance, d)
+    best = np.unravel_index(int(np.argmax(clearance)), clearance.shape)
+    return [round(float(gx[best]), 4), round(float(gy[best]), 4), 0.0]
+
+
+def rests_on(top: SceneObject, base: SceneObject) -> bool:
+    """``top`` stands on (or in) ``base``: centred over its footprint and higher, not held."""
+    if top.extra.get("in_hand"):
+        return False
+    dxy = math.hypot(top.position[0] - base.position[0], top.position[1] - base.position[1])
+    return dxy <= max(0.6 * footprint_radius(base), 0.03) and top.position[2] > base.position[2] + 0.005
+
+
+def on_table_part(obj: SceneObject, part: str, scene: SceneGraph) -> bool:
+    return not obj.extra.get("in_hand") and part in table_parts_of(obj, scene)
+
+
+def broken(scene: SceneGraph) -> list[int]:
+    """Ids of objects that left the world: non-finite pose or fallen below the table top."""
+    return [o.id for o in scene.objects
+            if not np.all(np.isfinite(o.position)) or o.position[2] < BROKEN_BELOW_Z]

@@ -1,0 +1,121 @@
+"""Ground-truth action planning by backward chaining from the program's goal.
+
+The program, run on the observed scene with the weights measured so far, either asks for a measurement
+(a sub-goal: weigh those objects) or yields the goal: an answer, an object held up, objects on a table part,
+or a stack. Each goal expands backwards into the primitives whose preconditions lead to it: placing needs a
+lifted object, lifting needs grasping, grasping needs approaching, approaching needs the gripper over the
+object. Planning always starts from the observed state, so the oracle can replan after every primitive.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from muble import ActionCall, Answer, PlanningError, SceneGraph
+from muble.core.program import OPPOSITE_PART, execute
+
+from muble_plugins.tasks.geometry import free_spot, on_table_part, rests_on
+from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, WEIGH, ArmState
+
+ARRIVAL_TOLERANCE = 0.02  # metres between a carried object and its destination that count as arrived
+
+
+@dataclass
+class Plan:
+    """What to do next: ``actions`` (possibly empty) and, for queries, the ``answer`` once known."""
+
+    actions: list[ActionCall]
+    answer: Answer | None = None
+
+    @property
+    def done(self) -> bool:
+        return not self.actions
+
+
+def hold_up(obj_id: int, arm: ArmState) -> list[ActionCall]:
+    """Primitives that leave ``obj_id`` grasped and lifted, starting from ``arm``."""
+    if arm.held == obj_id:
+        return [] if arm.raised else [ActionCall(LIFT)]
+    actions: list[ActionCall] = []
+    over, approached = arm.over, arm.approached
+    if arm.held is not None:
+        # Put the other object back down where it is held.
+        actions += ([ActionCall(LOWER)] if arm.raised else []) + [ActionCall(RELEASE)]
+        over, approached = arm.held, None
+    if approached != obj_id:
+        if over != obj_id:
+            actions.append(ActionCall(MOVE, {"target": obj_id}))
+        actions.append(ActionCall(APPROACH, {"target": obj_id}))
+    return actions + [ActionCall(GRASP, {"target": obj_id}), ActionCall(LIFT)]
+
+
+def put_down(arm: ArmState) -> list[ActionCall]:
+    """Leave the gripper empty, setting a held object down where it is."""
+    if arm.held is None:
+        return []
+    return ([ActionCall(LOWER)] if arm.raised else []) + [ActionCall(RELEASE)]
+
+
+def _carried_to(scene: SceneGraph, obj_id: int, arm: ArmState, xy) -> bool:
+    """The object is in the gripper and already above (or lowered onto) ``xy``."""
+    if arm.held != obj_id:
+        return False
+    pos = scene.object(obj_id).position
+    return math.hypot(pos[0] - xy[0], pos[1] - xy[1]) <= ARRIVAL_TOLERANCE
+
+
+def _deliver(scene: SceneGraph, obj_id: int, xy, move: ActionCall, arm: ArmState) -> list[ActionCall]:
+    if _carried_to(scene, obj_id, arm, xy):
+        return ([ActionCall(LOWER)] if arm.raised else []) + [ActionCall(RELEASE)]
+    return hold_up(obj_id, arm) + [move, ActionCall(LOWER), ActionCall(RELEASE)]
+
+
+def place_at(scene: SceneGraph, obj_id: int, position: list[float], arm: ArmState) -> list[ActionCall]:
+    return _deliver(scene, obj_id, position, ActionCall(MOVE, {"position": position}), arm)
+
+
+def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> list[ActionCall]:
+    return _deliver(scene, obj_id, scene.object(base_id).position, ActionCall(MOVE, {"target": base_id}), arm)
+
+
+def stack_pairs(chains: list[list[int]]) -> list[tuple[int, int]]:
+    """(top, base) pairs of a stack output, bottom pair first; chains list the stack top first."""
+    order = [i for chain in chains for i in chain]
+    return [(order[k], order[k + 1]) for k in range(len(order) - 2, -1, -1)]
+
+
+def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, float] | None = None) -> Plan:
+    """The remaining primitives for ``program`` from the observed ``scene`` (empty when the goal holds).
+
+    Raises ``PlanningError`` when the program cannot run on the scene or the goal cannot be reached.
+    """
+    arm = ArmState.of(scene)
+    trace = execute(program, scene, weights="measured", known_weights=known_weights)
+    if trace.pending_weights:
+        pending = trace.pending_weights
+        target = arm.held if arm.held in pending else pending[0]
+        return Plan(hold_up(target, arm) + [ActionCall(WEIGH)])
+    final_step = program[-1]
+    kind, result = final_step["type"], trace.final
+    if kind == "query_weight":
+        return Plan([], Answer(list(result)))
+    if kind == "pick_up":
+        return Plan(hold_up(result[0], arm))
+    if kind == "move_to":
+        part = final_step["input_value"]
+        for obj_id in result:
+            obj = scene.object(obj_id)
+            if not on_table_part(obj, part, scene):
+                return Plan(place_at(scene, obj_id, free_spot(scene, obj, part), arm))
+        return Plan(put_down(arm))
+    if kind == "stack":
+        for top, base in stack_pairs(result):
+            if not rests_on(scene.object(top), scene.object(base)):
+                return Plan(place_on(scene, top, base, arm))
+        return Plan(put_down(arm))
+    raise PlanningError(f"a program must end in query_weight, pick_up, move_to or stack, not '{kind}'")
+
+
+def remove_destination(part: str) -> str:
+    """Where ``remove`` programs move objects: the opposite part of the table."""
+    return OPPOSITE_PART[part]

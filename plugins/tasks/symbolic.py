@@ -1,0 +1,145 @@
+"""Primitive names and a symbolic world that applies their preconditions and effects to a scene graph.
+
+The symbolic world is what ground-truth plans are rolled out against: it checks every precondition a real
+primitive has (grasping needs approaching, weighing needs a lifted object …), reveals a weight only when
+``weigh`` runs, and moves objects where ``lower`` would put them. The flags it keeps in ``SceneObject.extra``
+(``in_hand``, ``raised``, ``approached``, ``gripper_over``) are the ones the physical environment reports.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+from muble import ActionCall, ActionResult, SceneGraph, SceneObject
+
+from muble_plugins.tasks.geometry import height
+
+MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE = "move", "approach", "grasp", "lift", "weigh", "lower", "release"
+PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE)
+FLAGS = ("in_hand", "raised", "approached", "gripper_over")
+LIFT_HEIGHT = 0.1  # metres above the resting pose while raised
+
+
+@dataclass
+class ArmState:
+    """The gripper's symbolic state read from a scene graph."""
+
+    held: int | None
+    raised: bool
+    approached: int | None
+    over: int | None
+
+    @classmethod
+    def of(cls, scene: SceneGraph) -> "ArmState":
+        held = approached = over = None
+        raised = False
+        for o in scene.objects:
+            if o.extra.get("in_hand"):
+                held, raised = o.id, bool(o.extra.get("raised"))
+            if o.extra.get("approached"):
+                approached = o.id
+            if o.extra.get("gripper_over"):
+                over = o.id
+        return cls(held, raised, approached, over)
+
+
+class SymbolicWorld:
+    """Applies primitive calls to a private copy of a scene graph; failed preconditions fail the action."""
+
+    def __init__(self, scene: SceneGraph):
+        self.scene = copy.deepcopy(scene)
+        for o in self.scene.objects:
+            o.weight = None
+            for flag in FLAGS:
+                o.extra[flag] = False
+        self.destination: list[float] | None = None  # a table point the held object was moved over
+        self.steps = 0
+
+    def _set(self, flag: str, obj: SceneObject | None) -> None:
+        for o in self.scene.objects:
+            o.extra[flag] = o is obj
+
+    def _object(self, call: ActionCall) -> SceneObject:
+        return self.scene.object(int(call.params["target"]))
+
+    def apply(self, call: ActionCall) -> ActionResult:
+        self.steps += 1
+        try:
+            return self._apply(call)
+        except (KeyError, ValueError, TypeError) as e:
+            return ActionResult(False, failure_reason=f"{call}: bad parameters ({e})")
+
+    def _apply(self, call: ActionCall) -> ActionResult:
+        state = ArmState.of(self.scene)
+        held = self.scene.object(state.held) if state.held is not None else None
+        fail = lambda why: ActionResult(False, failure_reason=f"{call}: {why}")  # noqa: E731
+        if call.name == MOVE:
+            if held is not None and not state.raised:
+                return fail("lift the held object before moving")
+            self._set("approached", None)
+            if "position" in call.params:
+                self._set("gripper_over", None)
+                self.destination = [float(v) for v in call.params["position"]]
+                xy = self.destination[:2]
+            else:
+                target = self._object(call)
+                self._set("gripper_over", target)
+                self.destination = None
+                xy = target.position[:2]
+            if held is not None:
+                # The lifted object travels with the gripper.
+                held.position = held.position.copy()
+                held.position[:2] = xy
+            return ActionResult(True)
+        if call.name == APPROACH:
+            target = self._object(call)
+            if held is not None or state.over != target.id:
+                return fail("move over an object with an empty gripper before approaching it")
+            self._set("approached", target)
+            self._set("gripper_over", None)
+            return ActionResult(True)
+        if call.name == GRASP:
+            target = self._object(call)
+            if held is not None or state.approached != target.id or not target.pickupable:
+                return fail("grasping needs an approached, pickupable object and an empty gripper")
+            self._set("approached", None)
+            self._set("in_hand", target)
+            self.destination = None
+            return ActionResult(True)
+        if call.name == LIFT:
+            if held is None or state.raised:
+                return fail("lifting needs a grasped object resting on its support")
+            held.extra["raised"] = True
+            held.position = held.position + [0.0, 0.0, LIFT_HEIGHT]
+            return ActionResult(True)
+        if call.name == WEIGH:
+            if held is None or not state.raised:
+                return fail("weighing needs a lifted object")
+            held.weight = held.weight_gt
+            return ActionResult(True, measurement=held.weight_gt)
+        if call.name == LOWER:
+            if held is None or not state.raised:
+                return fail("lowering needs a lifted object")
+            self._lower(held, state)
+            held.extra["raised"] = False
+            return ActionResult(True)
+        if call.name == RELEASE:
+            if held is None or state.raised:
+                return fail("lower the held object before releasing it")
+            self._set("in_hand", None)
+            self._set("gripper_over", held)
+            return ActionResult(True)
+        return fail(f"unknown primitive; known: {', '.join(PRIMITIVES)}")
+
+    def _lower(self, held: SceneObject, state: ArmState) -> None:
+        if state.over is not None and state.over != held.id:
+            base = self.scene.object(state.over)
+            held.position = base.position + [0.0, 0.0, height(base)]
+            self._set("gripper_over", None)
+        elif self.destination is not None:
+            held.position = held.position.copy()
+            held.position[:2] = self.destination[:2]
+            held.position[2] = self.destination[2]
+        else:
+            held.position = held.position - [0.0, 0.0, LIFT_HEIGHT]
+        self.destination = None

@@ -1,0 +1,80 @@
+"""Symbolic SHOP-VRB2 scenes sampled from the attribute vocabulary, for generator statistics and tests.
+
+No physics: objects get attributes, flags, a ground-truth weight, a bounding box and a non-overlapping spot on
+the table, which is all instruction generation and symbolic planning read.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from muble import SceneGraph, SceneObject
+
+from muble_plugins.tasks.geometry import TABLE_REGION
+
+COLOURS = ("brown", "white", "gray", "blue", "purple", "green", "yellow", "cyan", "red", "black")
+# category: shapes, materials, sizes, (stackable, stack_base, pickupable), weight range g, extents m (x, y, z)
+CATEGORIES: dict[str, tuple] = {
+    "plate": (("flat",), ("ceramic", "plastic"), ("small", "medium-sized"), (False, True, False),
+              (180, 290), (0.16, 0.16, 0.012)),
+    "bowl": (("hemisphere",), ("ceramic", "plastic", "glass"), ("small", "medium-sized"), (True, True, True),
+             (120, 215), (0.12, 0.12, 0.05)),
+    "glass": (("cylindrical", "cuboid"), ("glass", "plastic"), ("medium-sized",), (True, False, True),
+              (50, 95), (0.07, 0.07, 0.10)),
+    "baking tray": (("flat",), ("metal", "rubber"), ("medium-sized", "large"), (False, True, False),
+                    (220, 370), (0.24, 0.16, 0.03)),
+    "soda can": (("cylindrical",), ("metal",), ("medium-sized",), (True, False, True),
+                 (110, 130), (0.066, 0.066, 0.12)),
+    "food box": (("cylindrical", "cuboid"), ("plastic",), ("small", "medium-sized"), (False, True, False),
+                 (150, 215), (0.10, 0.10, 0.10)),
+    "mug": (("cylindrical",), ("ceramic",), ("small", "medium-sized"), (True, False, True),
+            (55, 115), (0.10, 0.08, 0.09)),
+    "chopping board": (("cuboid", "irregularly shaped"), ("plastic", "rubber", "wooden"), ("large",),
+                       (False, True, False), (360, 500), (0.24, 0.15, 0.02)),
+    "thermos": (("cylindrical",), ("metal",), ("medium-sized",), (False, False, True),
+                (235, 255), (0.08, 0.08, 0.25)),
+    "wine glass": (("irregularly shaped",), ("glass", "plastic"), ("medium-sized",), (False, False, True),
+                   (95, 115), (0.08, 0.08, 0.18)),
+}
+
+
+def _pick(rng: np.random.Generator, items: tuple) -> str:
+    return items[int(rng.integers(len(items)))]
+
+
+def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6)) -> SceneGraph:
+    """A scene of ``n_objects`` (inclusive range) objects placed without overlap on the table."""
+    n = int(rng.integers(n_objects[0], n_objects[1] + 1))
+    names = list(CATEGORIES)
+    objects: list[SceneObject] = []
+    (x0, x1), (y0, y1) = TABLE_REGION
+    while len(objects) < n:
+        name = names[int(rng.integers(len(names)))]
+        shapes, materials, sizes, flags, (w0, w1), ext = CATEGORIES[name]
+        material = _pick(rng, materials)
+        scale = {"small": 0.8, "medium-sized": 1.0, "large": 1.1}[size := _pick(rng, sizes)]
+        ex, ey, ez = (e * scale for e in ext)
+        radius = 0.5 * max(ex, ey)
+        for _ in range(20):
+            x, y = rng.uniform(x0 + radius, x1 - radius), rng.uniform(y0 + radius, y1 - radius)
+            if all(math.hypot(x - o.position[0], y - o.position[1]) > radius + 0.5 * max(o.bbox["x"], o.bbox["y"])
+                   + 0.01 for o in objects):
+                break
+        else:
+            continue  # no room for this one: sample another category
+        yaw = rng.uniform(-math.pi, math.pi)
+        objects.append(SceneObject(
+            id=len(objects), model=name.replace(" ", "_") + "1", name=name, shape=_pick(rng, shapes), size=size,
+            material=material, colour="transparent" if material == "glass" else _pick(rng, COLOURS),
+            position=np.array([x, y, 0.0]), orientation=np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]),
+            weight_gt=round(float(rng.uniform(w0, w1)), 1), stackable=flags[0], stack_base=flags[1],
+            pickupable=flags[2], rotation=math.degrees(yaw), bbox={"x": ex, "y": ey, "z": ez},
+        ))
+    return SceneGraph(objects=objects, split="synthetic", image_index=index,
+                      image_filename=f"SHOP_VRB2_synthetic_{index:06d}.png")
+
+
+def sample_scenes(seed: int, count: int) -> list[SceneGraph]:
+    """``count`` scenes, scene ``i`` deterministic from ``(seed, i)``."""
+    return [sample_scene(np.random.default_rng([seed, i]), i) for i in range(count)]

@@ -1,0 +1,74 @@
+"""The ten SHOP-VRB2 Task plugins: one class per template, sharing generation, planning and checking."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from muble import ActionCall, Answer, Instruction, Outcome, PlanningError, SceneGraph, Task
+
+from muble_plugins.tasks.agents import OracleAgent
+from muble_plugins.tasks.episodes import run_symbolic_episode
+from muble_plugins.tasks.generator import generate_for_template
+from muble_plugins.tasks.descriptions import SceneIndex
+from muble_plugins.tasks.success import check
+from muble_plugins.tasks.templates import TEMPLATES, Template
+
+MAX_PLAN_STEPS = 100
+
+
+@dataclass
+class ShopVrb2TaskConfig:
+    instructions_per_scene: int = 1  # -1: one per valid option
+    extra_steps: int = 0  # allow descriptions this many words longer than the shortest
+    weight_margin_g: float = 2.0  # weights compared by a template differ at least this much
+
+
+class ShopVrb2Task(Task):
+    """A SHOP-VRB2 template: instructions with CLEVR-IEP programs, ground-truth primitives, success check."""
+
+    template: ClassVar[Template]
+
+    def __init__(self, instructions_per_scene: int = 1, extra_steps: int = 0, weight_margin_g: float = 2.0):
+        self.instructions_per_scene = instructions_per_scene
+        self.extra_steps = extra_steps
+        self.weight_margin_g = weight_margin_g
+
+    def generate(self, scene: SceneGraph, rng: np.random.Generator) -> list[Instruction]:
+        return generate_for_template(self.template, scene, rng, count=self.instructions_per_scene,
+                                     index=SceneIndex(scene, self.extra_steps), weight_margin=self.weight_margin_g)
+
+    def ground_truth(self, instruction: Instruction, scene: SceneGraph) -> list[ActionCall]:
+        """The oracle's primitives, rolled out in the symbolic world from ``scene`` (weights unknown at start)."""
+        episode = run_symbolic_episode(instruction, scene, OracleAgent(), max_steps=MAX_PLAN_STEPS)
+        if episode.outcome is not Outcome.SUCCESS:
+            raise PlanningError(f"no ground-truth plan for '{instruction.instruction}': the oracle's roll-out "
+                                f"ended in {episode.outcome.value} after {len(episode.actions)} primitives")
+        return episode.actions
+
+    def check(self, instruction: Instruction, scene: SceneGraph, answer: Answer | None) -> Outcome:
+        return check(instruction, scene, answer)
+
+
+def _task_class(template_id: str, class_name: str) -> type[ShopVrb2Task]:
+    template = TEMPLATES[template_id]
+    return type(class_name, (ShopVrb2Task,), {"template": template, "task_id": template.task_id,
+                                              "__doc__": f"SHOP-VRB2 template '{template_id}': "
+                                                         f"{template.description}."})
+
+
+MeasureWeightSingle = _task_class("measure_weight_single", "MeasureWeightSingle")
+MeasureWeightMulti = _task_class("measure_weight_multi", "MeasureWeightMulti")
+PickUpByWeight = _task_class("pick_up_lightest", "PickUpByWeight")
+MoveSingle = _task_class("move_single", "MoveSingle")
+RemoveFromPart = _task_class("remove", "RemoveFromPart")
+MoveByWeight = _task_class("move_weight", "MoveByWeight")
+StackSimple = _task_class("stack_simple", "StackSimple")
+StackByWeight = _task_class("stack_weight", "StackByWeight")
+StackThree = _task_class("stack_three", "StackThree")
+StackOrder = _task_class("stack_order", "StackOrder")
+
+TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {cls.template.template_id: cls for cls in (
+    MeasureWeightSingle, MeasureWeightMulti, PickUpByWeight, MoveSingle, RemoveFromPart, MoveByWeight,
+    StackSimple, StackByWeight, StackThree, StackOrder)}
