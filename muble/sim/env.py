@@ -67,7 +67,8 @@ class TabletopEnv:
             raise ConfigError(f"control period 1/{cfg['control_freq']} s is not a whole number of "
                               f"{cfg['timestep']} s physics steps; change robot.control_freq or robot.timestep")
         self.config = cfg
-        self.scene = copy.deepcopy(scene)
+        self.initial_scene = copy.deepcopy(scene)  # what reset() returns to
+        self.scene = copy.deepcopy(scene)  # the latest sync_scene_graph()
         self.object_models = dict(models)
         self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"])
         self.data = mujoco.MjData(self.model)
@@ -103,6 +104,7 @@ class TabletopEnv:
     def reset(self) -> tuple[dict[str, Any], dict[str, Any]]:
         """Put every object back at its scene pose and the arm at rest, gripper open; returns (obs, info)."""
         mujoco.mj_resetData(self.model, self.data)
+        self.scene = copy.deepcopy(self.initial_scene)
         self.model.eq_data[:] = self.eq_data0
         self.data.qpos[self.servos.qpos_adr] = self.names.init_qpos
         self.servos.command(self.data, self.names.init_qpos)

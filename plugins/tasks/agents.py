@@ -30,10 +30,33 @@ class OracleAgent(Agent):
     def __init__(self) -> None:
         self.measured: dict[int, float] = {}
         self.answered = False
+        self.last: ActionCall | None = None
 
     def reset(self, instruction: Instruction, observation: Observation) -> None:
         self.measured = {}
         self.answered = False
+        self.last = None
+
+    def _arm(self, observation: Observation) -> ArmState:
+        """The gripper state from the scene's flags, completed by what the last successful primitive did.
+
+        A physical scene graph need not report where the gripper hovers, and its "raised" flag is a height
+        test that a lowered-onto-a-stack object also passes; the last primitive settles both.
+        """
+        arm = ArmState.of(observation.scene)
+        result, last = observation.last_result, self.last
+        if last is None or result is None or not result.success:
+            return arm
+        target = last.params.get("target")
+        if last.name == MOVE and target is not None and arm.held is None and arm.over is None:
+            arm.over = int(target)
+        elif last.name == APPROACH and arm.held is None and arm.approached is None:
+            arm.approached = int(target)
+        elif last.name == LOWER and arm.held is not None:
+            arm.raised = False
+        elif last.name in (LIFT, WEIGH) and arm.held is not None:
+            arm.raised = True
+        return arm
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
         scene = observation.scene
@@ -42,13 +65,14 @@ class OracleAgent(Agent):
             held = ArmState.of(scene).held
             if held is not None:
                 self.measured[held] = float(result.measurement)
-        plan = plan_next(instruction.program, scene, self.measured)
+        plan = plan_next(instruction.program, scene, self.measured, self._arm(observation))
         if plan.answer is not None:
             if self.answered:
                 return None
             self.answered = True
             return plan.answer
-        return plan.actions[0] if plan.actions else None
+        self.last = plan.actions[0] if plan.actions else None
+        return self.last
 
 
 @dataclass

@@ -10,7 +10,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from muble import Instruction, SceneGraph
+from muble import ConfigError, Instruction, SceneGraph
+from muble.core.errors import unknown_name
 from muble.core.instructions_io import program_step
 from muble.core.program import OPPOSITE_PART, execute
 
@@ -122,6 +123,9 @@ def generate_instructions(scene: SceneGraph, rng: np.random.Generator, *, templa
                           per_template: int = 1, extra_steps: int = 0,
                           weight_margin: float = 2.0) -> list[Instruction]:
     """Instructions of every template (or those named) for one scene, numbered in ``instruction_idx`` order."""
+    unknown = [n for n in templates or () if n not in TEMPLATES]
+    if unknown:
+        raise ConfigError(unknown_name("template", unknown[0], list(TEMPLATES)))
     index = SceneIndex(scene, extra_steps)
     out: list[Instruction] = []
     for name in templates or list(TEMPLATES):

@@ -17,6 +17,7 @@ from muble_plugins.tasks.descriptions import SceneIndex
 TABLE_PARTS = ("left", "right", "front", "back")
 SUPERLATIVES = ("heaviest", "lightest")
 MAX_STACK = 4  # objects in one "stack all" tower
+MAX_COMPARED = 5  # objects weighed to find a heaviest/lightest one (keeps plans within 46 primitives)
 
 
 @dataclass(frozen=True)
@@ -43,8 +44,9 @@ class OptionContext:
     def pickable_unique(self) -> list[int]:
         return [i for i in self.index.unique if self.obj(i).pickupable]
 
-    def pickable_groups(self) -> list[tuple[int, ...]]:
-        return [g for g in self.index.groups if all(self.obj(i).pickupable for i in g)]
+    def pickable_groups(self, max_size: int | None = None) -> list[tuple[int, ...]]:
+        return [g for g in self.index.groups if all(self.obj(i).pickupable for i in g)
+                and (max_size is None or len(g) <= max_size)]
 
     def by_weight(self, group: tuple[int, ...]) -> list[int] | None:
         """Group ids heaviest first, or ``None`` when two weights are closer than the margin."""
@@ -71,7 +73,7 @@ def _measure_multi(c: OptionContext) -> Iterator[tuple]:
 
 
 def _pick_up(c: OptionContext) -> Iterator[tuple]:
-    for g in c.pickable_groups():
+    for g in c.pickable_groups(MAX_COMPARED):
         for ws in SUPERLATIVES:
             if c.extreme(g, ws) is not None:
                 yield (g, ws)
@@ -93,7 +95,7 @@ def _remove(c: OptionContext) -> Iterator[tuple]:
 
 
 def _move_weight(c: OptionContext) -> Iterator[tuple]:
-    for g in c.pickable_groups():
+    for g in c.pickable_groups(MAX_COMPARED):
         for ws in SUPERLATIVES:
             target = c.extreme(g, ws)
             if target is None:
@@ -114,7 +116,7 @@ def _stack_simple(c: OptionContext) -> Iterator[tuple]:
 
 def _stack_weight(c: OptionContext) -> Iterator[tuple]:
     bases = [i for i in c.index.unique if c.obj(i).stack_base]
-    for g in c.pickable_groups():
+    for g in c.pickable_groups(MAX_COMPARED):
         for ws in SUPERLATIVES:
             top = c.extreme(g, ws)
             if top is None or not c.obj(top).stackable:

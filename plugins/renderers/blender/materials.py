@@ -60,7 +60,7 @@ def _bump(nodes: Any, links: Any, bsdf: Any, height: Any, strength: float, dista
 
 
 def _plastic(mat, bsdf, rgb, nodes, links):
-    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.32, Specular_IOR_Level=0.5, IOR=1.46)
+    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.2, Specular_IOR_Level=0.5, IOR=1.46)
 
 
 def _painted(mat, bsdf, rgb, nodes, links):
@@ -69,7 +69,7 @@ def _painted(mat, bsdf, rgb, nodes, links):
 
 def _rubber(mat, bsdf, rgb, nodes, links):
     # Matte, dark-ish, with a fine pebbled surface that breaks up the highlights.
-    _set(bsdf, Base_Color=(*(0.8 * np.asarray(rgb)), 1), Roughness=0.85, Specular_IOR_Level=0.15,
+    _set(bsdf, Base_Color=(*(0.7 * np.asarray(rgb)), 1), Roughness=0.9, Specular_IOR_Level=0.15,
          Sheen_Weight=0.3, Sheen_Roughness=0.6)
     noise = nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 400.0
@@ -121,7 +121,7 @@ def _wood(mat, bsdf, rgb, nodes, links):
     links.new(coords, wave.inputs["Vector"])
     ramp = nodes.new("ShaderNodeValToRGB")
     rgb = np.asarray(rgb)
-    ramp.color_ramp.elements[0].color = (*(0.4 * rgb), 1)
+    ramp.color_ramp.elements[0].color = (*(0.3 * rgb), 1)
     ramp.color_ramp.elements[1].color = (*np.clip(1.15 * rgb, 0, 1), 1)
     links.new(wave.outputs["Fac"], ramp.inputs["Fac"])
     links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])

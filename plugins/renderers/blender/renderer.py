@@ -178,6 +178,12 @@ class BlenderRenderer(Renderer):
         mesh.materials.append(None)  # one slot, filled per object: geoms share meshes but not colours
         return mesh
 
+    def configure_passes(self, depth: bool, segmentation: bool, normals: bool = False) -> None:
+        """Choose the ground-truth passes of the next renders (RGB is always rendered)."""
+        self.config.depth, self.config.segmentation, self.config.normals = depth, segmentation, normals
+        if self._bscene is not None:
+            set_passes(self._bscene.view_layers[0], depth, segmentation, normals)
+
     # -- keyframes --------------------------------------------------------------------------------------
 
     def _camera_id(self, camera: str) -> int:
