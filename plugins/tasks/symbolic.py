@@ -10,7 +10,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 
-from muble import ActionCall, ActionResult, SceneGraph, SceneObject
+from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject
 
 from muble_plugins.tasks.geometry import height
 
@@ -61,6 +61,9 @@ class SymbolicWorld:
 
     def _object(self, call: ActionCall) -> SceneObject:
         return self.scene.object(int(call.params["target"]))
+
+    def observe(self, result: ActionResult | None, step: int) -> Observation:
+        return Observation(scene=self.scene, last_result=result, step=step)
 
     def apply(self, call: ActionCall) -> ActionResult:
         self.steps += 1

@@ -1,0 +1,238 @@
+"""Arm motion primitives: move above a target, approach for grasping, lift, lower (put down), move_vel.
+
+Each plans completely before it moves where it can, so a ``PlanningError`` leaves the environment as it was; a
+primitive that fails after moving restores the snapshot taken at its start before re-raising.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from muble import ActionResult, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives.grasping import PRE_GRASP, footprint_radius, free_places, grasp_candidates
+
+logger = logging.getLogger(__name__)
+
+TABLE_PARTS = ("left", "right", "front", "back", "centre")
+
+
+def _held_depth(env) -> float:
+    """How far the held object hangs below the grip site (0 when nothing is held)."""
+    if env.held_object is None:
+        return 0.0
+    m, d = env.model, env.data
+    b = m.body(env.names.objects[env.held_object]).id
+    lowest = min(_geom_bottom(env, g) for g in np.flatnonzero(m.geom_bodyid == b)
+                 if m.geom_contype[g] or m.geom_conaffinity[g])
+    return float(env.ee_pose().pos[2] - lowest)
+
+
+def _geom_bottom(env, g: int) -> float:
+    import mujoco
+
+    m, d = env.model, env.data
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = m.geom_dataid[g]
+        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+        verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
+        return float(verts[:, 2].min())
+    return float(d.geom_xpos[g][2] - m.geom_rbound[g])
+
+
+def _result(report: ctx.MotionReport, **info) -> ActionResult:
+    info.update(unintended_contacts=sorted(report.unintended_contacts), duration=report.duration)
+    return ActionResult(True, info=info)
+
+
+def _target_xy_and_top(env, target) -> tuple[np.ndarray, float]:
+    if isinstance(target, str):
+        table = ctx.table(env)
+        lo, hi = table.part_region(target)
+        return 0.5 * (lo + hi), table.top_z
+    ctx.body_name(env, target)
+    return env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
+
+
+class Move(PrimitiveAction):
+    """Move the hand above an object (scene id) or a table part (left/right/front/back/centre)."""
+
+    params = ("target",)
+
+    def execute(self, env) -> ActionResult:
+        target = self.arguments.get("target")
+        xy, top = _target_xy_and_top(env, target)
+        world = ctx.collision_world(env)
+        goal = ctx.hover_pose(env, xy, top + _held_depth(env), ctx.top_down(env))
+        trajectory = ctx.plan_to(env, world, goal)
+        report = ctx.execute(env, trajectory, world)
+        return _result(report, target=target)
+
+
+class Approach(PrimitiveAction):
+    """Bring the open hand into the grasp pose of an object: over it by a planned move, then straight down."""
+
+    params = ("target",)
+
+    def execute(self, env) -> ActionResult:
+        obj_id = int(self.arguments["target"])
+        body = ctx.body_name(env, obj_id)
+        if env.held_object is not None:
+            raise PlanningError(f"the hand already holds object {env.held_object}; lower it before approaching")
+        snap = env.snapshot()
+        env.open_gripper()
+        env.hold(0.3)
+        world = ctx.collision_world(env)
+        model = env.object_models[obj_id]
+        table = ctx.table(env)
+        reasons = []
+        for grasp in grasp_candidates(env.object_pose(obj_id), model, table.top_z):
+            pre = PoseGoal(Pose(grasp.pos + [0.0, 0.0, PRE_GRASP], grasp.quat), 0.005, 0.05)
+            try:
+                world.allow_contact([body])
+                q_grasp = world.inverse_kinematics(PoseGoal(grasp, 0.004, 0.05))
+                world.allow_contact([])
+                q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
+                to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), PoseGoal(pre.pose, 0.005, 0.05), world)
+                world.allow_contact([body])
+                down = ctx.planner(env, "straight_line").plan(q_pre, PoseGoal(grasp, 0.004, 0.05), world)
+            except PlanningError as e:
+                reasons.append(str(e))
+                continue
+            world.allow_contact([])
+            first = ctx.execute(env, to_pre, world)
+            env.hold(0.3)
+            env.tare()  # the empty hand, still: the zero for weighing
+            world = ctx.collision_world(env)
+            second = ctx.execute(env, down.__class__(
+                np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names), world,
+                allowed={env.model.body(body).id})
+            report = ctx.MotionReport(first.duration + second.duration, second.final_error,
+                                      first.unintended_contacts | second.unintended_contacts)
+            return _result(report, target=obj_id, grasp_pos=grasp.pos.tolist())
+        env.restore(snap)
+        raise PlanningError(f"no grasp of object {obj_id} is reachable without collision: {reasons[0] if reasons else ''}")
+
+
+class Lift(PrimitiveAction):
+    """Raise the hand (and what it holds) straight up by ``height`` metres (default 0.15)."""
+
+    params = ("height",)
+
+    def execute(self, env) -> ActionResult:
+        height = float(self.arguments.get("height", 0.15))
+        world = ctx.collision_world(env)
+        own = set(world.robot_bodies)
+        if env.held_object is not None:
+            own.add(env.model.body(env.names.objects[env.held_object]).id)
+        support = ctx.touching_bodies(env, own)  # what it rests on may be touched while leaving it
+        world.allow_contact(support)
+        pose = env.ee_pose()
+        goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, height], pose.quat), 0.005, 0.05)
+        trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
+        report = ctx.execute(env, trajectory, world, allowed=support)
+        return _result(report, height=height)
+
+
+class Lower(PrimitiveAction):
+    """Put the held object down: on another object (scene id), on a table part, or straight down (no target).
+
+    A table part gets the free place nearest its centre; the object is released and left resting.
+    """
+
+    params = ("target",)
+
+    def execute(self, env) -> ActionResult:
+        if env.held_object is None:
+            raise PlanningError("lower needs an object in the hand; approach and close the gripper first")
+        target = self.arguments.get("target")
+        held = env.held_object
+        held_body = env.model.body(env.names.objects[held]).id
+        depth = _held_depth(env)
+        quat = env.ee_pose().quat
+        table = ctx.table(env)
+        world = ctx.collision_world(env)
+        if target is None or isinstance(target, str):
+            support_body, support_top = table.body, table.top_z
+            if target is None:
+                places = [env.ee_pose().pos[:2]]
+            else:
+                others = [(env.object_pose(i).pos[:2], footprint_radius(env.object_models[i].extents))
+                          for i in env.names.objects if i != held]
+                places = free_places(table.part_region(target), footprint_radius(env.object_models[held].extents),
+                                     others)
+                if not places:
+                    raise PlanningError(f"no free space on the {target} part of the table; choose another part")
+        else:
+            ctx.body_name(env, target)
+            support_body = env.model.body(env.names.objects[int(target)]).id
+            support_top = ctx.object_top(env, int(target))
+            places = [env.object_pose(int(target)).pos[:2]]
+        reasons = []
+        for xy in places[:12]:
+            place = Pose(np.array([xy[0], xy[1], support_top + depth + 0.004]), quat)
+            above = PoseGoal(Pose(place.pos + [0.0, 0.0, ctx.HOVER], quat), 0.005, 0.05)
+            try:
+                world.allow_contact([])
+                q_above = world.inverse_kinematics(above)
+                to_above = ctx.planner(env, "ompl").plan(env.arm_q(), above, world)
+                world.allow_contact([support_body])
+                down = ctx.planner(env, "straight_line").plan(q_above, PoseGoal(place, 0.004, 0.05), world)
+            except PlanningError as e:
+                reasons.append(str(e))
+                continue
+            return self._put_down(env, world, to_above, down, support_body, held_body, held)
+        raise PlanningError(f"cannot put object {held} down on {target!r}: {reasons[0] if reasons else ''}")
+
+    @staticmethod
+    def _put_down(env, world, to_above, down, support_body, held_body, held) -> ActionResult:
+        world.allow_contact([])
+        first = ctx.execute(env, to_above, world)
+        world = ctx.collision_world(env)
+        world.allow_contact([support_body])
+        second = ctx.execute(env, down.__class__(np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names),
+                             world, allowed={support_body})
+        env.open_gripper()
+        env.hold(0.5)
+        world = ctx.collision_world(env)
+        world.allow_contact([held_body])
+        pose = env.ee_pose()
+        retreat = ctx.planner(env, "straight_line").plan(
+            env.arm_q(), PoseGoal(Pose(pose.pos + [0.0, 0.0, 0.08], pose.quat), 0.005, 0.05), world)
+        third = ctx.execute(env, retreat, world, allowed={held_body})
+        env.hold(0.3)
+        speed = float(np.linalg.norm(env.data.cvel[held_body][3:]))
+        contacts = first.unintended_contacts | second.unintended_contacts | third.unintended_contacts
+        report = ctx.MotionReport(first.duration + second.duration + third.duration, third.final_error, contacts)
+        result = _result(report, resting_speed=speed, released=env.held_object is None)
+        result.success = env.held_object is None and speed < 0.01
+        if not result.success:
+            result.failure_reason = f"object {held} did not come to rest (speed {speed:.3f} m/s)"
+        return result
+
+
+class MoveVel(PrimitiveAction):
+    """Move the hand at ``velocity`` (vx, vy, vz in m/s, world frame) for ``duration`` seconds, continuously."""
+
+    params = ("velocity", "duration")
+
+    def execute(self, env) -> ActionResult:
+        velocity = np.asarray(self.arguments.get("velocity", (0.0, 0.0, 0.0)), dtype=float).reshape(3)
+        duration = float(self.arguments.get("duration", 1.0))
+        steps = max(1, int(round(duration / env.control_dt)))
+        # OSC_POSE actions are deltas scaled so that 1.0 means 5 cm per control step.
+        delta = velocity * env.control_dt / 0.05
+        if np.any(np.abs(delta) > 1.0):
+            raise PlanningError(f"velocity {velocity.tolist()} m/s exceeds {0.05 / env.control_dt:.2f} m/s per axis "
+                                "at this control rate; lower it")
+        start = env.ee_pose().pos
+        action = np.zeros(7)
+        action[:3] = delta
+        action[6] = env.gripper_command
+        for _ in range(steps):
+            _, _, terminated, _, info = env.step(action)
+            if terminated:
+                return ActionResult(False, failure_reason=str(info.get("error", "episode ended")))
+        moved = env.ee_pose().pos - start
+        return ActionResult(True, measurement=moved.tolist(), info={"steps": steps})
