@@ -1,1 +1,23 @@
-"""Built-in primitives plugins."""
+"""Built-in primitive actions: move, approach, close/open gripper, lift, lower, weigh, squeeze, move_vel.
+
+Composite actions (pick up = approach + close_gripper + lift) are sequences of these and need no code here.
+"""
+from muble import PluginRecord, hookimpl
+
+
+@hookimpl
+def muble_register_primitives() -> list[PluginRecord]:
+    from muble_plugins.primitives.gripper import CloseGripper, OpenGripper, Squeeze, Weigh
+    from muble_plugins.primitives.motion import Approach, Lift, Lower, Move, MoveVel
+
+    return [
+        PluginRecord("move", Move, "move the hand above an object or a table part (left/right/front/back/centre)"),
+        PluginRecord("approach", Approach, "bring the open hand into the grasp pose of an object"),
+        PluginRecord("close_gripper", CloseGripper, "close the fingers; grasps the object between them"),
+        PluginRecord("open_gripper", OpenGripper, "open the fingers; releases the held object"),
+        PluginRecord("lift", Lift, "raise the hand straight up by a height (m)"),
+        PluginRecord("lower", Lower, "put the held object down on an object or a free place on a table part"),
+        PluginRecord("weigh", Weigh, "measure the weight (g) of the held object with the wrist force sensor"),
+        PluginRecord("squeeze", Squeeze, "measure the stiffness (N/m) of the object between the fingers"),
+        PluginRecord("move_vel", MoveVel, "move the hand at a constant velocity (m/s) for a duration (s)"),
+    ]

@@ -9,7 +9,7 @@ import logging
 
 import numpy as np
 
-from muble import ActionResult, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, PrimitiveAction
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives.grasping import PRE_GRASP, footprint_radius, free_places, grasp_candidates
 
@@ -94,7 +94,7 @@ class Approach(PrimitiveAction):
                 q_grasp = world.inverse_kinematics(PoseGoal(grasp, 0.004, 0.05))
                 world.allow_contact([])
                 q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
-                to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), PoseGoal(pre.pose, 0.005, 0.05), world)
+                to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world)
                 world.allow_contact([body])
                 down = ctx.planner(env, "straight_line").plan(q_pre, PoseGoal(grasp, 0.004, 0.05), world)
             except PlanningError as e:
@@ -176,7 +176,7 @@ class Lower(PrimitiveAction):
             try:
                 world.allow_contact([])
                 q_above = world.inverse_kinematics(above)
-                to_above = ctx.planner(env, "ompl").plan(env.arm_q(), above, world)
+                to_above = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_above), world)
                 world.allow_contact([support_body])
                 down = ctx.planner(env, "straight_line").plan(q_above, PoseGoal(place, 0.004, 0.05), world)
             except PlanningError as e:

@@ -1,0 +1,89 @@
+"""Per-step sequence files in the original MuBlE schema (observations after every primitive)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from muble.core.interfaces import Instruction
+from muble.core.scene import SceneGraph
+from muble.core.scene_io import object_to_dict
+from muble.core.types import SEG_ROBOT, SEG_TABLE, ActionCall, Observation
+from muble.episode.loop import EpisodeResult
+
+_FLAGS = ("in_hand", "raised", "approached", "gripper_over")
+
+
+def encode_rle(mask: np.ndarray) -> dict[str, Any]:
+    """COCO RLE of a boolean mask as plain data ({size, counts})."""
+    from pycocotools import mask as mask_util
+
+    rle = mask_util.encode(np.asfortranarray(mask.astype(np.uint8)))
+    return {"size": [int(v) for v in rle["size"]], "counts": rle["counts"].decode("ascii")}
+
+
+def _finite(values: Any) -> list[float]:
+    return [float(v) for v in np.asarray(values, dtype=float).reshape(-1)]
+
+
+def _objects(scene: SceneGraph, observation: Observation, camera: str) -> list[dict[str, Any]]:
+    frame = observation.images.get(camera)
+    out = []
+    for o in scene.objects:
+        d = object_to_dict(o)
+        for flag in _FLAGS:
+            d.pop(flag, None)
+        d["pos"] = _finite(o.position)
+        d["ori"] = _finite(o.orientation)
+        for flag in _FLAGS:
+            d[flag] = bool(o.extra.get(flag, False))
+        if frame is not None and frame.segmentation is not None:
+            d["mask"] = encode_rle(frame.segmentation == o.id)
+        out.append(d)
+    return out
+
+
+def _robot(observation: Observation, action: ActionCall | None, weight: float | None) -> dict[str, Any]:
+    m = observation.measurements
+    target = None if action is None else action.params.get("target")
+    gripper = float(m.get("gripper", -1.0))
+    return {
+        "pos": _finite(m["ee_pos"]) if "ee_pos" in m else None,
+        "ori": _finite(m["ee_quat"]) if "ee_quat" in m else None,
+        "gripper_action": gripper,
+        "gripper_closed": gripper > 0,
+        "weight_measurement": 0.0 if weight is None else float(weight),
+        "action": ["START", None] if action is None else [action.name, target],
+    }
+
+
+def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths: list[str],
+                  camera: str = "front") -> dict[str, Any]:
+    """The sequence file: ``observations`` as the agent saw them, ``observations_gt`` with ground truth too."""
+    observations, observations_gt = [], []
+    weight = None
+    steps = [(None, episode.initial)] + [(s.action, s.observation) for s in episode.steps]
+    for i, (action, observation) in enumerate(steps):
+        if i and episode.steps[i - 1].result.measurement is not None and action.name == "weigh":
+            weight = episode.steps[i - 1].result.measurement
+        robot = _robot(observation, action, weight)
+        observations.append({"robot": robot, "objects": _objects(observation.scene, observation, camera)})
+        gt = dict(robot)
+        gt["grasped_obj_idx"] = next((o.id for o in observation.scene.objects if o.extra.get("in_hand")), None)
+        frame = observation.images.get(camera)
+        if frame is not None and frame.segmentation is not None:
+            gt["robot_mask"] = encode_rle(frame.segmentation == SEG_ROBOT)
+            gt["table_mask"] = encode_rle(frame.segmentation == SEG_TABLE)
+        observations_gt.append({"robot": gt, "objects": observations[-1]["objects"]})
+    spec = instruction.extra.get("task") or {}
+    return {
+        "info": {
+            "image_filename": instruction.image_filename,
+            "instruction": instruction.instruction,
+            "task": {"task": spec.get("task", instruction.task_id), "target": spec.get("target")},
+        },
+        "observations": observations,
+        "observations_gt": observations_gt,
+        "image_paths": image_paths,
+        "result": episode.outcome.value,
+    }

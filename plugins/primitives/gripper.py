@@ -1,0 +1,68 @@
+"""Gripper and measurement primitives: close (grasp), open (release), weigh, squeeze."""
+from __future__ import annotations
+
+import logging
+
+from muble import ActionResult, PrimitiveAction
+
+logger = logging.getLogger(__name__)
+
+GRIPPER_SETTLE = 0.6  # s for the fingers to travel fully and the weld to engage
+
+
+class CloseGripper(PrimitiveAction):
+    """Close the fingers; succeeds when they hold an object (the grasp weld engaged)."""
+
+    params = ()
+
+    def execute(self, env) -> ActionResult:
+        env.close_gripper()
+        env.hold(GRIPPER_SETTLE)
+        held = env.held_object
+        if held is None:
+            return ActionResult(False, failure_reason="the fingers closed on nothing: approach an object first")
+        return ActionResult(True, measurement=held, info={"held_object": held})
+
+
+class OpenGripper(PrimitiveAction):
+    """Open the fingers, releasing whatever they hold."""
+
+    params = ()
+
+    def execute(self, env) -> ActionResult:
+        released = env.held_object
+        env.open_gripper()
+        env.hold(GRIPPER_SETTLE)
+        return ActionResult(env.held_object is None, info={"released": released})
+
+
+class Weigh(PrimitiveAction):
+    """Weight in grams of the object in hand, from the wrist force sensor minus the empty-hand tare."""
+
+    params = ()
+
+    def execute(self, env) -> ActionResult:
+        from muble.sim.measure import weigh
+
+        if env.held_object is None:
+            return ActionResult(False, failure_reason="nothing in the hand to weigh: pick an object up first")
+        grams = weigh(env)
+        return ActionResult(True, measurement=grams, info={"object": env.held_object, "unit": "g"})
+
+
+class Squeeze(PrimitiveAction):
+    """Stiffness (N/m) of the object between the fingers, from force against finger displacement."""
+
+    params = ()
+
+    def execute(self, env) -> ActionResult:
+        from muble.sim import measure
+
+        if env.held_object is None:
+            return ActionResult(False, failure_reason="nothing between the fingers to squeeze: grasp an object first")
+        squeeze = getattr(measure, "squeeze", None)
+        if squeeze is None:
+            return ActionResult(False, failure_reason="this environment has no stiffness measurement "
+                                "(muble.sim.measure.squeeze)")
+        stiffness = squeeze(env)
+        return ActionResult(True, measurement=stiffness, info={"object": env.held_object, "unit": "N/m"})
