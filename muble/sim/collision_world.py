@@ -81,6 +81,10 @@ class MujocoCollisionWorld(CollisionWorld):
         self._robot_geoms = np.array([collidable[g] and m.geom_bodyid[g] in self.robot_bodies for g in range(m.ngeom)])
         self._gripper_geoms = np.array([m.geom_bodyid[g] in self.gripper_bodies for g in range(m.ngeom)])
         self._world_geoms = collidable & ~self._robot_geoms
+        # Robot parts the arm joints do not move (mount, base): objects may rest against them; that is no hit.
+        first_link = m.jnt_bodyid[m.joint(arm_joints[0]).id]
+        moving = _subtree_bodies(m, first_link)
+        self._static_geoms = self._robot_geoms & ~np.isin(m.geom_bodyid, list(moving))
         m.geom_contype[self._robot_geoms] = _ROBOT_CLASS
         m.geom_conaffinity[self._robot_geoms] = 1
         m.geom_contype[self._world_geoms] = _WORLD_CLASS
@@ -217,6 +221,8 @@ class MujocoCollisionWorld(CollisionWorld):
         m = self.model
         robot = self._robot_geoms | self._held_geoms
         ignore = self._self_ignore.copy()
+        static_world = np.outer(self._static_geoms, self._world_geoms & ~self._held_geoms)
+        ignore |= static_world | static_world.T
         held_gripper = np.outer(self._held_geoms, self._gripper_geoms)
         ignore |= held_gripper | held_gripper.T
         allowed = np.isin(m.geom_bodyid, list(self._allowed_bodies)) & ~robot

@@ -213,26 +213,28 @@ class Lower(PrimitiveAction):
 
 
 class MoveVel(PrimitiveAction):
-    """Move the hand at ``velocity`` (vx, vy, vz in m/s, world frame) for ``duration`` seconds, continuously."""
+    """Move the hand at ``velocity`` (vx, vy, vz in m/s, world frame) for ``duration`` seconds, continuously.
+
+    The motion is a timed straight line (collision-checked like any other move) tracked by the physics loop;
+    the measurement is the displacement actually travelled.
+    """
 
     params = ("velocity", "duration")
 
     def execute(self, env) -> ActionResult:
+        from muble import get_registry
+
         velocity = np.asarray(self.arguments.get("velocity", (0.0, 0.0, 0.0)), dtype=float).reshape(3)
         duration = float(self.arguments.get("duration", 1.0))
-        steps = max(1, int(round(duration / env.control_dt)))
-        # OSC_POSE actions are deltas scaled so that 1.0 means 5 cm per control step.
-        delta = velocity * env.control_dt / 0.05
-        if np.any(np.abs(delta) > 1.0):
-            raise PlanningError(f"velocity {velocity.tolist()} m/s exceeds {0.05 / env.control_dt:.2f} m/s per axis "
-                                "at this control rate; lower it")
-        start = env.ee_pose().pos
-        action = np.zeros(7)
-        action[:3] = delta
-        action[6] = env.gripper_command
-        for _ in range(steps):
-            _, _, terminated, _, info = env.step(action)
-            if terminated:
-                return ActionResult(False, failure_reason=str(info.get("error", "episode ended")))
-        moved = env.ee_pose().pos - start
-        return ActionResult(True, measurement=moved.tolist(), info={"steps": steps})
+        speed = float(np.linalg.norm(velocity))
+        start = env.ee_pose()
+        if speed * duration < 1e-4:
+            env.hold(duration)
+            return ActionResult(True, measurement=[0.0, 0.0, 0.0])
+        world = ctx.collision_world(env)
+        line = get_registry().create("planner", "straight_line", {"speed": speed, "max_distance": speed * duration + 0.01})
+        goal = PoseGoal(Pose(start.pos + velocity * duration, start.quat), 0.003, 0.05)
+        report = ctx.execute(env, line.plan(env.arm_q(), goal, world), world, settle=0.1)
+        moved = env.ee_pose().pos - start.pos
+        return ActionResult(True, measurement=moved.tolist(),
+                            info={"duration": report.duration, "unintended_contacts": sorted(report.unintended_contacts)})

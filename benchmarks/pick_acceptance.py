@@ -1,0 +1,90 @@
+"""Acceptance measurement of the pick primitives on generated SHOP-VRB2 scenes (4-5 objects, natural poses).
+
+For every object of every scene: approach + close_gripper + lift, then weigh (relative error against the
+ground-truth weight), then lower it straight back down. Counts success overall and per
+category, and moves with unintended contact (arm or held object touching another object, seen in physics).
+
+Run from the repository root: ``python benchmarks/pick_acceptance.py [--scenes 100] [--seed 0]``.
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import logging
+import time
+
+import numpy as np
+
+from muble import MubleError, get_registry
+from muble.generation.generator import SceneGenerator
+from muble.sim.build import env_from_object_set
+
+
+def act(env, name, **params):
+    return get_registry().create("primitive", name, params).execute(env)
+
+
+def run(scenes: int, seed: int) -> dict:
+    generator = SceneGenerator({"masks": False}, seed=seed)
+    per_category = collections.defaultdict(lambda: [0, 0])
+    weight_errors, moves, contact_moves, failures = [], 0, 0, []
+    began = time.perf_counter()
+    for index in range(scenes):
+        scene = generator.generate(index)
+        env = env_from_object_set(scene, "shopvrb2")
+        for obj in scene.objects:
+            env.reset()
+            ok = False
+            try:
+                results = [act(env, "approach", target=obj.id), act(env, "close_gripper"), act(env, "lift")]
+                ok = all(r.success for r in results) and env.held_object == obj.id
+                for r in results:
+                    if "unintended_contacts" in r.info:
+                        moves += 1
+                        contact_moves += bool(r.info["unintended_contacts"])
+                if ok:
+                    grams = act(env, "weigh").measurement
+                    weight_errors.append(abs(grams - obj.weight_gt) / obj.weight_gt)
+                    r = act(env, "lower")  # straight back down where it came from
+                    moves += 1
+                    contact_moves += bool(r.info.get("unintended_contacts"))
+                else:
+                    failures.append((index, obj.id, obj.name, [r.failure_reason for r in results]))
+            except MubleError as e:
+                failures.append((index, obj.id, obj.name, str(e)[:160]))
+            per_category[obj.name][0] += ok
+            per_category[obj.name][1] += 1
+    total_ok = sum(v[0] for v in per_category.values())
+    total = sum(v[1] for v in per_category.values())
+    for f in failures[:20]:
+        logging.getLogger("pick").warning("failure: %s", f)
+    return {
+        "benchmark": "pick_acceptance",
+        "metric": "approach+grasp+lift success rate",
+        "value": round(total_ok / max(total, 1), 4),
+        "unit": "fraction",
+        "goal": 0.98,
+        "per_category": {k: round(v[0] / v[1], 3) for k, v in sorted(per_category.items())},
+        "worst_category_rate": round(min(v[0] / v[1] for v in per_category.values()), 3) if per_category else 0,
+        "weigh_max_rel_error": round(float(np.max(weight_errors)), 5) if weight_errors else None,
+        "weigh_within_1pct": round(float(np.mean(np.array(weight_errors) < 0.01)), 4) if weight_errors else None,
+        "moves": moves,
+        "moves_without_unintended_contact": round(1 - contact_moves / max(moves, 1), 4),
+        "picks": total,
+        "scenes": scenes,
+        "seconds": round(time.perf_counter() - began, 1),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    logging.basicConfig(level=logging.WARNING)
+    print(json.dumps(run(args.scenes, args.seed)))
+
+
+if __name__ == "__main__":
+    main()
