@@ -54,6 +54,14 @@ class OutputConfig:
 
 
 @dataclass
+class EpisodeConfig:
+    """The action loop's limits and what is rendered after every primitive."""
+
+    max_steps: int = 100
+    cameras: list[str] = field(default_factory=lambda: ["front"])
+
+
+@dataclass
 class MubleConfig:
     """The top-level schema of every MuBlE application."""
 
@@ -64,6 +72,8 @@ class MubleConfig:
     objects: Any = MISSING
     sensors: SensorsConfig = MISSING
     agent: Any = MISSING
+    generator: Any = MISSING
+    episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     seed: int = 0
     scene_index: int = 0
     dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing
@@ -77,8 +87,11 @@ def _schema_with_name(config: type, name: str) -> type:
 
 def register_configs(registry: Registry) -> None:
     """Store the top-level schema and every registered plugin's schema in Hydra's ConfigStore."""
+    from muble.generation.config import register_generator_config
+
     cs = ConfigStore.instance()
     cs.store(name="muble_schema", node=MubleConfig)
+    register_generator_config()
     cs.store(group="robot", name="robot_schema", node=RobotConfig)
     cs.store(group="sensors", name="sensors_schema", node=SensorsConfig)
     for kind, group in GROUP_OF_KIND.items():

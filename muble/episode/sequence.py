@@ -46,7 +46,7 @@ def _objects(scene: SceneGraph, observation: Observation, camera: str) -> list[d
 def _robot(observation: Observation, action: ActionCall | None, weight: float | None) -> dict[str, Any]:
     m = observation.measurements
     target = None if action is None else action.params.get("target")
-    gripper = float(m.get("gripper", -1.0))
+    gripper = float(m.get("gripper_command", -1.0))
     return {
         "pos": _finite(m["ee_pos"]) if "ee_pos" in m else None,
         "ori": _finite(m["ee_quat"]) if "ee_quat" in m else None,

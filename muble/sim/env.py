@@ -311,7 +311,7 @@ class TabletopEnv:
         pose = self.ee_pose()
         obs: dict[str, Any] = {
             "ee_pos": pose.pos, "ee_quat": pose.quat, "joint_pos": self.arm_q(), "joint_vel": self.arm_qd(),
-            "gripper": self.gripper_command, "held_object": self.grasp.held,
+            "gripper_command": self.gripper_command, "held_object": self.grasp.held,
         }
         for name, sensor in self.sensors.items():
             obs[name] = sensor.read(self)

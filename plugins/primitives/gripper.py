@@ -11,9 +11,12 @@ GRIPPER_SETTLE = 0.6  # s for the fingers to travel fully and the weld to engage
 
 
 class CloseGripper(PrimitiveAction):
-    """Close the fingers; succeeds when they hold an object (the grasp weld engaged)."""
+    """Close the fingers; succeeds when they hold an object (the grasp weld engaged).
 
-    params = ()
+    With ``target`` (a scene id) it succeeds only if that object is the one held.
+    """
+
+    params = ("target",)
 
     def execute(self, env) -> ActionResult:
         env.close_gripper()
@@ -21,6 +24,10 @@ class CloseGripper(PrimitiveAction):
         held = env.held_object
         if held is None:
             return ActionResult(False, failure_reason="the fingers closed on nothing: approach an object first")
+        target = self.arguments.get("target")
+        if target is not None and held != int(target):
+            return ActionResult(False, measurement=held,
+                                failure_reason=f"grasped object {held} instead of object {target}")
         return ActionResult(True, measurement=held, info={"held_object": held})
 
 

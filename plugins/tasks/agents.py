@@ -48,7 +48,7 @@ class OracleAgent(Agent):
         if last is None or result is None or not result.success:
             return arm
         target = last.params.get("target")
-        if last.name == MOVE and target is not None and arm.held is None and arm.over is None:
+        if last.name == MOVE and isinstance(target, int) and arm.held is None and arm.over is None:
             arm.over = int(target)
         elif last.name == APPROACH and arm.held is None and arm.approached is None:
             arm.approached = int(target)
@@ -61,7 +61,8 @@ class OracleAgent(Agent):
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
         scene = observation.scene
         result = observation.last_result
-        if result is not None and result.success and isinstance(result.measurement, (int, float)):
+        weighed = self.last is not None and self.last.name == WEIGH
+        if weighed and result is not None and result.success and isinstance(result.measurement, (int, float)):
             held = ArmState.of(scene).held
             if held is not None:
                 self.measured[held] = float(result.measurement)

@@ -12,9 +12,9 @@ import math
 from dataclasses import dataclass
 
 from muble import ActionCall, Answer, PlanningError, SceneGraph
-from muble.core.program import execute
+from muble.core.program import execute, table_parts_of
 
-from muble_plugins.tasks.geometry import free_spot, on_table_part, rests_on
+from muble_plugins.tasks.geometry import on_table_part, rests_on
 from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, WEIGH, ArmState
 
 ARRIVAL_TOLERANCE = 0.03  # metres between a carried object and its destination that count as arrived
@@ -64,18 +64,21 @@ def _carried_to(scene: SceneGraph, obj_id: int, arm: ArmState, xy) -> bool:
     return math.hypot(pos[0] - xy[0], pos[1] - xy[1]) <= ARRIVAL_TOLERANCE
 
 
-def _deliver(scene: SceneGraph, obj_id: int, xy, move: ActionCall, arm: ArmState) -> list[ActionCall]:
-    if _carried_to(scene, obj_id, arm, xy):
-        return ([ActionCall(LOWER)] if arm.raised else []) + [ActionCall(RELEASE)]
-    return hold_up(obj_id, arm) + [move, ActionCall(LOWER), ActionCall(RELEASE)]
+def _deliver(obj_id: int, arrived: bool, destination: int | str, arm: ArmState) -> list[ActionCall]:
+    """Carry ``obj_id`` to ``destination`` (an object id or a table part), set it down there and let go."""
+    lower = ActionCall(LOWER, {"target": destination})
+    if arrived:
+        return ([lower] if arm.raised else []) + [ActionCall(RELEASE)]
+    return hold_up(obj_id, arm) + [ActionCall(MOVE, {"target": destination}), lower, ActionCall(RELEASE)]
 
 
-def place_at(scene: SceneGraph, obj_id: int, position: list[float], arm: ArmState) -> list[ActionCall]:
-    return _deliver(scene, obj_id, position, ActionCall(MOVE, {"position": position}), arm)
+def place_at(scene: SceneGraph, obj_id: int, part: str, arm: ArmState) -> list[ActionCall]:
+    arrived = arm.held == obj_id and part in table_parts_of(scene.object(obj_id), scene)
+    return _deliver(obj_id, arrived, part, arm)
 
 
 def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> list[ActionCall]:
-    return _deliver(scene, obj_id, scene.object(base_id).position, ActionCall(MOVE, {"target": base_id}), arm)
+    return _deliver(obj_id, _carried_to(scene, obj_id, arm, scene.object(base_id).position), base_id, arm)
 
 
 def stack_pairs(chains: list[list[int]]) -> list[tuple[int, int]]:
@@ -108,7 +111,7 @@ def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, f
         for obj_id in result:
             obj = scene.object(obj_id)
             if not on_table_part(obj, part, scene):
-                return Plan(place_at(scene, obj_id, free_spot(scene, obj, part), arm))
+                return Plan(place_at(scene, obj_id, part, arm))
         return Plan(put_down(arm))
     if kind == "stack":
         for top, base in stack_pairs(result):

@@ -12,9 +12,11 @@ from dataclasses import dataclass
 
 from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject
 
-from muble_plugins.tasks.geometry import height
+from muble_plugins.tasks.geometry import free_spot, height
 
-MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE = "move", "approach", "grasp", "lift", "weigh", "lower", "release"
+# The primitive plugins' registry names (plugins/primitives): grasping and releasing are the gripper primitives.
+MOVE, APPROACH, LIFT, WEIGH, LOWER = "move", "approach", "lift", "weigh", "lower"
+GRASP, RELEASE = "close_gripper", "open_gripper"
 PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE)
 FLAGS = ("in_hand", "raised", "approached", "gripper_over")
 LIFT_HEIGHT = 0.1  # metres above the resting pose while raised
@@ -80,16 +82,17 @@ class SymbolicWorld:
             if held is not None and not state.raised:
                 return fail("lift the held object before moving")
             self._set("approached", None)
-            if "position" in call.params:
+            if isinstance(call.params.get("target"), str):  # a table part
                 self._set("gripper_over", None)
-                self.destination = [float(v) for v in call.params["position"]]
-                xy = self.destination[:2]
+                part = call.params["target"]
+                self.destination = free_spot(self.scene, held, part) if held is not None else None
+                xy = self.destination[:2] if self.destination else None
             else:
                 target = self._object(call)
                 self._set("gripper_over", target)
                 self.destination = None
                 xy = target.position[:2]
-            if held is not None:
+            if held is not None and xy is not None:
                 # The lifted object travels with the gripper.
                 held.position = held.position.copy()
                 held.position[:2] = xy
@@ -123,6 +126,11 @@ class SymbolicWorld:
         if call.name == LOWER:
             if held is None or not state.raised:
                 return fail("lowering needs a lifted object")
+            target = call.params.get("target")
+            if isinstance(target, str) and self.destination is None:
+                self.destination = free_spot(self.scene, held, target)
+            elif target is not None and not isinstance(target, str) and state.over != int(target):
+                return fail(f"move over object {target} before lowering onto it")
             self._lower(held, state)
             held.extra["raised"] = False
             return ActionResult(True)

@@ -1,0 +1,192 @@
+"""One SHOP-VRB2 episode from (seed, index): scene, instruction, physical execution, keyframes, sequence file.
+
+``muble run``, ``muble generate`` and ``muble eval`` all go through ``EpisodeRunner`` so an episode is the same
+whichever command produced it.
+"""
+from __future__ import annotations
+
+import io
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from muble.core.errors import ConfigError
+from muble.core.interfaces import Instruction, Renderer, Task
+from muble.core.scene import SceneGraph
+from muble.core.types import Frame
+from muble.episode.loop import EpisodeResult, StepRecord, run_episode
+from muble.episode.physical import PhysicalWorld
+from muble.episode.sequence import sequence_dict
+
+log = logging.getLogger(__name__)
+
+
+def instruction_rng(seed: int, index: int) -> np.random.Generator:
+    """The random stream for choosing an instruction: independent of the scene generator's stream."""
+    return np.random.default_rng([seed, index, 1])
+
+
+def choose_instruction(task: Task, scene: SceneGraph, seed: int, index: int) -> Instruction:
+    candidates = task.generate(scene, instruction_rng(seed, index))
+    if not candidates:
+        raise ConfigError(f"task '{type(task).__name__}' has no valid instruction for scene {index} (seed {seed}); "
+                          "choose another scene_index or seed, or another task")
+    return candidates[0]
+
+
+def png_bytes(rgb: np.ndarray) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(rgb).save(buf, format="PNG", optimize=False)
+    return buf.getvalue()
+
+
+def gif_bytes(frames: list[np.ndarray], seconds_per_frame: float = 0.8) -> bytes:
+    from PIL import Image
+
+    images = [Image.fromarray(f) for f in frames]
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:],
+                   duration=int(seconds_per_frame * 1000), loop=0)
+    return buf.getvalue()
+
+
+@dataclass
+class Timing:
+    """Wall time of an episode split into physics (with primitives' planning inside), planning and rendering."""
+
+    physics: float = 0.0
+    planning: float = 0.0
+    rendering: float = 0.0
+    total: float = 0.0
+
+
+@dataclass
+class EpisodeOutput:
+    """An executed episode and everything that gets written for it."""
+
+    scene: SceneGraph
+    instruction: Instruction
+    result: EpisodeResult
+    keyframes: list[np.ndarray] = field(default_factory=list)
+    sequence: dict[str, Any] = field(default_factory=dict)
+    timing: Timing = field(default_factory=Timing)
+
+
+class _TimedRenderer(Renderer):
+    """Wraps a renderer to count its time (rendering is reported apart from physics)."""
+
+    def __init__(self, inner: Renderer, timing: Timing):
+        self.inner, self.timing = inner, timing
+
+    def setup(self, scene, model):
+        t = time.perf_counter()
+        self.inner.setup(scene, model)
+        self.timing.rendering += time.perf_counter() - t
+
+    def render(self, data, camera) -> Frame:
+        t = time.perf_counter()
+        frame = self.inner.render(data, camera)
+        self.timing.rendering += time.perf_counter() - t
+        return frame
+
+
+class _TimedPlanner:
+    """Wraps a motion planner to count planning time."""
+
+    def __init__(self, inner, timing: Timing):
+        self.inner, self.timing = inner, timing
+
+    def plan(self, start_q, goal, world):
+        t = time.perf_counter()
+        try:
+            return self.inner.plan(start_q, goal, world)
+        finally:
+            self.timing.planning += time.perf_counter() - t
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+class EpisodeRunner:
+    """Executes instructions on scenes with the configured robot, planner, agent, sensors and renderer."""
+
+    def __init__(self, registry: Any, robot: Any, planner: Any, agent: Any, object_set: Any, object_set_name: str,
+                 sensors: dict[str, Any], renderer: Renderer | None, cameras: tuple[str, ...] = ("front",),
+                 max_steps: int = 100):
+        self.registry = registry
+        self.robot = robot
+        self.planner = planner
+        self.agent = agent
+        self.object_set = object_set
+        self.object_set_name = object_set_name
+        self.sensors = sensors
+        self.renderer = renderer
+        self.cameras = cameras
+        self.max_steps = max_steps
+
+    def execute(self, scene: SceneGraph, instruction: Instruction, task: Task) -> EpisodeOutput:
+        from muble.sim.build import object_models
+        from muble.sim.env import TabletopEnv
+
+        timing = Timing()
+        start = time.perf_counter()
+        env = TabletopEnv(scene, object_models(scene, self.object_set, self.object_set_name), self.robot,
+                          self.sensors)
+        try:
+            env.planner = _TimedPlanner(self.planner, timing)
+            renderer = _TimedRenderer(self.renderer, timing) if self.renderer is not None else None
+            if renderer is not None:
+                renderer.setup(env.sync_scene_graph(), env.model)
+            world = PhysicalWorld(env, self.registry, renderer, self.cameras)
+            keyframes: list[np.ndarray] = []
+
+            def keep(step: StepRecord) -> None:
+                frame = step.observation.images.get(self.cameras[0])
+                if frame is not None:
+                    keyframes.append(frame.rgb)
+                log.info("step %d: %s -> %s", len(keyframes), step.action,
+                         "ok" if step.result.success else step.result.failure_reason)
+
+            result = run_episode(instruction, world, self.agent, task.check, max_steps=self.max_steps, on_step=keep)
+            if result.initial is not None and self.cameras[0] in result.initial.images:
+                keyframes.insert(0, result.initial.images[self.cameras[0]].rgb)
+        finally:
+            env.close()
+            if self.renderer is not None:
+                self.renderer.close()
+        timing.total = time.perf_counter() - start
+        timing.physics = timing.total - timing.planning - timing.rendering
+        return EpisodeOutput(scene, instruction, result, keyframes, timing=timing)
+
+    @staticmethod
+    def sequence(output: EpisodeOutput, image_paths: list[str]) -> dict[str, Any]:
+        return sequence_dict(output.instruction, output.result, image_paths)
+
+
+def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool = True) -> dict[str, str]:
+    """Write keyframes, GIF and sequence file atomically; returns {relative path: sha256}."""
+    from muble.core.scene_io import scene_to_dict
+    from muble.dataset.atomic import write_bytes_atomic
+    import json
+
+    written: dict[str, str] = {}
+    paths = []
+    for i, rgb in enumerate(output.keyframes):
+        rel = f"keyframes/{stem}/frame_{i:04d}.png"
+        written[rel] = write_bytes_atomic(directory / rel, png_bytes(rgb))
+        paths.append(rel)
+    if gif and output.keyframes:
+        rel = f"keyframes/{stem}.gif"
+        written[rel] = write_bytes_atomic(directory / rel, gif_bytes(output.keyframes))
+    output.sequence = sequence_dict(output.instruction, output.result, paths)
+    rel = f"sequences/{stem}.json"
+    written[rel] = write_bytes_atomic(directory / rel, json.dumps(output.sequence).encode())
+    rel = f"scenes/{stem}.json"
+    written[rel] = write_bytes_atomic(directory / rel, json.dumps(scene_to_dict(output.scene)).encode())
+    return written
