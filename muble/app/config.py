@@ -61,6 +61,34 @@ class EpisodeConfig:
     cameras: list[str] = field(default_factory=lambda: ["front"])
 
 
+SHOPVRB2_TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
+                      "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order"]
+
+
+@dataclass
+class DatasetConfig:
+    """``muble generate``/``muble eval``: where the dataset lives, its splits, template mix and execution.
+
+    ``splits[k]`` gets ``sizes[k]`` scenes (lists, so an override replaces them: ``dataset.splits=[val]
+    dataset.sizes=[20]``). Indices ``start .. start + size - 1`` of each split are produced, those with
+    ``index % num_shards == shard`` by this run. Re-running with the same ``root`` resumes: finished indices
+    are skipped.
+    """
+
+    root: str = "${hydra:runtime.output_dir}/dataset"
+    splits: list[str] = field(default_factory=lambda: ["train", "val", "test"])
+    sizes: list[int] = field(default_factory=lambda: [10000, 1000, 1000])  # the paper's split sizes
+    start: int = 0
+    shard: int = 0
+    num_shards: int = 1
+    templates: list[str] = field(default_factory=lambda: list(SHOPVRB2_TEMPLATES))
+    template_weights: list[float] = field(default_factory=list)  # empty = uniform
+    sequences: bool = True  # run the oracle with physics for ground-truth sequences and keyframes
+    gif: bool = False
+    executor: str = "processes"  # serial | processes | ray (RAY_ADDRESS selects an existing cluster)
+    workers: int = 2
+
+
 @dataclass
 class MubleConfig:
     """The top-level schema of every MuBlE application."""
@@ -74,6 +102,7 @@ class MubleConfig:
     agent: Any = MISSING
     generator: Any = MISSING
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
+    dataset: DatasetConfig = field(default_factory=DatasetConfig)
     seed: int = 0
     scene_index: int = 0
     dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing

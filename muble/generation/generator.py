@@ -166,6 +166,7 @@ class SceneGenerator:
                     reasons["stability"] += 1
                     continue
             masks = self._masks(models, placements, frame) if cfg.masks else None
+            self.failures.update(reasons)
             return self._scene(index, specs, models, placements, masks)
         self.failures.update(reasons)
         detail = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items()))

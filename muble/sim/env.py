@@ -37,6 +37,7 @@ class Snapshot:
     gripper_command: float
     tare: np.ndarray | None
     steps: int
+    geom_solref: np.ndarray | None = None  # contact parameters the jaw contact law sets at run time
 
 
 @dataclass
@@ -109,6 +110,7 @@ class TabletopEnv:
         self.data.qpos[self.servos.qpos_adr] = self.names.init_qpos
         self.servos.command(self.data, self.names.init_qpos)
         self.grasp.held = None
+        self.grasp.jaws.reset()
         self.osc.goal_quat = None
         self.tare_force = None
         self.measurements = {}
@@ -291,12 +293,15 @@ class TabletopEnv:
         state = np.empty(mujoco.mj_stateSize(self.model, spec))
         mujoco.mj_getState(self.model, self.data, state, spec)
         return Snapshot(state, self.model.eq_data.copy(), self.grasp.held, self.gripper_command,
-                        None if self.tare_force is None else self.tare_force.copy(), self.steps)
+                        None if self.tare_force is None else self.tare_force.copy(), self.steps,
+                        self.model.geom_solref.copy())
 
     def restore(self, snap: Snapshot) -> None:
         """Return to ``snap`` exactly (e.g. after a failed plan)."""
         mujoco.mj_setState(self.model, self.data, snap.state, mujoco.mjtState.mjSTATE_INTEGRATION)
         self.model.eq_data[:] = snap.eq_data
+        if snap.geom_solref is not None:
+            self.model.geom_solref[:] = snap.geom_solref
         self.grasp.held = snap.held
         self.osc.goal_quat = None
         self.gripper_command = snap.gripper_command

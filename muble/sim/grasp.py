@@ -7,6 +7,8 @@ import logging
 import mujoco
 import numpy as np
 
+from muble.sim.jaw_contact import JawContacts, finger_geom_sides
+
 logger = logging.getLogger(__name__)
 
 GRASP_MODES = ("weld", "friction")
@@ -29,6 +31,10 @@ class GraspModel:
         self.pad_side[[model.geom(n).id for n in names.left_pads]] = 1
         self.pad_side[[model.geom(n).id for n in names.right_pads]] = 2
         self.held: int | None = None
+        # The jaw contact law (see muble.sim.jaw_contact): jaws feel each object as one spring of its stiffness.
+        self.jaws = JawContacts(model, finger_geom_sides(model, {1: list(names.left_pads), 2: list(names.right_pads)},
+                                                         list(names.gripper_joints)),
+                                self.geom_object, self.body_of)
 
     def touching(self, data: mujoco.MjData) -> dict[int, int]:
         """Scene id -> bit mask of finger sides (1 left, 2 right) whose pads touch that object now."""
@@ -47,7 +53,8 @@ class GraspModel:
         return out
 
     def update(self, data: mujoco.MjData, closing: bool) -> None:
-        """Attach when closing and all pads touch one object; release when the gripper opens."""
+        """Rescale jaw contacts; attach when closing and all pads touch one object; release when the gripper opens."""
+        self.jaws.update(data)
         if self.mode != "weld":
             return
         if self.held is not None and not closing:

@@ -43,44 +43,95 @@ def weigh(env, settle: float = WEIGH_SETTLE, window: float = WEIGH_WINDOW) -> fl
     return grams
 
 
-SQUEEZE_FORCES = (5.0, 10.0, 15.0)  # N per finger
-SQUEEZE_SETTLE = 0.5  # s at each force level
+SQUEEZE_FORCES = (5.0, 10.0, 15.0)  # N per finger: the actuators' force limit at each level
+SQUEEZE_SETTLE = 0.5  # s at each force level before reading
+SQUEEZE_WINDOW = 0.1  # s over which jaw force and finger position are averaged
 
 
-def pad_contact_force(env, obj_id: int) -> float:
-    """Mean normal force (N) of the finger pads on ``obj_id``, summed per finger side."""
+def jaw_forces(env, obj_id: int) -> np.ndarray:
+    """Force (N) with which ``obj_id`` pushes back on each jaw (left, right), along each finger's closing axis:
+    the contact forces between the object and every geom of that finger, as a force sensor in the finger reads."""
     import mujoco
 
-    data, grasp = env.data, env.grasp
-    per_side = np.zeros(3)
+    model, data = env.model, env.data
+    sides = env.grasp.jaws.jaw_side
+    geom_object = env.grasp.geom_object
+    out = np.zeros(2)
     wrench = np.zeros(6)
     for i in range(data.ncon):
         c = data.contact[i]
-        for pad, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
-            side = grasp.pad_side[pad]
-            if side and grasp.geom_object[other] == obj_id:
-                mujoco.mj_contactForce(env.model, data, i, wrench)
-                per_side[side] += wrench[0]
-    return float(per_side[1:].mean())
+        for finger, other, sign in ((c.geom1, c.geom2, -1.0), (c.geom2, c.geom1, 1.0)):
+            side = sides[finger]
+            if side and geom_object[other] == obj_id:
+                mujoco.mj_contactForce(model, data, i, wrench)
+                # contact frame row 0 is the normal, pointing from geom1 to geom2; force on geom2 is +normal
+                force = sign * wrench[0] * c.frame[:3]
+                out[side - 1] += float(force @ _closing_axis(env, side - 1))
+    return -out
 
 
-def squeeze(env, obj_id: int, forces=SQUEEZE_FORCES, settle: float = SQUEEZE_SETTLE) -> float:
-    """Stiffness (N/m) of the object between the fingers: close at each force level, record the pad force and
-    the pad separation, fit force against the closure of one side (half the separation change)."""
+def _closing_axis(env, k: int) -> np.ndarray:
+    """World direction in which finger ``k`` moves when the gripper closes."""
+    model, data = env.model, env.data
+    jnt = model.joint(env.names.gripper_joints[k]).id
+    axis = data.xaxis[jnt]
+    sign = np.sign(env.gripper_closed_ctrl[k] - env.gripper_open_ctrl[k]) or 1.0
+    return sign * axis
+
+
+def finger_closure(env) -> np.ndarray:
+    """Travel (m) of each finger joint in its closing direction, from the joints' encoders."""
+    q = env.data.qpos[env.gripper_qpos_adr]
+    sign = np.sign(env.gripper_closed_ctrl - env.gripper_open_ctrl)
+    sign[sign == 0] = 1.0
+    return q * sign
+
+
+def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float = SQUEEZE_SETTLE,
+            window: float = SQUEEZE_WINDOW) -> float:
+    """Stiffness (N/m) of the object between the fingers (default: the one in the hand).
+
+    At each force level the finger actuators are limited to that force and commanded closed; after ``settle`` s
+    the jaw forces and the finger positions are averaged over ``window`` s. The stiffness is the least-squares
+    slope of the mean jaw force against the mean finger travel: force per metre a jaw penetrates the object.
+    The arm holds its pose throughout; the object stays welded to the hand if it was grasped (``grasp="weld"``),
+    which keeps the two jaws' loads symmetric about it.
+    """
+    obj_id = env.held_object if obj_id is None else obj_id
+    if obj_id is None:
+        raise PhysicsError("nothing between the fingers to squeeze: grasp an object first (or pass obj_id)")
+    forces = [float(f) for f in forces]
+    if len(forces) < 2 or len(set(forces)) < 2:
+        raise PhysicsError(f"squeeze needs at least two different force levels, got {forces}")
     ids = env.gripper_actuator_ids
     saved = env.model.actuator_forcerange[ids].copy()
+    saved_limited = env.model.actuator_forcelimited[ids].copy()
     samples = []
     try:
         for level in forces:
             env.model.actuator_forcerange[ids] = (-level, level)
+            env.model.actuator_forcelimited[ids] = 1
             env.close_gripper()
             env.hold(settle)
-            samples.append((pad_contact_force(env, obj_id), env.gripper_opening()))
+            window_samples = []
+
+            def read(_k):
+                window_samples.append(np.concatenate([jaw_forces(env, obj_id), finger_closure(env)]))
+
+            env.advance(window, on_control=read)
+            force_l, force_r, travel_l, travel_r = np.mean(window_samples, axis=0)
+            samples.append((0.5 * (force_l + force_r), 0.5 * (travel_l + travel_r), min(force_l, force_r)))
     finally:
         env.model.actuator_forcerange[ids] = saved
-    force, opening = np.array(samples).T
-    if np.any(force <= 0):
-        raise PhysicsError(f"the pads do not both touch object {obj_id} while squeezing; grasp it first")
-    slope = np.polyfit(-opening / 2.0, force, 1)[0]
-    env.measurements.setdefault(obj_id, {})["stiffness"] = float(slope)
-    return float(slope)
+        env.model.actuator_forcelimited[ids] = saved_limited
+    force, travel, weakest = np.array(samples).T
+    if np.any(weakest <= 0):
+        raise PhysicsError(f"the jaws do not both press object {obj_id} while squeezing; grasp it first")
+    if np.ptp(travel) <= 0:
+        raise PhysicsError(f"the fingers did not move between force levels {forces}; is object {obj_id} "
+                           "between them?")
+    slope = float(np.polyfit(travel, force, 1)[0])
+    logger.debug("squeeze object %d: forces %s N, travel %s mm -> %.0f N/m", obj_id, np.round(force, 3),
+                 np.round(travel * 1000, 4), slope)
+    env.measurements.setdefault(obj_id, {})["stiffness"] = slope
+    return slope

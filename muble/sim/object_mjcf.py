@@ -11,8 +11,10 @@ Public API
     A standalone world: a table box whose top surface is at ``z = table_height`` plus the given objects, with
     robosuite's global physics options. ``placements`` is a list of ``(model, pos, quat)``; object ids are the
     list indices.
-``contact_solref(stiffness, damping_ratio, mass) -> (solref, solimp)`` and ``realised_stiffness(...)``
-    The mapping between a physical contact stiffness (N/m) and MuJoCo's direct-mode ``solref``.
+``contact_solref(stiffness, damping_ratio, mass) -> (solref, solimp)``, ``realised_stiffness(...)``,
+``realised_damping(...)``, ``stiffness_of_solref(k, mass)``
+    The mapping between a physical contact stiffness (N/m) and MuJoCo's direct-mode ``solref`` (base law; the jaw
+    law on top of it is ``muble.sim.jaw_contact``).
 ``object_id_from_name(name) -> int | None``
     The object id encoded in a body, geom, joint or site name (``None`` for non-object names).
 
@@ -30,16 +32,27 @@ the visual geom is in group 2 and collides with nothing (``contype=conaffinity=0
 
 Contact stiffness
 -----------------
-MuJoCo's direct ``solref = (-k, -b)`` sets a reference *acceleration* ``a_ref = -b·v - k·d·r`` and regularises
-the contact with ``R = (1-d)/d · A``, where ``A`` is the inverse effective mass of the contact (``d`` the
-impedance from ``solimp``, held constant here). At rest ``k·d·r = R·f``, so the contact behaves like a spring
-of stiffness ``K = f/r = d²·k / ((1-d)·A)``. We choose ``k`` so that ``K`` equals the object's ground-truth
-stiffness when ``A = 1/m`` (the object pressed against an immovable surface, or by a finger whose joint inertia
-is large, as the Panda's armature makes it). The mass-independent rest penetration of one contact carrying the
-whole weight is then ``m·g/K``. ``k`` is capped so that the contact's time constant ``1/sqrt(k)`` stays above
-two 2 ms physics steps; the stiffness actually realised is stored back in ``ObjectModel.stiffness`` by the
-object sets. When two geoms meet and either uses direct mode, MuJoCo takes the element-wise minimum of the two
-solrefs: the object's (negative) values win against the table's and the fingers' standard solrefs.
+Ground truth ``ObjectModel.stiffness`` K (N/m) is the stiffness a jaw feels: the force one finger presses with per
+metre of its penetration into the object (what ``muble.sim.measure.squeeze`` measures). MuJoCo's direct
+``solref = (-k, -b)`` gives each contact point the reference acceleration ``a_ref = -(b/d)·v - (k/d²)·d·r`` and the
+regulariser ``R = (1-d)/d · A`` (``d`` the impedance from ``solimp``, ``A`` the diagonal approximation of the
+contact's inverse mass: the sum of both bodies' ``body_invweight0``). At rest ``R·f = a_ref``, so one contact point
+is a spring of ``f/r = k / ((1-d)·A)``. Two things keep this from being the object's stiffness:
+
+- ``A`` includes the finger (``invweight0`` of a Panda finger tip is 0.33 1/kg, 6 % of a 180 g object's 1/m);
+- a flat pad on a flat face yields 4 contact points, on a cylinder 1, and the finger body's own geoms touch
+  too: parallel springs, so the jaw stiffness would be (points in contact) × the point stiffness.
+
+So the per-geom ``solref`` written here is the *base* law, a point spring of K against an immovable surface
+(``A = 1/m``, the table): ``k = K·(1-d)/m``. While fingers touch an object, ``muble.sim.jaw_contact.JawContacts``
+rescales the object's ``k`` once per control step so that the summed normal force of both jaws is K times the
+summed depth of the deepest point of each jaw (see docs/environment.md, "Stiffness"). The impedance is constant
+(``solimp = (d, d, …)``) and the object's ``solmix`` is large, so the object's ``solimp`` wins against the
+fingers' and the table's (MuJoCo averages solimp by solmix weight): the spring stays linear in depth. When two
+geoms meet and either uses direct mode, MuJoCo takes the element-wise minimum of the solrefs: the object's
+(negative) values win against the table's and the fingers' standard ones. ``k`` is capped so that the contact's
+natural period ``1/sqrt(k)`` stays above two 2 ms physics steps; the stiffness actually realised is stored back in
+``ObjectModel.stiffness`` by the object sets.
 """
 from __future__ import annotations
 
@@ -53,6 +66,9 @@ from muble.core.objects import ObjectModel
 
 # Constant impedance: stiffness must not depend on penetration depth, or squeeze would see a non-linear spring.
 CONTACT_IMPEDANCE = 0.95
+# Weight of the object's solimp when MuJoCo mixes it with the other geom's (robosuite's fingers and table use a
+# depth-dependent 0.9-0.95 impedance): 1e6 : 1 leaves the object's constant impedance within 5e-8.
+CONTACT_SOLMIX = 1.0e6
 # Time constant floor of 2 physics steps (2 ms each, robosuite's default), MuJoCo's stability rule of thumb.
 MIN_TIME_CONSTANT = 0.004
 MAX_ACCEL_STIFFNESS = 1.0 / MIN_TIME_CONSTANT**2
@@ -87,12 +103,13 @@ def object_id_from_name(name: str | None) -> int | None:
 
 
 def contact_solref(stiffness: float, damping_ratio: float, mass: float) -> tuple[tuple[float, float], tuple]:
-    """Direct-mode ``solref`` and constant ``solimp`` that make a contact behave as a spring of ``stiffness``.
+    """Direct-mode ``solref`` and constant ``solimp`` that make one contact point of the object with an immovable
+    surface a spring of ``stiffness`` (the base law; jaw contacts are rescaled at run time, see module doc).
 
     ``stiffness`` in N/m, ``mass`` in kg (the object's), ``damping_ratio`` 1 = critically damped.
     """
     d = CONTACT_IMPEDANCE
-    k = stiffness * (1.0 - d) / (d * d * mass)
+    k = stiffness * (1.0 - d) / mass
     k = min(k, MAX_ACCEL_STIFFNESS)
     b = 2.0 * damping_ratio * math.sqrt(k)
     solimp = (d, d, 0.001, 0.5, 2.0)
@@ -102,15 +119,19 @@ def contact_solref(stiffness: float, damping_ratio: float, mass: float) -> tuple
 def realised_stiffness(stiffness: float, mass: float) -> float:
     """The stiffness (N/m) ``contact_solref`` actually realises for an object of ``mass`` (after the cap)."""
     (k, _), _ = contact_solref(stiffness, 1.0, mass)
-    d = CONTACT_IMPEDANCE
-    return -k * d * d * mass / (1.0 - d)
+    return stiffness_of_solref(-k, mass)
 
 
 def realised_damping(stiffness: float, damping_ratio: float, mass: float) -> float:
     """The contact damping (N·s/m) that goes with ``contact_solref`` for an object of ``mass``."""
     (_, b), _ = contact_solref(stiffness, damping_ratio, mass)
-    d = CONTACT_IMPEDANCE
-    return -b * d * d * mass / (1.0 - d)
+    return stiffness_of_solref(-b, mass)
+
+
+def stiffness_of_solref(k: float, mass: float) -> float:
+    """The point stiffness (N/m) of direct-mode ``k`` (= -solref[0]) against an immovable surface: at rest
+    ``f/r = k / ((1-d)·A)`` with ``A = 1/mass``; the same map turns ``b`` into a damping in N·s/m."""
+    return k * mass / (1.0 - CONTACT_IMPEDANCE)
 
 
 def _floats(values) -> str:
@@ -149,7 +170,7 @@ def object_mjcf(model: ObjectModel, object_id: int, pos=(0.0, 0.0, 0.0), quat=(1
         geoms.append(
             f'<geom name="{geom}" type="mesh" mesh="{geom}_mesh" group="{COLLISION_GROUP}" contype="1" '
             f'conaffinity="1" condim="4" friction="{friction}" solref="{solref[0]:.9g} {solref[1]:.9g}" '
-            f'solimp="{_floats(solimp)}" rgba="{_rgba(model.rgba)}"/>'
+            f'solimp="{_floats(solimp)}" solmix="{CONTACT_SOLMIX:.6g}" rgba="{_rgba(model.rgba)}"/>'
         )
         names.append(geom)
     visual = f"{body}_visual"

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from muble.core.camera import CameraParams
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
@@ -27,8 +28,6 @@ TABLE_HEIGHT = 0.8  # m, robosuite's table; the floor lies this far below the ta
 TABLE_SIZE = (0.9, 1.2, 0.05)  # m, full x/y/z size of the table
 FRONT_CAMERA = "front"
 WRIST_CAMERA = "wrist"
-# The SHOP-VRB2 front camera (position in m, Blender XYZ Euler angles in degrees) used when a scene has none.
-DEFAULT_CAMERA = {"position": [1.15, -0.14, 0.22], "rotation": [83.0, 0.0, 89.0], "fovy": 50.0}
 
 
 def object_weld_name(obj_id: int) -> str:
@@ -58,18 +57,6 @@ class WorldNames:
     gripper_format: object = None  # the robosuite gripper model (its ``format_action`` maps -1..1)
 
 
-def euler_xyz_deg_to_quat(angles: list[float]) -> np.ndarray:
-    """Quaternion (w, x, y, z) of Blender's XYZ Euler angles in degrees (rotate about x, then y, then z)."""
-    quat = np.array([1.0, 0.0, 0.0, 0.0])
-    for axis, angle in zip(np.eye(3), angles):
-        q = np.empty(4)
-        mujoco.mju_axisAngle2Quat(q, axis, math.radians(angle))
-        out = np.empty(4)
-        mujoco.mju_mulQuat(out, q, quat)  # later rotations act in the world frame: left-multiply
-        quat = out
-    return quat
-
-
 def _fmt(values) -> str:
     return " ".join(f"{float(v):.9g}" for v in np.asarray(values).reshape(-1))
 
@@ -82,11 +69,12 @@ def _shift_down(worldbody: ET.Element, dz: float) -> None:
             child.set("pos", _fmt(pos))
 
 
-def _camera_element(name: str, params: dict) -> ET.Element:
-    quat = euler_xyz_deg_to_quat(params.get("rotation", DEFAULT_CAMERA["rotation"]))
-    fovy = params.get("fovy", DEFAULT_CAMERA["fovy"])
-    return ET.Element("camera", name=name, mode="fixed", pos=_fmt(params.get("position")), quat=_fmt(quat),
-                      fovy=f"{fovy:.6g}")
+def _camera_element(name: str, params: dict | None) -> ET.Element:
+    """The scene's camera (``camera_params``: position, Blender EulerXYZ degrees, image size and lens) in MuJoCo:
+    both look down -Z with +Y up, so the rotation carries over and the lens becomes MuJoCo's vertical fovy."""
+    camera = CameraParams.from_scene_params(params)
+    return ET.Element("camera", name=name, mode="fixed", pos=_fmt(camera.position), quat=_fmt(camera.mujoco_quat),
+                      fovy=f"{camera.fovy_deg:.9g}")
 
 
 def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = "Panda",
@@ -135,10 +123,7 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
         gripper_format=gripper_model,
     )
 
-    camera = dict(DEFAULT_CAMERA)
-    if scene.camera_params:
-        camera.update({k: v for k, v in scene.camera_params.items() if k in ("position", "rotation", "fovy")})
-    world.worldbody.append(_camera_element(FRONT_CAMERA, camera))
+    world.worldbody.append(_camera_element(FRONT_CAMERA, scene.camera_params))
     names.cameras = {FRONT_CAMERA: FRONT_CAMERA, WRIST_CAMERA: robot_model.naming_prefix + "eye_in_hand"}
     for lamp, pos in (scene.lamp_params or {}).items():
         if isinstance(pos, (list, tuple)) and len(pos) == 3:

@@ -29,7 +29,7 @@ from muble_plugins.objects.geometry import mass_properties, planar_uv
 log = logging.getLogger(__name__)
 
 # Bump when any geometry function changes, so cached meshes from older code are not reused.
-GEOMETRY_VERSION = 1
+GEOMETRY_VERSION = 4
 
 SIZE_SCALES = {"small": 0.85, "medium-sized": 1.0, "large": 1.15}
 
@@ -95,18 +95,41 @@ class Category:
     mass_exponent: float = 2.0  # mass ∝ scale^e: 2 for thin-walled shells, 3 for solid or filled items
 
 
+def grasp_quat(closing, approach) -> np.ndarray:
+    """Quaternion (w, x, y, z) of the grip-site frame whose x axis is the fingers' closing direction and whose
+    z axis points from the hand into the object (the convention of robosuite grippers' grip site)."""
+    x = np.asarray(closing, dtype=float)
+    z = np.asarray(approach, dtype=float)
+    x, z = x / np.linalg.norm(x), z / np.linalg.norm(z)
+    x_, y_, z_, w = Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])).as_quat()
+    return np.array([w, x_, y_, z_])
+
+
 def top_down(position, yaw: float, width: float) -> GraspFrame:
-    """A top-down grasp: gripper z axis pointing down into the object, fingers closing along the frame's y."""
-    rotation = Rotation.from_euler("z", yaw) * Rotation.from_euler("x", math.pi)
-    x, y, z, w = rotation.as_quat()
-    return GraspFrame(np.asarray(position, dtype=float), np.array([w, x, y, z]), float(width))
+    """A top-down grasp at ``position``: the hand points straight down and the fingers close along the
+    horizontal direction (-sin yaw, cos yaw), i.e. across the object's y axis turned by ``yaw``.
+
+    The frame is the pose of the gripper's grip site (x: closing direction, z: approach); ``width`` is the
+    object's extent between the fingers.
+    """
+    closing = (-math.sin(yaw), math.cos(yaw), 0.0)
+    return GraspFrame(np.asarray(position, dtype=float), grasp_quat(closing, (0.0, 0.0, -1.0)), float(width))
 
 
-def side(position, approach_yaw: float, width: float) -> GraspFrame:
-    """A horizontal grasp approaching along ``approach_yaw`` (frame z horizontal), fingers closing sideways."""
-    rotation = Rotation.from_euler("z", approach_yaw) * Rotation.from_euler("y", math.pi / 2)
-    x, y, z, w = rotation.as_quat()
-    return GraspFrame(np.asarray(position, dtype=float), np.array([w, x, y, z]), float(width))
+def side(position, approach_yaw: float, width: float, pitch: float = 0.0, closing: str = "horizontal"
+         ) -> GraspFrame:
+    """A grasp approaching along the horizontal direction ``approach_yaw``, tilted down by ``pitch`` (0 =
+    horizontal, pi/2 = from above); the fingers close horizontally (across a handle or stem) or, with
+    ``closing="vertical"``, in the vertical plane of the approach (across a board's thickness)."""
+    c, s = math.cos(approach_yaw), math.sin(approach_yaw)
+    approach = (c * math.cos(pitch), s * math.cos(pitch), -math.sin(pitch))
+    if closing == "horizontal":
+        across = (-s, c, 0.0)
+    elif closing == "vertical":
+        across = (c * math.sin(pitch), s * math.sin(pitch), math.cos(pitch))
+    else:
+        raise ValueError(f"closing must be 'horizontal' or 'vertical', not {closing!r}")
+    return GraspFrame(np.asarray(position, dtype=float), grasp_quat(across, approach), float(width))
 
 
 class MeshCache:

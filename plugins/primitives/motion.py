@@ -11,11 +11,17 @@ import numpy as np
 
 from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, PrimitiveAction
 from muble_plugins.primitives import context as ctx
-from muble_plugins.primitives.grasping import PRE_GRASP, footprint_radius, free_places, grasp_candidates
+from muble_plugins.primitives.grasping import (PRE_GRASP, footprint_radius, free_places, grasp_approach,
+                                                grasp_candidates)
 
 logger = logging.getLogger(__name__)
 
 TABLE_PARTS = ("left", "right", "front", "back", "centre")
+# The open fingers' pads are ~8 mm thick together; 2 mm more on each side leaves room for tracking error.
+PAD_ALLOWANCE = 0.012
+# Clearance (m) the open hand keeps from the target in the grasp pose and on the way in: the fingers must
+# not already press on it, or closing would not pinch it between the pads.
+TARGET_TOUCH = 0.001
 
 
 def _held_depth(env) -> float:
@@ -71,7 +77,12 @@ class Move(PrimitiveAction):
 
 
 class Approach(PrimitiveAction):
-    """Bring the open hand into the grasp pose of an object: over it by a planned move, then straight down."""
+    """Bring the open hand into the grasp pose of an object: over it by a planned move, then straight in.
+
+    Candidates come from the object's grasp frames (``grasp_candidates``). One is taken when its grasp pose and
+    its straight descent are collision-free, the open fingers included: the target itself may only be touched
+    within ``TARGET_TOUCH`` (the pads brushing it), never pierced, so that closing really pinches it.
+    """
 
     params = ("target",)
 
@@ -86,17 +97,17 @@ class Approach(PrimitiveAction):
         world = ctx.collision_world(env)
         model = env.object_models[obj_id]
         table = ctx.table(env)
+        max_width = env.gripper_opening() - PAD_ALLOWANCE
+        candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z, max_width,
+                                      ctx.world_rest_quat(env))
+        if not candidates:
+            env.restore(snap)
+            raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp narrower than the open "
+                                f"gripper ({max_width * 1000:.0f} mm)")
         reasons = []
-        for grasp in grasp_candidates(env.object_pose(obj_id), model, table.top_z):
-            pre = PoseGoal(Pose(grasp.pos + [0.0, 0.0, PRE_GRASP], grasp.quat), 0.005, 0.05)
+        for grasp in candidates:
             try:
-                world.allow_contact([body])
-                q_grasp = world.inverse_kinematics(PoseGoal(grasp, 0.004, 0.05))
-                world.allow_contact([])
-                q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
-                to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world)
-                world.allow_contact([body])
-                down = ctx.planner(env, "straight_line").plan(q_pre, PoseGoal(grasp, 0.004, 0.05), world)
+                to_pre, down = self._plan(env, world, body, grasp)
             except PlanningError as e:
                 reasons.append(str(e))
                 continue
@@ -110,9 +121,42 @@ class Approach(PrimitiveAction):
                 allowed={env.model.body(body).id})
             report = ctx.MotionReport(first.duration + second.duration, second.final_error,
                                       first.unintended_contacts | second.unintended_contacts)
-            return _result(report, target=obj_id, grasp_pos=grasp.pos.tolist())
+            return _result(report, target=obj_id, grasp_pos=grasp.pos.tolist(), candidates_tried=len(reasons) + 1)
         env.restore(snap)
-        raise PlanningError(f"no grasp of object {obj_id} is reachable without collision: {reasons[0] if reasons else ''}")
+        raise PlanningError(f"no grasp of object {obj_id} is reachable without collision "
+                            f"({len(candidates)} tried): {reasons[0] if reasons else ''}")
+
+    @staticmethod
+    def _plan(env, world, body: str, grasp: Pose):
+        """The move to the pre-grasp pose (backed off along the approach) and the straight line in."""
+        approach = grasp_approach(grasp)
+        pre = PoseGoal(Pose(grasp.pos - approach * PRE_GRASP, grasp.quat), 0.005, 0.05)
+        goal = PoseGoal(grasp, 0.004, 0.05)
+        world.allow_contact([body])
+        q_grasp = world.inverse_kinematics(goal)
+        if not _touches_lightly(world, [q_grasp]):
+            raise PlanningError(f"the open fingers would pierce the target at {np.round(grasp.pos, 3).tolist()}")
+        world.allow_contact([])
+        q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
+        world.allow_contact([body])
+        down = ctx.planner(env, "straight_line").plan(q_pre, goal, world)
+        if not _touches_lightly(world, down.q):
+            raise PlanningError("the descent would push the fingers through the target")
+        world.allow_contact([])
+        to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world)
+        return to_pre, down
+
+
+def _touches_lightly(world, qs) -> bool:
+    """True when no configuration in ``qs`` brings the robot within ``TARGET_TOUCH`` of anything, target
+    included (allowances off)."""
+    saved = world.clearance
+    world.allow_contact([])
+    world.clearance = TARGET_TOUCH
+    try:
+        return all(world.is_valid(q) for q in qs)
+    finally:
+        world.clearance = saved
 
 
 class Lift(PrimitiveAction):

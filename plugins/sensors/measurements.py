@@ -14,7 +14,8 @@ class Weight(Sensor):
 
 
 class Stiffness(Sensor):
-    """Stiffness in N/m, by scene id, of every object squeezed so far this episode."""
+    """Stiffness in N/m, by scene id, of every object squeezed so far this episode: the slope of jaw force against
+    finger travel from ``muble.sim.measure.squeeze`` (force per metre one jaw penetrates the object)."""
 
     def read(self, env) -> dict[str, Any]:
         return {i: m["stiffness"] for i, m in env.measurements.items() if "stiffness" in m}

@@ -35,7 +35,7 @@ def test_keyframes_follow_the_state(blender_renderer, mujoco_reference):
     model, data = build_world(scene)
     blender_renderer.setup(scene, model)
     before = blender_renderer.render(data, "agentview").mask(0)
-    joint = model.body("object_0_main").jntadr[0]
+    joint = model.body("obj0_main").jntadr[0]
     data.qpos[model.jnt_qposadr[joint] + 1] += 0.15  # 15 cm along y
     mujoco.mj_forward(model, data)
     after = blender_renderer.render(data, "agentview")

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from muble.core.types import SEG_BACKGROUND, SEG_ROBOT, SEG_TABLE
+from muble.sim.object_mjcf import object_id_from_name
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
@@ -24,8 +25,6 @@ log = logging.getLogger(__name__)
 # Root-body names: robosuite prefixes robots "robot<i>_", grippers "gripper<i>_", mounts "mount<i>_".
 _ROBOT_ROOT = re.compile(r"^(robot|gripper|mount)\d*_")
 _TABLE_ROOT = re.compile(r"^table")
-# Scene objects are bodies named "object_<id>" (optionally followed by "_<suffix>", e.g. robosuite's "_main").
-_OBJECT_ROOT = re.compile(r"^object_?(\d+)(?:_|$)")
 
 # Object pass indices of the labels (Blender's pass index is a non-negative integer).
 PASS_BACKGROUND, PASS_TABLE, PASS_ROBOT, PASS_FIRST_OBJECT = 0, 1, 2, 3
@@ -43,9 +42,8 @@ def root_label(name: str, object_ids: set[int] | None = None) -> int:
         return SEG_ROBOT
     if _TABLE_ROOT.match(name):
         return SEG_TABLE
-    found = _OBJECT_ROOT.match(name)
-    if found:
-        obj_id = int(found.group(1))
+    obj_id = object_id_from_name(name)  # the environment's naming convention: "obj<id>" then "_" or the end
+    if obj_id is not None:
         if object_ids is None or obj_id in object_ids:
             return obj_id
         log.warning("body '%s' names object %d, which the scene graph lacks; drawn as background", name, obj_id)
@@ -65,12 +63,14 @@ def geom_labels(model: "mujoco.MjModel", scene: "SceneGraph | None" = None) -> n
     return labels
 
 
-def drawn_geoms(model: "mujoco.MjModel", groups: list[int] | tuple[int, ...], world: bool = True) -> np.ndarray:
-    """Indices of the geoms a renderer draws: in one of ``groups``, not fully transparent, optionally not the
-    world body's (floor, walls)."""
+def drawn_geoms(model: "mujoco.MjModel", labels: np.ndarray, groups: list[int] | tuple[int, ...],
+                world: bool = True) -> np.ndarray:
+    """Indices of the geoms a renderer draws: in one of ``groups``, not fully transparent, and part of the
+    robot, the table, an object or (when ``world``) the world body (floor, walls). Other top-level bodies,
+    such as robosuite's translucent end-effector target markers, are left out."""
     mask = np.isin(model.geom_group, np.asarray(groups)) & (model.geom_rgba[:, 3] > 0)
-    if not world:
-        mask &= model.geom_bodyid != 0
+    on_world = model.geom_bodyid == 0
+    mask &= (labels != SEG_BACKGROUND) | (on_world if world else False)
     return np.flatnonzero(mask)
 
 

@@ -19,7 +19,8 @@ log = logging.getLogger(__name__)
 EXTRA_CLASSES = ("painted",)
 
 # SHOP-VRB2 material words that map onto a class under another name.
-MATERIAL_ALIASES = {"porcelain": "ceramic", "steel": "metal", "aluminium": "metal", "aluminum": "metal"}
+MATERIAL_ALIASES = {"wooden": "wood", "metallic": "metal", "porcelain": "ceramic", "steel": "metal",
+                    "aluminium": "metal", "aluminum": "metal", "rubbery": "rubber"}
 
 
 def material_class(word: str | None) -> str:
@@ -107,14 +108,14 @@ def _ceramic(mat, bsdf, rgb, nodes, links):
          Subsurface_Weight=0.1, Subsurface_Scale=0.01)
 
 
-def _wood(mat, bsdf, rgb, nodes, links):
+def _wood(mat, bsdf, rgb, nodes, links, grain: float = 3.0):
     # Grain: distorted bands across the object's bounding box, pulled between a dark and a light tone of
     # the colour, with a faint bump. Box-relative coordinates keep the grain size in proportion to the object.
     coords = nodes.new("ShaderNodeTexCoord").outputs["Generated"]
     wave = nodes.new("ShaderNodeTexWave")
     wave.wave_type = "BANDS"
     wave.bands_direction = "X"
-    wave.inputs["Scale"].default_value = 3.0
+    wave.inputs["Scale"].default_value = grain  # bands across the bounding box
     wave.inputs["Distortion"].default_value = 9.0
     wave.inputs["Detail"].default_value = 4.0
     wave.inputs["Detail Scale"].default_value = 1.2
@@ -137,9 +138,11 @@ class MaterialLibrary:
     """Builds and caches the materials of one scene; ``clear`` removes them from Blender."""
 
     def __init__(self) -> None:
-        self._cache: dict[tuple[str, tuple[float, ...]], Any] = {}
+        self._cache: dict[tuple, Any] = {}
 
-    def get(self, cls: str, rgba: np.ndarray | tuple[float, ...]) -> Any:
+    def get(self, cls: str, rgba: np.ndarray | tuple[float, ...], **details: float) -> Any:
+        """The material of class ``cls`` in colour ``rgba``; ``details`` are recipe options (wood: ``grain``,
+        the number of grain bands across the object)."""
         import bpy
 
         if cls not in RECIPES:
@@ -147,11 +150,12 @@ class MaterialLibrary:
 
             raise ConfigError(unknown_name("material class", cls, tuple(RECIPES)))
         rgb = tuple(round(float(c), 3) for c in np.asarray(rgba, dtype=float)[:3])
-        key = (cls, rgb)
+        key = (cls, rgb, tuple(sorted(details.items())))
         if key not in self._cache:
             mat = bpy.data.materials.new(f"muble_{cls}_{len(self._cache)}")
             bsdf = _principled(mat)
-            RECIPES[cls](mat, bsdf, _srgb_to_linear(np.asarray(rgb)), mat.node_tree.nodes, mat.node_tree.links)
+            RECIPES[cls](mat, bsdf, _srgb_to_linear(np.asarray(rgb)), mat.node_tree.nodes, mat.node_tree.links,
+                         **details)
             self._cache[key] = mat
         return self._cache[key]
 

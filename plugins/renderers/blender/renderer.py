@@ -33,6 +33,7 @@ log = logging.getLogger(__name__)
 
 SHARP_EDGE_ANGLE = np.radians(35.0)  # edges sharper than this stay crisp under smooth shading
 BACKGROUND_DEPTH = 1e9
+TABLE_GRAIN = 40.0
 # Pass names in the EXR: Blender 5 writes the long names, older releases the short ones.
 PASS_NAMES = {"Combined": ("Combined",), "Depth": ("Depth",), "IndexOB": ("Object Index", "IndexOB"),
               "Normal": ("Normal",)}  # Cycles' depth of rays that hit nothing is ~1e10
@@ -94,7 +95,7 @@ class BlenderRenderer(Renderer):
         bscene.world = build_world(cfg)
         self._model = model
         labels = geom_labels(model, scene)
-        self._geoms = drawn_geoms(model, cfg.geom_groups, world=cfg.floor)
+        self._geoms = drawn_geoms(model, labels, cfg.geom_groups, world=cfg.floor)
         classes = self._object_classes(scene)
         meshes: dict[tuple, Any] = {}
         collection = bscene.collection
@@ -111,10 +112,13 @@ class BlenderRenderer(Renderer):
                 cls = "painted"
             obj = bpy.data.objects.new(f"muble_geom_{geom}", meshes[key])
             obj.material_slots[0].link = "OBJECT"  # meshes are shared, colours are per geom
-            rgba = geom_rgba(model, int(geom))
-            if label == SEG_TABLE and cfg.table_rgb is not None:
-                rgba = (*cfg.table_rgb, 1.0)
-            obj.material_slots[0].material = self._materials.get(cls, rgba)
+            rgba, details = geom_rgba(model, int(geom)), {}
+            if label == SEG_TABLE:
+                if cfg.table_rgb is not None:
+                    rgba = (*cfg.table_rgb, 1.0)
+                if cls == "wood":  # planks' grain, not one log's: many bands across the table top
+                    details["grain"] = TABLE_GRAIN
+            obj.material_slots[0].material = self._materials.get(cls, rgba, **details)
             obj.pass_index = pass_index(label)
             collection.objects.link(obj)
             self._objects.append(obj)

@@ -108,6 +108,8 @@ def configure_engine(scene: Any, cfg: BlenderRendererConfig) -> None:
         cycles.max_bounces = max(cfg.max_bounces, cfg.transmission_bounces)
         cycles.caustics_reflective = False
         cycles.caustics_refractive = False
+        cycles.use_fast_gi = cfg.fast_gi
+        cycles.use_light_tree = False  # three lights: the tree costs more than it saves (measured)
         cycles.blur_glossy = 1.0  # filter glossy paths: less fireflies at few samples
         cycles.seed = cfg.seed
     else:

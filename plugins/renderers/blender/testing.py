@@ -1,7 +1,8 @@
 """A self-contained tabletop world for testing renderers: a robosuite Panda, a table and primitive objects.
 
 Renderer authors use it to compare their frames with MuJoCo's own renderer on real robot meshes without the
-full environment. Object bodies are named ``object_<id>`` so the usual geom-to-label mapping applies.
+full environment. Object bodies are named ``obj<id>...`` like the environment's, so the usual geom-to-label
+mapping applies.
 """
 from __future__ import annotations
 
@@ -61,7 +62,7 @@ def build_world(scene: SceneGraph, arm_seed: int | None = None) -> tuple["mujoco
     for obj in scene.objects:
         half = [obj.bbox["x"] / 2, obj.bbox["y"] / 2, obj.bbox["z"] / 2]
         rgba = [*COLOURS.get(obj.colour, (0.5, 0.5, 0.5)), 1.0]
-        name = f"object_{obj.id}"
+        name = f"obj{obj.id}"
         if obj.shape == "cylindrical":
             bodies.append(CylinderObject(name=name, size=[min(half[:2]), half[2]], rgba=rgba))
         elif obj.shape == "hemisphere":
@@ -93,7 +94,7 @@ def material_rig(rgb: tuple[float, float, float] = (0.8, 0.25, 0.15)) -> tuple[S
     for i, material in enumerate(MATERIALS):
         x = (i - (len(MATERIALS) - 1) / 2) * 0.16
         bodies.append(f"""
-        <body name="object_{i}" pos="{x:.3f} 0 0.06">
+        <body name="obj{i}" pos="{x:.3f} 0 0.06">
           <geom type="sphere" size="0.05" rgba="{rgb[0]} {rgb[1]} {rgb[2]} 1" group="1"/>
           <geom type="box" size="0.04 0.02 0.03" pos="0 0.09 -0.03" rgba="{rgb[0]} {rgb[1]} {rgb[2]} 1"
                 group="1"/>
@@ -116,3 +117,39 @@ def material_rig(rgb: tuple[float, float, float] = (0.8, 0.25, 0.15)) -> tuple[S
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     return SceneGraph(objects=objects, split="materials"), model, data
+
+
+def mujoco_reference(model: "mujoco.MjModel", data: "mujoco.MjData", camera: str, width: int, height: int,
+                     labels: np.ndarray, groups: tuple[int, ...] = (1,)) -> tuple[np.ndarray, np.ndarray]:
+    """Segmentation labels and depth of the same state from MuJoCo's own renderer, drawing ``groups`` only
+    (needs a GL context: ``MUJOCO_GL=egl`` headless)."""
+    import mujoco
+
+    from muble.core.types import SEG_BACKGROUND
+
+    renderer = mujoco.Renderer(model, height, width)
+    try:
+        option = mujoco.MjvOption()
+        option.geomgroup[:] = 0
+        option.sitegroup[:] = 0  # sites (grip markers) are not scenery; Blender draws none
+        for group in groups:
+            option.geomgroup[group] = 1
+        renderer.update_scene(data, camera, scene_option=option)
+        renderer.enable_segmentation_rendering()
+        seg = renderer.render().copy()
+        renderer.disable_segmentation_rendering()
+        renderer.enable_depth_rendering()
+        depth = renderer.render().copy()
+        renderer.disable_depth_rendering()
+    finally:
+        renderer.close()
+    ids, types = seg[..., 0], seg[..., 1]
+    ref = np.full(ids.shape, SEG_BACKGROUND, dtype=np.int32)
+    hit = (types == mujoco.mjtObj.mjOBJ_GEOM) & (ids >= 0)
+    ref[hit] = labels[ids[hit]]
+    return ref, depth
+
+
+def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
+    union = (a | b).sum()
+    return float((a & b).sum() / union) if union else 1.0

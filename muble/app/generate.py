@@ -1,0 +1,105 @@
+"""``muble generate``: the SHOP-VRB2 dataset, sharded by scene index, resumable, locally or on Ray.
+
+    muble generate dataset.splits='{val: 20}' dataset.root=/data/shopvrb2 dataset.workers=2
+    muble generate dataset.executor=ray ...            # same code path on a Ray cluster (RAY_ADDRESS)
+"""
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from muble.app.hydra_app import run_hydra_job
+from muble.core.errors import ConfigError
+from muble.core.manifest import make_manifest, sha256_file
+from muble.dataset.atomic import TMP_PREFIX, remove_stale_temporaries, write_bytes_atomic
+from muble.dataset.executors import run_all
+from muble.dataset.layout import DatasetLayout
+from muble.dataset.production import IndexJob, produce_index, split_seed
+
+log = logging.getLogger(__name__)
+
+# Settings that say how a dataset was produced, not what it contains: left out of its manifest so that runs on
+# different executors, worker counts or folders yield identical datasets.
+_EXECUTION_KEYS = ("root", "executor", "workers", "shard", "num_shards")
+
+
+def dataset_config_record(config: dict[str, Any]) -> dict[str, Any]:
+    record = {k: v for k, v in config.items() if k not in ("output",)}
+    record["dataset"] = {k: v for k, v in config["dataset"].items() if k not in _EXECUTION_KEYS}
+    return record
+
+
+def split_sizes(cfg: DictConfig) -> dict[str, int]:
+    ds = cfg.dataset
+    if len(ds.splits) != len(ds.sizes) or any(n < 0 for n in ds.sizes):
+        raise ConfigError(f"dataset.splits {list(ds.splits)} and dataset.sizes {list(ds.sizes)} need one "
+                          "non-negative size per split")
+    if not 0 <= ds.shard < ds.num_shards:
+        raise ConfigError(f"dataset.shard must be in [0, {ds.num_shards}), got {ds.shard}")
+    return dict(zip(ds.splits, (int(n) for n in ds.sizes)))
+
+
+def indices(cfg: DictConfig, size: int) -> list[int]:
+    ds = cfg.dataset
+    return [i for i in range(ds.start, ds.start + size) if i % ds.num_shards == ds.shard]
+
+
+def write_combined(layout: DatasetLayout, wanted: list[int], version: str) -> dict[str, str]:
+    """The combined ``{info, scenes}`` and ``{info, instructions}`` files of a split, in index order."""
+    info = {"version": version, "split": layout.split}
+    out = layout.split_dir
+    scenes = [json.loads((out / layout.scene(i)).read_text()) for i in wanted]
+    instructions = [json.loads((out / layout.instruction(i)).read_text()) for i in wanted]
+    return {
+        layout.combined_scenes(): write_bytes_atomic(out / layout.combined_scenes(),
+                                                     json.dumps({"info": info, "scenes": scenes}).encode()),
+        layout.combined_instructions(): write_bytes_atomic(
+            out / layout.combined_instructions(), json.dumps({"info": info, "instructions": instructions}).encode()),
+    }
+
+
+def checksums(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): sha256_file(p) for p in sorted(root.rglob("*"))
+            if p.is_file() and p.name != "manifest.json" and not p.name.startswith(TMP_PREFIX)}
+
+
+def job(cfg: DictConfig) -> dict:
+    from tqdm import tqdm
+
+    import muble
+
+    root = Path(cfg.dataset.root)
+    root.mkdir(parents=True, exist_ok=True)
+    stale = remove_stale_temporaries(root)
+    if stale:
+        log.info("removed %d partial files of an interrupted run", stale)
+    config = OmegaConf.to_container(cfg, resolve=True)
+    produced = {}
+    sizes = split_sizes(cfg)
+    for split, size in sizes.items():
+        layout = DatasetLayout(root, split)
+        wanted = indices(cfg, size)
+        todo = [i for i in wanted if not (layout.split_dir / layout.instruction(i)).exists()]
+        log.info("%s: %d of %d indices to produce (%d already done)", split, len(todo), len(wanted),
+                 len(wanted) - len(todo))
+        jobs = [IndexJob(config, split, i) for i in todo]
+        for _ in tqdm(run_all(cfg.dataset.executor, produce_index, jobs, cfg.dataset.workers), total=len(jobs),
+                      desc=f"generate {split}", unit="scene", disable=None):
+            pass
+        if cfg.dataset.num_shards == 1:
+            write_combined(layout, wanted, muble.__version__)
+        produced[split] = len(wanted)
+    seeds = {"seed": cfg.seed, "split_seeds": {s: split_seed(cfg.seed, s) for s in sizes},
+             "indices": "(seed, split, index) -> numpy default_rng streams; OMPL re-seeded per query"}
+    manifest = make_manifest(seeds, dataset_config_record(config), files=checksums(root))
+    write_bytes_atomic(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True).encode())
+    print(f"muble generate: {produced} scenes in {root}")
+    return produced
+
+
+def main(argv: list[str]) -> int:
+    return run_hydra_job("generate", argv, job, prog="muble generate")
