@@ -1,6 +1,6 @@
 """Memory of a long Blender rendering process: RSS growth over 200 keyframes across 20 scenes.
 
-Two warm-up scenes come first (Blender and Cycles allocate their caches, the allocator its arenas: about 160 MB
+Three warm-up scenes come first (Blender and Cycles allocate their caches, the allocator its arenas: about 160 MB
 measured); growth is measured from the end of the warm-up to the end of the last measured scene. Run: ``python benchmarks/render_memory.py``.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
 from muble_plugins.renderers.blender.testing import build_world, random_scene  # noqa: E402
 
-SCENES, KEYFRAMES, WARM_UP = 20, 10, 2
+SCENES, KEYFRAMES, WARM_UP = 20, 10, 3
 
 
 def rss_mb() -> float:

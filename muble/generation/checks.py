@@ -22,7 +22,7 @@ def _table_geom_args(table_x, table_y) -> dict:
     hx, hy = (table_x[1] - table_x[0]) / 2.0, (table_y[1] - table_y[0]) / 2.0
     centre = [(table_x[0] + table_x[1]) / 2.0, (table_y[0] + table_y[1]) / 2.0, -TABLE_THICKNESS / 2.0]
     return dict(name="table", type=mujoco.mjtGeom.mjGEOM_BOX, size=[hx, hy, TABLE_THICKNESS / 2.0], pos=centre,
-                rgba=[0.6, 0.5, 0.4, 1.0])
+                rgba=[0.6, 0.5, 0.4, 1.0], group=1)  # drawn with the visual groups (1: scenery, 2: objects)
 
 
 def view_model(models: list[ObjectModel], placements: list[Placement], camera: CameraParams, table_x, table_y):
@@ -39,7 +39,7 @@ def view_model(models: list[ObjectModel], placements: list[Placement], camera: C
                       userface=np.asarray(model.visual.faces, np.int32).ravel().tolist())
         body = spec.worldbody.add_body(name=f"obj{i}", pos=placement.position.tolist(), quat=placement.quat.tolist())
         body.add_geom(name=f"obj{i}_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"obj{i}_visual_mesh",
-                      contype=0, conaffinity=0, density=0, rgba=list(model.rgba))
+                      contype=0, conaffinity=0, density=0, rgba=list(model.rgba), group=2)
     spec.worldbody.add_camera(name=CAMERA_NAME, pos=camera.position.tolist(), quat=camera.mujoco_quat.tolist(),
                               fovy=camera.fovy_deg)
     model = spec.compile()

@@ -26,7 +26,7 @@ def render_sheet(path: Path, width: int = 640, height: int = 480, samples: int =
     images, captions = [], []
     renderer = BlenderRenderer(width=width, height=height, samples=samples)
     try:
-        scene, model, data = material_rig()
+        scene, model, data = material_rig(fovy=64.0)  # the whole row fits a 4:3 frame
         renderer.setup(scene, model)
         images.append(renderer.render(data, "materials").rgb)
         captions.append("plastic metal glass rubber wood ceramic")

@@ -84,8 +84,8 @@ def build_world(scene: SceneGraph, arm_seed: int | None = None) -> tuple["mujoco
     return model, data
 
 
-def material_rig(rgb: tuple[float, float, float] = (0.8, 0.25, 0.15)) -> tuple[SceneGraph, "mujoco.MjModel",
-                                                                               "mujoco.MjData"]:
+def material_rig(rgb: tuple[float, float, float] = (0.8, 0.25, 0.15), fovy: float = 45.0
+                 ) -> tuple[SceneGraph, "mujoco.MjModel", "mujoco.MjData"]:
     """One sphere and one box per material class, same colour, in a row on a grey table, seen by camera
     ``materials``: the material classes side by side under the same light."""
     import mujoco
@@ -110,7 +110,7 @@ def material_rig(rgb: tuple[float, float, float] = (0.8, 0.25, 0.15)) -> tuple[S
           <geom type="box" size="0.6 0.25 0.01" pos="0 0.05 -0.01" rgba="0.5 0.5 0.5 1" group="1"/>
         </body>
         {''.join(bodies)}
-        <camera name="materials" pos="0 -0.55 0.32" xyaxes="1 0 0 0 0.5 0.866" fovy="45"/>
+        <camera name="materials" pos="0 -0.55 0.32" xyaxes="1 0 0 0 0.5 0.866" fovy="{fovy}"/>
       </worldbody>
     </mujoco>"""
     model = mujoco.MjModel.from_xml_string(xml)

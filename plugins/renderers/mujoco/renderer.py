@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,18 +25,24 @@ class MujocoRendererConfig:
     depth: bool = True
     segmentation: bool = True
     reuse_meshes: bool = True  # draw untextured models from a shared mesh atlas (no re-upload per scene)
+    # Geom groups drawn: robosuite puts visual meshes in group 1 and collision shapes in group 0; object sets put
+    # visual meshes in group 2 and convex collision parts in group 3. Sites are never drawn.
+    geom_groups: list[int] = field(default_factory=lambda: [1, 2])
 
 
 class MujocoRenderer(Renderer):
     """Draws MuJoCo states with MuJoCo's own OpenGL renderer (EGL, else OSMesa)."""
 
     def __init__(self, width: int = 848, height: int = 480, rgb: bool = True, depth: bool = True,
-                 segmentation: bool = True, reuse_meshes: bool = True):
+                 segmentation: bool = True, reuse_meshes: bool = True, geom_groups: list[int] | tuple = (1, 2)):
         if width <= 0 or height <= 0:
             raise RenderError(f"image size must be positive, got {width}x{height}; set renderer.width/height")
         if not (rgb or depth or segmentation):
             raise RenderError("nothing to draw: enable at least one of rgb, depth, segmentation")
-        self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes)
+        if not all(0 <= int(g) < 6 for g in geom_groups):
+            raise RenderError(f"geom_groups must be MuJoCo groups 0..5, got {list(geom_groups)}")
+        self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes,
+                                           [int(g) for g in geom_groups])
         self._gl = None
         self._context = None  # MjrContext
         self._context_model = None  # the model the context was made from
@@ -79,6 +85,9 @@ class MujocoRenderer(Renderer):
         self._mesh_remap = remap
         self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
         self._option = mujoco.MjvOption()
+        self._option.geomgroup[:] = 0
+        self._option.geomgroup[self.config.geom_groups] = 1
+        self._option.sitegroup[:] = 0
 
     def _make_context(self, model) -> None:
         import mujoco

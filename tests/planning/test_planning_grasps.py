@@ -1,0 +1,92 @@
+"""Grasp frames of the SHOP-VRB2 set and real picks of the categories they are hardest for."""
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from muble import get_registry
+from muble.core.types import Pose
+
+from muble_plugins.objects.catalogue import SIZE_SCALES
+from muble_plugins.objects.shopvrb2 import CATALOGUE
+from muble_plugins.primitives.grasping import grasp_candidates
+
+PANDA_GAP = 0.0768  # m between the open Panda pads
+
+
+def _axes(quat):
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, float))
+    return rot.reshape(3, 3)
+
+
+@pytest.fixture(scope="module")
+def objects():
+    return get_registry().create("object_set", "shopvrb2", {"cache_dir": None})
+
+
+def test_planning_every_pickupable_model_has_a_grasp_that_fits_the_open_gripper(objects):
+    rng = np.random.default_rng(0)
+    for category in objects.categories():
+        spec = objects.sample(rng, category=category)
+        if not objects.build(spec).pickupable:
+            continue
+        for model in objects.models(category):
+            for size in CATALOGUE[category].sizes:
+                spec.model, spec.size, spec.scale = model, size, SIZE_SCALES[size]
+                built = objects.build(spec)
+                widths = [f.width for f in built.grasp_frames]
+                assert min(widths) < PANDA_GAP - 0.004, (model, size, widths)  # 2 mm to spare each side
+
+
+def test_planning_rim_pinches_close_across_the_wall_and_candidates_keep_that(objects):
+    spec = objects.sample(np.random.default_rng(1), category="bowl")
+    model = objects.build(spec)
+    for frame in model.grasp_frames:
+        closing, approach = _axes(frame.quat)[:, 0], _axes(frame.quat)[:, 2]
+        radial = np.array([frame.position[0], frame.position[1], 0.0])
+        radial /= np.linalg.norm(radial)
+        assert abs(closing @ radial) > 0.95  # the fingers straddle the wall, not slide along it
+        assert approach[2] < -0.8  # from above
+    pose = Pose(np.array([0.5, 0.1, 0.0]), np.array([np.cos(0.3), 0.0, 0.0, np.sin(0.3)]))
+    candidates = grasp_candidates(pose, model, 0.0, max_width=0.07)
+    assert len(candidates) == 2 * len(model.grasp_frames)
+    for c in candidates:
+        radial = c.pos - pose.pos
+        radial[2] = 0.0
+        assert abs(_axes(c.quat)[:, 0] @ radial / np.linalg.norm(radial)) > 0.95
+
+
+def test_planning_frames_too_wide_for_the_fingers_are_left_out(objects):
+    spec = objects.sample(np.random.default_rng(2), category="glass")
+    spec.model, spec.size, spec.scale = "glass3", "large", 1.15
+    model = objects.build(spec)
+    candidates = grasp_candidates(Pose(np.zeros(3), np.array([1.0, 0, 0, 0])), model, 0.0, max_width=0.07)
+    assert candidates  # the rim is still there
+    assert all(np.hypot(*c.pos[:2]) > 0.02 for c in candidates)  # but not the 9 cm body
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_planning_pick_and_weigh_wine_glasses_mugs_and_glasses_in_a_generated_scene():
+    from muble.generation.generator import SceneGenerator
+    from muble.sim.build import env_from_object_set
+
+    generator = SceneGenerator({"masks": False, "object_set_options": {"categories": ["wine glass", "mug", "glass"]}},
+                               seed=3)
+    scene = generator.generate(0)
+    env = env_from_object_set(scene, "shopvrb2")
+    try:
+        for obj in scene.objects:
+            env.reset()
+            for name, params in [("approach", {"target": obj.id}), ("close_gripper", {}), ("lift", {})]:
+                result = get_registry().create("primitive", name, params).execute(env)
+                assert result.success, (obj.model, name, result.failure_reason)
+                assert not result.info.get("unintended_contacts"), (obj.model, name, result.info)
+            assert env.held_object == obj.id
+            grams = get_registry().create("primitive", "weigh", {}).execute(env).measurement
+            assert abs(grams - obj.weight_gt) < 0.01 * obj.weight_gt, (obj.model, grams, obj.weight_gt)
+    finally:
+        env.close()
+        generator.close()
