@@ -32,7 +32,7 @@ With no command, or when the first argument is a Hydra override (key=value) or f
 `run` is meant. `muble COMMAND --help` shows a command's own help (Hydra's for the jobs).
 examples:
   muble renderer=mujoco seed=3
-  muble -m task=measure_weight,stack robot=panda,ur5e
+  muble -m task=measure_weight_single,stack_simple robot=Panda,UR5e
   muble plugins --kind renderer
 """
 

@@ -90,6 +90,16 @@ class DatasetConfig:
 
 
 @dataclass
+class EvaluationConfig:
+    """``muble eval``: how the agent's episodes run (the dataset, splits and executor come from ``dataset``)."""
+
+    render: bool = False  # render a keyframe after every primitive with the configured renderer (slower)
+    keyframes: bool = False  # with render: also write the keyframes of every episode as PNGs
+    limit: int = 0  # evaluate at most this many indices per split (the first ones); 0 = all
+    plot: bool = True  # write the success bar chart per split
+
+
+@dataclass
 class MubleConfig:
     """The top-level schema of every MuBlE application."""
 
@@ -103,6 +113,7 @@ class MubleConfig:
     generator: Any = MISSING
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     seed: int = 0
     scene_index: int = 0
     dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from muble.core.errors import ConfigError
-from muble.core.interfaces import Instruction, Renderer, Task
+from muble.core.interfaces import Instruction, MotionPlanner, Renderer, Task
 from muble.core.scene import SceneGraph
 from muble.core.types import Frame
 from muble.episode.loop import EpisodeResult, StepRecord, run_episode
@@ -96,8 +96,9 @@ class _TimedRenderer(Renderer):
         return frame
 
 
-class _TimedPlanner:
-    """Wraps a motion planner to count planning time."""
+class _TimedPlanner(MotionPlanner):
+    """Wraps a motion planner to count planning time (a MotionPlanner itself, so primitives accept it as the
+    environment's configured planner)."""
 
     def __init__(self, inner, timing: Timing):
         self.inner, self.timing = inner, timing

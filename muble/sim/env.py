@@ -49,6 +49,27 @@ class FollowResult:
     stopped_early: bool = False
 
 
+HOME_HEIGHT = 0.40  # m above the table top for the hand at rest: clear of the tallest object (~0.3 m)
+
+
+def home_configuration(model: mujoco.MjModel, names: Any, height: float = HOME_HEIGHT) -> np.ndarray:
+    """The robot's rest configuration raised (same hand orientation and x, y) until the hand is ``height`` above
+    the table: robosuite's rest poses hold the hand 0.1-0.2 m above it, inside the taller objects' space."""
+    from muble.sim.ik import ArmKinematics
+
+    q0 = np.asarray(names.init_qpos, dtype=float)
+    kinematics = ArmKinematics(model, mujoco.MjData(model), list(names.arm_joints), names.ee_site)
+    pos, quat = kinematics.site_pose(q0)
+    if pos[2] >= height:
+        return q0
+    result = kinematics.solve(np.array([pos[0], pos[1], height]), quat, q0, max_iterations=300)
+    if not result.within(0.005, 0.02):
+        logger.warning("no raised rest pose for %s (error %.3f m); keeping robosuite's", names.robot,
+                       result.position_error)
+        return q0
+    return result.q
+
+
 class TabletopEnv:
     """A robosuite tabletop with one arm, built from a scene graph and one ``ObjectModel`` per scene object.
 
@@ -72,6 +93,7 @@ class TabletopEnv:
         self.scene = copy.deepcopy(scene)  # the latest sync_scene_graph()
         self.object_models = dict(models)
         self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"])
+        self.names.init_qpos = home_configuration(self.model, self.names)
         self.data = mujoco.MjData(self.model)
         self.n_substeps = int(round(substeps))
         self.control_dt = self.n_substeps * self.model.opt.timestep

@@ -22,6 +22,7 @@ PAD_ALLOWANCE = 0.012
 # Clearance (m) the open hand keeps from the target in the grasp pose and on the way in: the fingers must
 # not already press on it, or closing would not pinch it between the pads.
 TARGET_TOUCH = 0.001
+GRIP_BACKOFF = 0.03  # m a grasp may be moved back along its approach to clear the target
 
 
 def _held_depth(env) -> float:
@@ -130,12 +131,17 @@ class Approach(PrimitiveAction):
     def _plan(env, world, body: str, grasp: Pose):
         """The move to the pre-grasp pose (backed off along the approach) and the straight line in."""
         approach = grasp_approach(grasp)
-        pre = PoseGoal(Pose(grasp.pos - approach * PRE_GRASP, grasp.quat), 0.005, 0.05)
-        goal = PoseGoal(grasp, 0.004, 0.05)
-        world.allow_contact([body])
-        q_grasp = world.inverse_kinematics(goal)
-        if not _touches_lightly(world, [q_grasp]):
+        # A frame set deeper than the hand fits (the palm inside a tall object) is backed off along the
+        # approach a little at a time; the pads still reach the object within GRIP_BACKOFF.
+        for backoff in np.arange(0.0, GRIP_BACKOFF + 1e-9, 0.01):
+            goal = PoseGoal(Pose(grasp.pos - approach * backoff, grasp.quat), 0.004, 0.05)
+            world.allow_contact([body])
+            q_grasp = world.inverse_kinematics(goal)
+            if _touches_lightly(world, [q_grasp]):
+                break
+        else:
             raise PlanningError(f"the open fingers would pierce the target at {np.round(grasp.pos, 3).tolist()}")
+        pre = PoseGoal(Pose(goal.pose.pos - approach * PRE_GRASP, grasp.quat), 0.005, 0.05)
         world.allow_contact([])
         q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
         world.allow_contact([body])

@@ -1,0 +1,1 @@
+"""Evaluating an agent over a dataset split: per-episode execution, the results table, plots and reports."""
