@@ -180,7 +180,22 @@ class Lift(PrimitiveAction):
         world.allow_contact(support)
         pose = env.ee_pose()
         goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, height], pose.quat), 0.005, 0.05)
-        trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
+        try:
+            trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
+        except PlanningError as e:
+            # Near a joint limit or singularity the straight line breaks off: clear the support by a short
+            # straight rise, then plan freely to the raised pose.
+            logger.info("straight lift failed (%s); rising 3 cm and planning the rest", e)
+            rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, min(height, 0.03)], pose.quat), 0.005, 0.05)
+            first = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
+            report = ctx.execute(env, first, world, allowed=support)
+            world = ctx.collision_world(env)
+            q_goal = world.inverse_kinematics(goal, seeds=env.arm_q()[None])
+            trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
+            second = ctx.execute(env, trajectory, world)
+            report = ctx.MotionReport(report.duration + second.duration, second.final_error,
+                                      report.unintended_contacts | second.unintended_contacts)
+            return _result(report, height=height)
         report = ctx.execute(env, trajectory, world, allowed=support)
         return _result(report, height=height)
 

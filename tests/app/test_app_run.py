@@ -1,0 +1,54 @@
+"""The README's main job: one episode with physics, keyframes, a GIF, a sequence file and an outcome line."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def episode(tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
+    out = tmp_path_factory.mktemp("run")
+    result = subprocess.run([sys.executable, "-m", "muble.app.cli", "renderer.width=212", "renderer.height=120",
+                             f"hydra.run.dir={out}"], capture_output=True, text=True, timeout=900)
+    return result, out
+
+
+def test_main_job_prints_an_outcome_and_succeeds(episode):
+    result, _ = episode
+    assert result.returncode == 0, result.stderr[-3000:]
+    lines = result.stdout.strip().splitlines()
+    assert lines[-1].startswith("outcome: success"), result.stdout
+    assert any(line.startswith("answer: [") for line in lines)
+
+
+def test_main_job_writes_gif_keyframes_and_sequence(episode):
+    _, out = episode
+    manifest = json.loads((out / "manifest.json").read_text())
+    gif = [p for p in manifest["outputs"] if p.endswith(".gif")]
+    assert gif and (out / gif[0]).read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+    (sequence_path,) = [p for p in manifest["outputs"] if p.startswith("sequences/")]
+    sequence = json.loads((out / sequence_path).read_text())
+    assert set(sequence) == {"info", "observations", "observations_gt", "image_paths", "result"}
+    assert sequence["result"] == "success"
+    assert sequence["observations"][0]["robot"]["action"] == ["START", None]
+    actions = [o["robot"]["action"][0] for o in sequence["observations"][1:]]
+    assert actions[-1] == "weigh" and "close_gripper" in actions
+    assert len(sequence["image_paths"]) == len(sequence["observations"])
+    weighed = sequence["observations"][-1]["robot"]["weight_measurement"]
+    target = sequence["info"]["task"]["target"]
+    assert weighed == pytest.approx(target[0], rel=0.01)  # measured with physics, within 1% of ground truth
+    for obs in sequence["observations_gt"]:
+        assert {"robot_mask", "table_mask", "grasped_obj_idx"} <= set(obs["robot"])
+        assert all({"pos", "ori", "in_hand", "raised", "mask"} <= set(o) for o in obs["objects"])
+
+
+def test_main_job_bad_override_exits_nonzero(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "muble.app.cli", "robot=Roomba", f"hydra.run.dir={tmp_path}"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode != 0 and "Panda" in result.stderr
