@@ -85,7 +85,7 @@ def test_every_option_composes_and_instantiates(group, option):
 
 @pytest.mark.parametrize("experiment", _options("experiment"))
 def test_every_experiment_composes(experiment):
-    cfg = compose("run", [f"+experiment={experiment}"])
+    cfg = compose("run", [f"experiment={experiment}"])
     assert cfg.renderer.name in get_registry().names("renderer")
 
 

@@ -6,7 +6,7 @@ import pytest
 from muble.sim.object_mjcf import object_id_from_name, realised_stiffness, test_world_xml
 from muble_plugins.objects.shopvrb2 import CATALOGUE
 
-from conftest import spec_of
+from muble_plugins.objects.testing import spec_of
 
 
 @pytest.mark.parametrize("category", sorted(CATALOGUE))

@@ -6,7 +6,7 @@ from muble_plugins.objects.checks import drop, settle, stack
 from muble_plugins.objects.shopvrb2 import CATALOGUE
 from muble_plugins.objects.ycb import CATALOGUE as YCB
 
-from conftest import spec_of
+from muble_plugins.objects.testing import spec_of
 
 SHOP_MODELS = [(c, m) for c in sorted(CATALOGUE) for m in CATALOGUE[c].variants]
 

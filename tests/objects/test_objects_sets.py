@@ -59,7 +59,7 @@ def test_objects_shopvrb2_vocabulary_and_realistic_combinations(shopvrb2):
 
 
 def test_objects_real_sizes(shopvrb2):
-    from conftest import spec_of
+    from muble_plugins.objects.testing import spec_of
 
     mug = shopvrb2.build(spec_of(shopvrb2, "mug", "mug1"))
     assert 0.075 <= mug.extents[1] <= 0.085 and 0.09 <= mug.extents[2] <= 0.105  # body 8 cm wide, 9.5 cm tall
