@@ -1,6 +1,8 @@
 """Built-in agents: the oracle (ground-truth program, replanned after every primitive) and a random baseline."""
 from __future__ import annotations
 
+import zlib
+
 import logging
 from dataclasses import dataclass
 
@@ -91,7 +93,9 @@ class RandomAgent(Agent):
         self.rng = np.random.default_rng(seed)
 
     def reset(self, instruction: Instruction, observation: Observation) -> None:
-        self.rng = np.random.default_rng(self.seed)
+        # Each episode its own stream, reproducible from (seed, split, scene index, template).
+        episode = zlib.crc32(f"{instruction.split}/{instruction.image_index}/{instruction.template_id}".encode())
+        self.rng = np.random.default_rng([self.seed, episode])
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
         if self.rng.random() < self.stop_probability:
