@@ -20,6 +20,7 @@ import numpy as np
 from muble.core.errors import ConfigError
 from muble.dataset.atomic import write_bytes_atomic
 from muble.dataset.layout import DatasetLayout
+from muble.generation.ground_truth import apply_masks
 
 log = logging.getLogger(__name__)
 
@@ -127,7 +128,10 @@ def _render_initial(runner: Any, scene: Any):
     try:
         runner.renderer.setup(env.sync_scene_graph(), env.model)
         camera = env.names.cameras.get(runner.cameras[0], runner.cameras[0])
-        return runner.renderer.render(env.data, camera).rgb
+        frame = runner.renderer.render(env.data, camera)
+        if frame.segmentation is not None:
+            apply_masks(scene, frame.segmentation)
+        return frame.rgb
     finally:
         env.close()
         runner.renderer.close()

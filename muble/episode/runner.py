@@ -5,6 +5,7 @@ whichever command produced it.
 """
 from __future__ import annotations
 
+import copy
 import io
 import logging
 import time
@@ -21,6 +22,7 @@ from muble.core.types import Frame
 from muble.episode.loop import EpisodeResult, StepRecord, run_episode
 from muble.episode.physical import PhysicalWorld
 from muble.episode.sequence import sequence_dict
+from muble.generation.ground_truth import apply_masks
 
 log = logging.getLogger(__name__)
 
@@ -155,8 +157,13 @@ class EpisodeRunner:
                          "ok" if step.result.success else step.result.failure_reason)
 
             result = run_episode(instruction, world, self.agent, task.check, max_steps=self.max_steps, on_step=keep)
-            if result.initial is not None and self.cameras[0] in result.initial.images:
-                keyframes.insert(0, result.initial.images[self.cameras[0]].rgb)
+            first = result.initial.images.get(self.cameras[0]) if result.initial is not None else None
+            if first is not None:
+                keyframes.insert(0, first.rgb)
+                if first.segmentation is not None:
+                    # The scene file's masks as the camera sees the scene: robot and its occlusion included.
+                    scene = copy.deepcopy(scene)
+                    apply_masks(scene, first.segmentation)
         finally:
             env.close()
             if self.renderer is not None:

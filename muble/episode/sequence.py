@@ -10,16 +10,14 @@ from muble.core.scene import SceneGraph
 from muble.core.scene_io import object_to_dict
 from muble.core.types import SEG_ROBOT, SEG_TABLE, ActionCall, Observation
 from muble.episode.loop import EpisodeResult
+from muble.generation.ground_truth import encode_mask
 
 _FLAGS = ("in_hand", "raised", "approached", "gripper_over")
 
 
 def encode_rle(mask: np.ndarray) -> dict[str, Any]:
     """COCO RLE of a boolean mask as plain data ({size, counts})."""
-    from pycocotools import mask as mask_util
-
-    rle = mask_util.encode(np.asfortranarray(mask.astype(np.uint8)))
-    return {"size": [int(v) for v in rle["size"]], "counts": rle["counts"].decode("ascii")}
+    return encode_mask(mask).to_dict()
 
 
 def _finite(values: Any) -> list[float]:

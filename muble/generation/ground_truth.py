@@ -52,3 +52,13 @@ def decode_mask(rle: RLE) -> np.ndarray:
     from pycocotools import mask as coco
 
     return coco.decode({"size": list(rle.size), "counts": rle.counts.encode("ascii")}).astype(bool)
+
+
+def apply_masks(scene, segmentation: np.ndarray) -> None:
+    """Set every object's, the table's and the robot's mask from a segmentation image of the scene's camera."""
+    from muble.core.types import SEG_ROBOT, SEG_TABLE
+
+    for obj in scene.objects:
+        obj.mask = encode_mask(segmentation == obj.id)
+    scene.table = {**(scene.table or {}), "mask": encode_mask(segmentation == SEG_TABLE)}
+    scene.robot = {**(scene.robot or {}), "mask": encode_mask(segmentation == SEG_ROBOT)}

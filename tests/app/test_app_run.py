@@ -48,6 +48,20 @@ def test_main_job_writes_gif_keyframes_and_sequence(episode):
         assert all({"pos", "ori", "in_hand", "raised", "mask"} <= set(o) for o in obs["objects"])
 
 
+def test_scene_file_masks_come_from_the_camera_view(episode):
+    from muble.core.scene_io import load_scene
+    from muble.generation.ground_truth import decode_mask
+
+    _, out = episode
+    (scene_path,) = (out / "scenes").glob("*.json")
+    scene = load_scene(scene_path)
+    robot, table = decode_mask(scene.robot["mask"]), decode_mask(scene.table["mask"])
+    assert robot.shape == (120, 212) and robot.sum() > 100 and table.sum() > 1000
+    for obj in scene.objects:  # every object seen, and no pixel claimed twice
+        mask = decode_mask(obj.mask)
+        assert mask.sum() > 0 and not (mask & robot).any() and not (mask & table).any()
+
+
 def test_main_job_bad_override_exits_nonzero(tmp_path):
     result = subprocess.run([sys.executable, "-m", "muble.app.cli", "robot=Roomba", f"hydra.run.dir={tmp_path}"],
                             capture_output=True, text=True, timeout=300)
