@@ -24,7 +24,8 @@ from muble.core.errors import unknown_name
 from muble.core.objects import GraspFrame, MeshPart, ObjectModel, ObjectSpec
 from muble.sim.object_mjcf import realised_damping, realised_stiffness
 
-from muble_plugins.objects.geometry import mass_properties, planar_uv
+from muble_plugins.objects.build_cache import built_geometry
+from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F401 - re-exported for callers
 
 log = logging.getLogger(__name__)
 
@@ -236,16 +237,16 @@ class CatalogueObjectSet(ObjectSet):
 
     def build(self, spec: ObjectSpec) -> ObjectModel:
         cat = self._category(spec.category)
-        geometry = self.geometry(spec)
+        built = built_geometry(self, spec)  # meshes and unit-mass properties, cached in memory per model and scale
+        geometry = built.geometry
         mass = spec.weight_g / 1000.0
-        com, inertia = mass_properties(geometry.collision_parts, mass)
+        com, inertia = built.com.copy(), built.unit_inertia * mass  # uniform fill: inertia is linear in mass
         stiffness = realised_stiffness(spec.stiffness, mass)
         if stiffness < spec.stiffness * 0.999:
             log.warning("%s: %.0f g is too light for %.0f N/m at a 2 ms step; using %.0f N/m",
                         spec.model, spec.weight_g, spec.stiffness, stiffness)
         if spec.colour not in COLOUR_RGBA:
             raise ConfigError(unknown_name("colour", spec.colour, list(COLOUR_RGBA)))
-        vertices = geometry.visual.vertices
         return ObjectModel(
             spec=spec, visual=geometry.visual, collision_parts=geometry.collision_parts, mass=mass, com=com,
             inertia=inertia, friction=spec.friction, stiffness=stiffness,
@@ -253,8 +254,7 @@ class CatalogueObjectSet(ObjectSet):
             rgba=COLOUR_RGBA[spec.colour], material_class=MATERIAL_CLASS[spec.material],
             grasp_type=cat.grasp_type, grasp_frames=geometry.grasp_frames, pickupable=cat.pickupable,
             stackable=cat.stackable, stack_base=cat.stack_base,
-            extents=np.ptp(vertices, axis=0),
-            uv=geometry.uv if geometry.uv is not None else planar_uv(vertices),
+            extents=built.extents.copy(), uv=built.uv,
         )
 
 
