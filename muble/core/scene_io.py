@@ -3,8 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
@@ -285,19 +283,9 @@ def load_scenes(path: str | Path) -> tuple[dict[str, Any], list[SceneGraph]]:
 
 def write_json_atomic(path: str | Path, data: Any, **dump_kwargs: Any) -> None:
     """Write JSON to ``path`` through a temporary file and a rename: readers never see a partial file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(data, f, **dump_kwargs)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from muble.dataset.atomic import write_bytes_atomic
+
+    write_bytes_atomic(path, json.dumps(data, **dump_kwargs).encode("utf-8"))
 
 
 def save_scene(path: str | Path, scene: SceneGraph) -> None:

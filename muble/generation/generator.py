@@ -22,7 +22,8 @@ from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.scene import SceneGraph, SceneObject
 from muble.generation import checks, ground_truth
 from muble.generation.config import GeneratorConfig
-from muble.generation.placement import CollisionMesh, Placement, TableLayout
+from muble.generation.placement import CollisionMeshCache, Placement, TableLayout
+from muble.generation.view import ViewScene
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +61,10 @@ class SceneGenerator:
         self.check_camera = self.camera.scaled(cfg.occlusion_scale) if cfg.occlusion_scale != 1.0 else self.camera
         self._renderer = renderer
         self._mask_renderer = None
+        self._collision_meshes = CollisionMeshCache()
+        # One render model for every layout; sized for the full image so the mask renderer can share it.
+        self._view = ViewScene(self.camera, cfg.table_x, cfg.table_y,
+                               slots=cfg.min_objects + len(cfg.count_probabilities) - 1)
         self.directions = ground_truth.directions(self.camera)
         self.failures: collections.Counter[str] = collections.Counter()  # why layouts were rejected, all scenes
         self.timings: collections.Counter[str] = collections.Counter()  # seconds spent per stage, all scenes
@@ -84,8 +89,17 @@ class SceneGenerator:
     def _renderer_for(self, camera: CameraParams):
         from muble.plugins.registry import get_registry
 
+        # The view model holds every mesh itself, so the renderer's mesh atlas would only duplicate it.
         return get_registry().create("renderer", "mujoco", {"width": camera.width, "height": camera.height,
-                                                            "rgb": False, "depth": False, "segmentation": True})
+                                                            "rgb": False, "depth": False, "segmentation": True,
+                                                            "reuse_meshes": False})
+
+    def _draw(self, renderer, models, placements):
+        """Segmentation of a layout: the shared view model is re-posed, and set up again only when it changed."""
+        view, data = self._view.pose(models, placements)
+        if getattr(renderer, "model", None) is not view:  # a renderer may be shared with another generator
+            renderer.setup(None, view)
+        return renderer.render(data, checks.CAMERA_NAME)
 
     @property
     def renderer(self):
@@ -118,7 +132,7 @@ class SceneGenerator:
     def _layout(self, models: list[ObjectModel], rng: np.random.Generator) -> list[Placement] | None:
         cfg = self.config
         layout = TableLayout(cfg.reach_x, cfg.reach_y, cfg.table_x, cfg.table_y, cfg.margin)
-        meshes = [CollisionMesh(m) for m in models]
+        meshes = [self._collision_meshes.get(m) for m in models]
         placements: list[Placement | None] = [None] * len(models)
         for i in sorted(range(len(models)), key=lambda k: -meshes[k].radius):  # big footprints first pack best
             placements[i] = layout.try_place(meshes[i], rng, cfg.placement_tries)
@@ -147,13 +161,9 @@ class SceneGenerator:
             if placements is None:
                 reasons["placement"] += 1
                 continue
-            view, data = checks.view_model(models, placements, self.check_camera, cfg.table_x, cfg.table_y)
-            t3 = time.perf_counter()
-            self.renderer.setup(None, view)
-            frame = self.renderer.render(data, checks.CAMERA_NAME)
+            frame = self._draw(self.renderer, models, placements)
             t4 = time.perf_counter()
-            self.timings["view_model"] += t3 - t2
-            self.timings["render"] += t4 - t3
+            self.timings["render"] += t4 - t2
             need = cfg.min_visible_pixels * (self.check_camera.width * self.check_camera.height) / (
                 self.camera.width * self.camera.height)
             if np.any(checks.visible_pixels(frame.segmentation, len(models)) < need):
@@ -179,9 +189,7 @@ class SceneGenerator:
             return frame.segmentation
         if self._mask_renderer is None:
             self._mask_renderer = self._renderer_for(self.camera)
-        view, data = checks.view_model(models, placements, self.camera, self.config.table_x, self.config.table_y)
-        self._mask_renderer.setup(None, view)
-        return self._mask_renderer.render(data, checks.CAMERA_NAME).segmentation
+        return self._draw(self._mask_renderer, models, placements).segmentation
 
     def _scene(self, index, specs, models, placements, segmentation) -> SceneGraph:
         cfg = self.config

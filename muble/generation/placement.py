@@ -5,12 +5,14 @@ margin is decided by FCL's exact mesh distance, so concave shapes (a mug's handl
 """
 from __future__ import annotations
 
+import collections
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from muble.core.objects import ObjectModel
+from muble.generation.mesh_keys import mesh_key
 
 
 def yaw_quat(yaw: float) -> np.ndarray:
@@ -58,11 +60,51 @@ class CollisionMesh:
         self.geometry = bvh
         self.vertices = v
         self.radius = float(np.linalg.norm(v[:, :2], axis=1).max())  # about the base centre's vertical axis
+        # The footprint's extremes in any direction lie on its convex hull, so the table test needs only those.
+        self.footprint = _hull_2d(v[:, :2])
+
+    def fits(self, placement: Placement, x_range, y_range) -> bool:
+        """Whether the whole footprint at ``placement`` lies within ``x_range`` x ``y_range``."""
+        c, s = math.cos(placement.yaw), math.sin(placement.yaw)
+        fx, fy = self.footprint[:, 0], self.footprint[:, 1]
+        x = fx * c - fy * s + placement.x
+        y = fx * s + fy * c + placement.y
+        return bool(x.min() >= x_range[0] and x.max() <= x_range[1] and y.min() >= y_range[0]
+                    and y.max() <= y_range[1])
 
     def collision_object(self, placement: Placement):
         import fcl
 
         return fcl.CollisionObject(self.geometry, fcl.Transform(yaw_matrix(placement.yaw), placement.position))
+
+
+def _hull_2d(points: np.ndarray) -> np.ndarray:
+    """Vertices of the convex hull of 2-D ``points`` (all points when they are degenerate)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return np.ascontiguousarray(points[ConvexHull(points).vertices])
+    except (QhullError, ValueError):
+        return np.ascontiguousarray(points)
+
+
+class CollisionMeshCache:
+    """``CollisionMesh`` per distinct visual mesh (by content), least recently used dropped first."""
+
+    def __init__(self, max_entries: int = 512):
+        self.max_entries = max_entries
+        self._entries: collections.OrderedDict[bytes, CollisionMesh] = collections.OrderedDict()
+
+    def get(self, model: ObjectModel) -> CollisionMesh:
+        key = mesh_key(model)
+        mesh = self._entries.get(key)
+        if mesh is None:
+            mesh = self._entries[key] = CollisionMesh(model)
+            while len(self._entries) > self.max_entries:
+                self._entries.popitem(last=False)
+        else:
+            self._entries.move_to_end(key)
+        return mesh
 
 
 def mesh_distance(a, b) -> float:
@@ -86,9 +128,7 @@ class TableLayout:
         self._objects: list = []
 
     def fits_table(self, mesh: CollisionMesh, placement: Placement) -> bool:
-        xy = placement.transform(mesh.vertices)[:, :2]
-        return bool(xy[:, 0].min() >= self.table_x[0] and xy[:, 0].max() <= self.table_x[1]
-                    and xy[:, 1].min() >= self.table_y[0] and xy[:, 1].max() <= self.table_y[1])
+        return mesh.fits(placement, self.table_x, self.table_y)
 
     def clearance(self, mesh: CollisionMesh, placement: Placement) -> float:
         """Least mesh distance to any placed object (``inf`` when none is within reach of the margin)."""

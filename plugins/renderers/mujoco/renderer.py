@@ -53,6 +53,11 @@ class MujocoRenderer(Renderer):
         self._mesh_remap: np.ndarray | None = None
         self._labels: np.ndarray | None = None
 
+    @property
+    def model(self):
+        """The MuJoCo model of the last ``setup`` (``None`` before): callers that re-pose one model skip setup."""
+        return self._model
+
     # --- setup ------------------------------------------------------------------------------------------------
     def setup(self, scene: SceneGraph | None, model) -> None:
         import mujoco
@@ -175,8 +180,6 @@ class MujocoRenderer(Renderer):
     def _labels_of(self, image: np.ndarray) -> np.ndarray:
         import mujoco
 
-        segimage = image[..., 0].astype(np.int32) | (image[..., 1].astype(np.int32) << 8) | (
-            image[..., 2].astype(np.int32) << 16)
         n = self._scene.ngeom
         lut = np.full(n + 1, -1, dtype=np.int32)  # index 0 = nothing drawn
         geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
@@ -184,6 +187,10 @@ class MujocoRenderer(Renderer):
             g = self._scene.geoms[i]
             if g.segid >= 0 and g.objtype == geom_type and 0 <= g.objid < len(self._labels):
                 lut[g.segid + 1] = self._labels[g.objid]
+        if n < 255:  # every id fits the red channel, so green and blue are zero: index with red alone
+            return lut[np.minimum(np.arange(256), n)][image[..., 0]]
+        segimage = image[..., 0].astype(np.int32) | (image[..., 1].astype(np.int32) << 8) | (
+            image[..., 2].astype(np.int32) << 16)
         return lut[np.clip(segimage, 0, n)]
 
     def close(self) -> None:
