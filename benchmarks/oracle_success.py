@@ -1,17 +1,17 @@
 """End-to-end success of the oracle agent with physics, per SHOP-VRB2 task type, and its failure taxonomy.
 
-For every template a small split restricted to that template is written by ``muble generate`` (seeded, scenes
-and instructions only) and evaluated by ``muble eval agent=oracle``: the real pipeline, MuJoCo physics, the
-configured planner. Failed episodes are sorted into the failure classes of the taxonomy; execution errors are
-split further by the primitive that failed, so that grasp failures (approach / close_gripper) show apart from
-placing and carrying.
+Seeded scenes come from the configured scene generator (one pool shared by every template); for each template
+the first N scenes that template yields an instruction for are written as a dataset split (scenes and
+instructions, the layout ``muble generate`` writes) and evaluated by ``muble eval agent=oracle``: the real
+pipeline, MuJoCo physics, the configured planner. Failed episodes are sorted into the failure classes of the
+taxonomy; execution errors are split further by the primitive that failed, so grasp failures (approach /
+close_gripper) show apart from carrying and placing.
 
 Goal: the oracle succeeds on at least 98% of the episodes of every task type (acceptance: 50 scenes each).
 
     python benchmarks/oracle_success.py [--scenes 50] [--templates stack_simple remove] [--seed 0] [--workers 2]
 
-Datasets are cached under --root (a template's split is re-generated only when missing); runs are
-deterministic in (seed, template, index).
+Scenes are cached under --root/pool_s<seed>; every run is deterministic in (seed, scene index, template).
 """
 from __future__ import annotations
 
@@ -24,14 +24,78 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 GOAL = 0.98
 GRASP_PRIMITIVES = ("approach", "close_gripper")
+SPLIT = "val"
+
+
+class ScenePool:
+    """Seeded generated scenes, index by index, cached as scene files."""
+
+    def __init__(self, root: Path, seed: int):
+        from muble.app.config import compose
+
+        self.folder = root / f"pool_s{seed}"
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.cfg = compose("generate", [f"seed={seed}", "output.dir=/tmp", f"dataset.root={root}"])
+        self.generator = None
+
+    def scene(self, index: int):
+        from muble.core.scene_io import load_scene, save_scene
+
+        path = self.folder / f"{index:06d}.json"
+        if path.is_file():
+            return load_scene(path)
+        if self.generator is None:
+            from muble.app.run import scene_generator
+            from muble.plugins.registry import get_registry
+
+            objects = get_registry().create("object_set", self.cfg.objects.name, self.cfg.objects)
+            self.generator = scene_generator(self.cfg, objects)
+        scene = self.generator.generate(index)
+        save_scene(path, scene)
+        return scene
+
+
+def write_split(pool: ScenePool, template: str, scenes: int, seed: int, folder: Path, max_tries: int) -> int:
+    """The first ``scenes`` pool scenes with an instruction of ``template`` as a split; returns how many."""
+    from muble.core.instructions_io import instruction_to_dict
+    from muble.core.scene_io import save_scene
+    from muble.dataset.layout import DatasetLayout
+    from muble.plugins.registry import get_registry
+
+    layout = DatasetLayout(folder, SPLIT)
+    task = get_registry().create("task", template, {})
+    written = 0
+    for index in range(max_tries):
+        if written == scenes:
+            break
+        if (layout.split_dir / layout.instruction(index)).is_file():
+            written += 1
+            continue
+        scene = pool.scene(index)
+        candidates = task.generate(scene, np.random.default_rng([seed, index, 1]))
+        if not candidates:
+            continue
+        instruction = candidates[0]
+        instruction.split, instruction.image_index = SPLIT, index
+        save_scene(layout.split_dir / layout.scene(index), scene)
+        record = instruction_to_dict(instruction)
+        record["ground_truth_actions"] = [[a.name, a.params] for a in task.ground_truth(instruction, scene)]
+        path = layout.split_dir / layout.instruction(index)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(record))
+        written += 1
+    return written
 
 
 def muble(*args: str) -> None:
     exe = Path(sys.executable).with_name("muble")
-    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
-    proc = subprocess.run([str(exe), *args], env=env, capture_output=True, text=True)
+    proc = subprocess.run([str(exe), *args], env=dict(os.environ), capture_output=True, text=True)
     if proc.returncode != 0:
         sys.stderr.write(proc.stdout[-3000:] + proc.stderr[-3000:])
         raise SystemExit(f"muble {args[0]} failed with exit code {proc.returncode}")
@@ -46,16 +110,14 @@ def failure_kind(record: dict) -> str:
     return f"execution_error:{'grasp' if failed in GRASP_PRIMITIVES else failed}"
 
 
-def evaluate_template(template: str, scenes: int, seed: int, root: Path, workers: int) -> list[dict]:
-    data = root / f"{template}_s{seed}_n{scenes}"
-    common = ["dataset.splits=[val]", f"dataset.root={data}", f"seed={seed}",
-              f"dataset.workers={workers}", f"dataset.executor={'serial' if workers == 1 else 'processes'}"]
-    if not (data / "manifest.json").is_file():
-        muble("generate", *common, f"dataset.sizes=[{scenes}]", f"dataset.templates=[{template}]",
-              "dataset.sequences=false", f"hydra.run.dir={data}_gen")
-    out = root / f"{template}_s{seed}_n{scenes}_eval"
-    muble("eval", "agent=oracle", *common, f"hydra.run.dir={out}", "evaluation.plot=false")
-    return [json.loads(line) for line in (out / "episodes_val.jsonl").read_text().splitlines() if line.strip()]
+def evaluate_template(pool: ScenePool, template: str, scenes: int, seed: int, root: Path, workers: int) -> list[dict]:
+    data = root / f"{template}_s{seed}"
+    write_split(pool, template, scenes, seed, data, max_tries=20 * scenes)
+    out = root / f"{template}_s{seed}_eval"
+    muble("eval", "agent=oracle", f"seed={seed}", f"dataset.splits=[{SPLIT}]", f"dataset.root={data}",
+          f"dataset.workers={workers}", f"dataset.executor={'serial' if workers == 1 else 'processes'}",
+          f"evaluation.limit={scenes}", f"hydra.run.dir={out}", "evaluation.plot=false")
+    return [json.loads(line) for line in (out / f"episodes_{SPLIT}.jsonl").read_text().splitlines() if line.strip()]
 
 
 def main() -> None:
@@ -70,9 +132,10 @@ def main() -> None:
     args = parser.parse_args()
 
     start = time.perf_counter()
+    pool = ScenePool(args.root, args.seed)
     per_template, without_grasp, failures, examples = {}, {}, Counter(), {}
     for template in args.templates:
-        records = evaluate_template(template, args.scenes, args.seed, args.root, args.workers)
+        records = evaluate_template(pool, template, args.scenes, args.seed, args.root, args.workers)
         ok = sum(r["outcome"] == "success" for r in records)
         per_template[template] = round(ok / max(len(records), 1), 4)
         judged = [r for r in records if failure_kind(r) != "execution_error:grasp"]

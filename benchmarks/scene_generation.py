@@ -13,6 +13,8 @@ import sys
 import time
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+# The figure is per core: Mesa's software rasteriser would otherwise draw with one thread per CPU.
+os.environ.setdefault("LP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
@@ -83,7 +85,8 @@ def main() -> None:
         "with_stability": with_stability,
         "occlusion_half_res_no_masks": half_res,
         "rejections": dict(fast.failures + full.failures),
-        "settings": {"scenes": args.scenes, "warmup": args.warmup, "image": [fast.camera.width, fast.camera.height]},
+        "settings": {"scenes": args.scenes, "warmup": args.warmup, "image": [fast.camera.width, fast.camera.height],
+                     "rasteriser_threads": os.environ.get("LP_NUM_THREADS")},
     }
     if args.validate:
         report["validation"] = validate(full, args.validate)

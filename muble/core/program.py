@@ -16,13 +16,10 @@ from typing import Any, Callable
 
 from muble.core.errors import ConfigError, PlanningError, unknown_name
 from muble.core.scene import SceneGraph, SceneObject
+# The table partition is defined once in muble.core.table (re-exported here for existing callers).
+from muble.core.table import OPPOSITE_PART, TABLE_CENTRE, TABLE_CENTRE_RADIUS, parts_at  # noqa: F401
 
 WEIGHT_MODES = ("measured", "ground_truth")
-# Table partition in world coordinates: the robot looks along +x, "left" is -y (as in SHOP-VRB2 scene
-# directions). The split lines pass through the table centre.
-TABLE_CENTRE = (0.5, 0.0)
-TABLE_CENTRE_RADIUS = 0.08  # metres; objects this close to the centre are also in "centre"
-OPPOSITE_PART = {"left": "right", "right": "left", "front": "back", "back": "front"}
 # Attribute filters: step type -> SceneObject field.
 ATTRIBUTE_FILTERS = {
     "filter_size": "size",
@@ -36,24 +33,12 @@ WEIGHT_ORDERS = ("ascending", "descending")
 
 
 def table_parts_of(obj: SceneObject, scene: SceneGraph | None = None) -> frozenset[str]:
-    """The named table parts an object stands in (a point belongs to one side of each split line).
+    """The named table parts an object stands in (``muble.core.table.parts_at`` of its position).
 
     The scene's ``directions`` (unit vectors for left/front) orient the split when present.
     """
-    dx = float(obj.position[0]) - TABLE_CENTRE[0]
-    dy = float(obj.position[1]) - TABLE_CENTRE[1]
-    left_dir, front_dir = (0.0, -1.0), (1.0, 0.0)
-    if scene is not None and scene.directions:
-        if "left" in scene.directions:
-            left_dir = tuple(scene.directions["left"][:2])
-        if "front" in scene.directions:
-            front_dir = tuple(scene.directions["front"][:2])
-    along_left = dx * left_dir[0] + dy * left_dir[1]
-    along_front = dx * front_dir[0] + dy * front_dir[1]
-    parts = {"left" if along_left > 0 else "right", "front" if along_front > 0 else "back"}
-    if dx * dx + dy * dy <= TABLE_CENTRE_RADIUS ** 2:
-        parts.add("centre")
-    return frozenset(parts)
+    directions = scene.directions if scene is not None else None
+    return parts_at(obj.position[0], obj.position[1], directions)
 
 
 @dataclass

@@ -1,4 +1,11 @@
-"""The physical world: primitives executed with MuJoCo physics, keyframes from a renderer after each one."""
+"""The physical world: primitives executed with MuJoCo physics, keyframes from a renderer after each one.
+
+Besides poses, the observed scene graph carries the gripper flags of the symbolic world, so an agent plans the
+same way in both: ``in_hand`` (welded to the hand), ``raised`` (held and touching neither the table nor another
+object, read from the contacts), ``approached`` (the hand is in the grasp pose of that object: the last
+primitive was a successful ``approach``) and ``gripper_over`` (the hand hovers over that object: a successful
+``move`` to it, or the object just set down, which the hand retreats straight up from).
+"""
 from __future__ import annotations
 
 import logging
@@ -6,9 +13,13 @@ from typing import Any, Sequence
 
 from muble.core.errors import PlanningError
 from muble.core.interfaces import Renderer
+from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Frame, Observation
 
 log = logging.getLogger(__name__)
+
+# Primitive names (the built-in primitive plugins') whose success sets the hand's symbolic position.
+MOVE, APPROACH, LOWER, RELEASE = "move", "approach", "lower", "open_gripper"
 
 
 class PhysicalWorld:
@@ -24,6 +35,8 @@ class PhysicalWorld:
         self.registry = registry
         self.renderer = renderer
         self.cameras = tuple(cameras)
+        self.approached: int | None = None  # object the open hand is in the grasp pose of
+        self.over: int | None = None  # object the hand hovers over
 
     def render(self) -> dict[str, Frame]:
         if self.renderer is None:
@@ -33,13 +46,58 @@ class PhysicalWorld:
 
     def observe(self, result: ActionResult | None, step: int) -> Observation:
         scene = self.env.sync_scene_graph()
+        self._flag(scene)
         return Observation(scene=scene, images=self.render(), measurements=self.env.observation(),
                            last_result=result, step=step)
 
     def apply(self, action: ActionCall) -> ActionResult:
         primitive = self.registry.create("primitive", action.name, action.params)
+        held = self.env.held_object
         try:
-            return primitive.execute(self.env)
+            result = primitive.execute(self.env)
         except PlanningError as e:
             log.info("%s failed to plan: %s", action, e)
             return ActionResult(False, failure_reason=f"planning: {e}")
+        if result.success:
+            self._track(action, held)
+        return result
+
+    def _track(self, action: ActionCall, held_before: int | None) -> None:
+        """Where the hand is, symbolically, after a successful primitive."""
+        target = action.params.get("target")
+        obj = int(target) if isinstance(target, int) or (isinstance(target, str) and target.isdigit()) else None
+        released = held_before is not None and self.env.held_object is None
+        if action.name == MOVE:
+            self.approached, self.over = None, obj
+        elif action.name == APPROACH:
+            self.approached, self.over = obj, None
+        elif released and action.name in (LOWER, RELEASE):
+            self.approached, self.over = None, held_before
+        elif self.env.held_object != held_before:  # grasped something (or lost it)
+            self.approached, self.over = None, None
+        else:
+            self.approached = None if self.env.held_object is not None else self.approached
+
+    def _flag(self, scene: SceneGraph) -> None:
+        held = self.env.held_object
+        raised = held is not None and not self._supported(held)
+        for o in scene.objects:
+            o.extra["in_hand"] = o.id == held
+            o.extra["raised"] = o.id == held and raised
+            o.extra["approached"] = held is None and o.id == self.approached
+            o.extra["gripper_over"] = o.id == self.over
+
+    def _supported(self, obj_id: int) -> bool:
+        """The object touches the table or another object (contacts of the live physics)."""
+        env = self.env
+        m, d = env.model, env.data
+        body = env.grasp.body_of[obj_id]
+        supports = {int(m.geom_bodyid[m.geom("table_collision").id])}
+        supports |= {int(b) for i, b in env.grasp.body_of.items() if i != obj_id}
+        for c in d.contact[: d.ncon]:
+            if c.dist > 0.001:  # within the contact margin, not touching
+                continue
+            b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
+            if (b1 == body and b2 in supports) or (b2 == body and b1 in supports):
+                return True
+        return False

@@ -22,8 +22,8 @@ from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.scene import SceneGraph, SceneObject
 from muble.generation import checks, ground_truth
 from muble.generation.config import GeneratorConfig
-from muble.generation.placement import CollisionMeshCache, Placement, TableLayout
-from muble.generation.view import ViewScene
+from muble.generation.placement import Placement, TableLayout, shared_collision_meshes
+from muble.generation.view import shared_view
 
 log = logging.getLogger(__name__)
 
@@ -61,10 +61,10 @@ class SceneGenerator:
         self.check_camera = self.camera.scaled(cfg.occlusion_scale) if cfg.occlusion_scale != 1.0 else self.camera
         self._renderer = renderer
         self._mask_renderer = None
-        self._collision_meshes = CollisionMeshCache()
+        self._collision_meshes = shared_collision_meshes()
         # One render model for every layout; sized for the full image so the mask renderer can share it.
-        self._view = ViewScene(self.camera, cfg.table_x, cfg.table_y,
-                               slots=cfg.min_objects + len(cfg.count_probabilities) - 1)
+        self._view = shared_view(self.camera, cfg.table_x, cfg.table_y,
+                                 slots=cfg.min_objects + len(cfg.count_probabilities) - 1)
         self.directions = ground_truth.directions(self.camera)
         self.failures: collections.Counter[str] = collections.Counter()  # why layouts were rejected, all scenes
         self.timings: collections.Counter[str] = collections.Counter()  # seconds spent per stage, all scenes
@@ -194,6 +194,11 @@ class SceneGenerator:
     def _scene(self, index, specs, models, placements, segmentation) -> SceneGraph:
         cfg = self.config
         objects = []
+        masks = None
+        if segmentation is not None:
+            from muble.core.types import SEG_TABLE
+
+            *masks, table_mask = ground_truth.encode_masks(segmentation, [*range(len(specs)), SEG_TABLE])
         for i, (spec, model, p) in enumerate(zip(specs, models, placements)):
             ext = np.asarray(model.extents, float)
             objects.append(SceneObject(
@@ -205,7 +210,7 @@ class SceneGenerator:
                 movability="portable" if model.pickupable else "stationary",
                 bbox={"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])},
                 scale_factor=float(spec.scale),
-                mask=ground_truth.encode_mask(segmentation == i) if segmentation is not None else None,
+                mask=masks[i] if masks is not None else None,
                 stiffness=float(model.stiffness),
             ))
         name = f"SHOPVRB2_{cfg.split}_{index:06d}.png"
@@ -216,8 +221,6 @@ class SceneGenerator:
             relationships=ground_truth.relationships([o.position for o in objects], self.directions),
             extra={"generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set}},
         )
-        if segmentation is not None:
-            from muble.core.types import SEG_TABLE
-
-            scene.table = {"mask": ground_truth.encode_mask(segmentation == SEG_TABLE)}
+        if masks is not None:
+            scene.table = {"mask": table_mask}
         return scene

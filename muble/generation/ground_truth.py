@@ -48,6 +48,22 @@ def encode_mask(mask: np.ndarray) -> RLE:
     return RLE(size=[int(v) for v in rle["size"]], counts=rle["counts"].decode("ascii"))
 
 
+def encode_masks(segmentation: np.ndarray, labels: list[int]) -> list[RLE]:
+    """``encode_mask(segmentation == label)`` for each label, transposing the label image once.
+
+    COCO RLE runs down columns, so each mask must be column-major; comparing on the transposed image gives
+    that layout without a copy per mask.
+    """
+    from pycocotools import mask as coco
+
+    transposed = np.ascontiguousarray(segmentation.T)
+    out = []
+    for label in labels:
+        rle = coco.encode((transposed == label).view(np.uint8).T)
+        out.append(RLE(size=[int(v) for v in rle["size"]], counts=rle["counts"].decode("ascii")))
+    return out
+
+
 def decode_mask(rle: RLE) -> np.ndarray:
     from pycocotools import mask as coco
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import collections
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,6 +106,17 @@ class CollisionMeshCache:
         else:
             self._entries.move_to_end(key)
         return mesh
+
+
+_SHARED = threading.local()
+
+
+def shared_collision_meshes() -> CollisionMeshCache:
+    """This thread's ``CollisionMeshCache``, shared by its generators (BVHs are read-only once built)."""
+    cache = getattr(_SHARED, "cache", None)
+    if cache is None:
+        cache = _SHARED.cache = CollisionMeshCache()
+    return cache
 
 
 def mesh_distance(a, b) -> float:

@@ -11,6 +11,8 @@ in object order, and the depth range (``stat.extent``) is fixed from the table, 
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from muble.core.camera import CameraParams
@@ -122,3 +124,22 @@ class ViewScene:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_camlight(m, d)
         return m, d
+
+
+_SHARED = threading.local()
+
+
+def shared_view(camera: CameraParams, table_x, table_y, slots: int) -> ViewScene:
+    """The ``ViewScene`` for this camera, table and slot count, shared by the generators of this thread.
+
+    Generators that share a renderer then also share its model, so neither sets the renderer up again, and a
+    second generator starts with the meshes the first has met. Views are per thread: a MuJoCo model re-posed
+    from two threads at once would mix layouts.
+    """
+    views = _SHARED.__dict__.setdefault("views", {})
+    key = (np.asarray(camera.position, float).tobytes(), np.asarray(camera.rotation, float).tobytes(),
+           camera.width, camera.height, float(camera.fovy_deg), tuple(table_x), tuple(table_y), int(slots))
+    view = views.get(key)
+    if view is None:
+        view = views[key] = ViewScene(camera, table_x, table_y, slots)
+    return view

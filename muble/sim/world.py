@@ -147,7 +147,26 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
             body.set("gravcomp", "1")
 
     model = _compile(world, names, timestep)
+    _steady_linkage_fingers(model, names)
     return model, names
+
+
+def _steady_linkage_fingers(model: mujoco.MjModel, names: WorldNames) -> None:
+    """Make robosuite's Robotiq 85 close: as shipped, each inner finger rubs on its inner knuckle, which
+    drives the finger joint to its limit against the coupling tendon's range, and the jaws stall 7-9 cm apart.
+    Without that contact (the real linkage is pinned there, not touching) the passive joints need a little
+    damping and inertia to stay stable at a 2 ms step."""
+    if type(names.gripper_format).__name__ != "Robotiq85Gripper":
+        return
+    prefix = names.robot_geom_prefixes[1]
+    for side in ("left", "right"):
+        g = model.geom(f"{prefix}{side}_inner_knuckle_collision").id
+        model.geom_contype[g] = model.geom_conaffinity[g] = 0
+    for joint in names.gripper_joints:
+        dof = model.jnt_dofadr[model.joint(joint).id]
+        model.dof_damping[dof] = max(model.dof_damping[dof], 0.05)
+        model.dof_armature[dof] += 0.001
+    model.tendon_limited[:] = 0
 
 
 def _compile(world, names: WorldNames, timestep: float) -> mujoco.MjModel:

@@ -30,7 +30,7 @@ from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F
 log = logging.getLogger(__name__)
 
 # Bump when any geometry function changes, so cached meshes from older code are not reused.
-GEOMETRY_VERSION = 4
+GEOMETRY_VERSION = 5
 
 SIZE_SCALES = {"small": 0.85, "medium-sized": 1.0, "large": 1.15}
 
@@ -97,8 +97,9 @@ class Category:
 
 
 def grasp_quat(closing, approach) -> np.ndarray:
-    """Quaternion (w, x, y, z) of the grip-site frame whose x axis is the fingers' closing direction and whose
-    z axis points from the hand into the object (the convention of robosuite grippers' grip site)."""
+    """Quaternion (w, x, y, z) of a grasp frame: its origin is where the middle of the finger pads goes, its x
+    axis the fingers' closing direction and its z axis points from the hand into the object. The primitives map
+    it to the grip site of whichever gripper is mounted (``muble_plugins.primitives.grasping.GripGeometry``)."""
     x = np.asarray(closing, dtype=float)
     z = np.asarray(approach, dtype=float)
     x, z = x / np.linalg.norm(x), z / np.linalg.norm(z)
@@ -110,8 +111,8 @@ def top_down(position, yaw: float, width: float) -> GraspFrame:
     """A top-down grasp at ``position``: the hand points straight down and the fingers close along the
     horizontal direction (-sin yaw, cos yaw), i.e. across the object's y axis turned by ``yaw``.
 
-    The frame is the pose of the gripper's grip site (x: closing direction, z: approach); ``width`` is the
-    object's extent between the fingers.
+    The frame is where the pads' middle goes (x: closing direction, z: approach); ``width`` is the object's
+    extent between the pads (what they close on: a gripper must open wider and close narrower than that).
     """
     closing = (-math.sin(yaw), math.cos(yaw), 0.0)
     return GraspFrame(np.asarray(position, dtype=float), grasp_quat(closing, (0.0, 0.0, -1.0)), float(width))

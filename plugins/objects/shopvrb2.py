@@ -35,13 +35,13 @@ def _open_vessel(outer, wall, base, s, sectors=12) -> tuple[g.MeshPart, np.ndarr
     return visual, uv, parts
 
 
-# Where a parallel gripper's pads sit relative to its grip site: the grip site of a top-down grasp goes this far
-# below an object's top, so the pads (about 16 mm tall, centred a few mm above the site) lie on the object
-# while the palm (about 30 mm above the site) stays clear of it.
-GRIP_DEPTH = 0.02
-# A rim pinch puts the pads' upper part over the rim's edge: the edge is where both walls stick out furthest,
-# so the pads (not the fingertips below them) touch first.
-RIM_DEPTH = 0.006
+# Grasp frames place the middle of the finger pads (see grasping.GripGeometry for how each gripper's grip site
+# follows). A top-down grasp puts it this far below an object's top, so that pads 16-34 mm tall lie on the
+# object's upper part while the palm above them stays clear of it.
+GRIP_DEPTH = 0.0165
+# A rim pinch puts the pads' middle just below the rim's edge, so that their upper part is over the edge: that
+# is where both walls stick out furthest, so the pads (not the fingertips below them) touch first.
+RIM_DEPTH = 0.0025
 
 
 def _radius_at(profile, z) -> float:
@@ -74,7 +74,7 @@ def _rim_frames(profile, wall, sectors, skip=None) -> list:
         closing = inward * math.cos(lean) - down * math.sin(lean)
         approach = inward * math.sin(lean) + down * math.cos(lean)
         frames.append(GraspFrame(np.array([r * math.cos(a), r * math.sin(a), z]), grasp_quat(closing, approach),
-                                 wall + 0.01))
+                                 wall / math.cos(lean)))
     return frames
 
 
@@ -114,8 +114,8 @@ PLATE2 = [(0.070, 0.0), (0.085, 0.02), (0.105, 0.032), (0.11, 0.035)]  # soup pl
 def _rect_tray(sx, sy, sz, wall, base):
     def build(s: float) -> Geometry:
         visual, uv, parts = g.tray((sx * s, sy * s, sz * s), wall, base * s)
-        frames = [top_down((sx * s / 2 - wall / 2, 0.0, sz * s - 0.01), 0.0, wall + 0.01),
-                  top_down((-sx * s / 2 + wall / 2, 0.0, sz * s - 0.01), 0.0, wall + 0.01)]
+        frames = [top_down((sx * s / 2 - wall / 2, 0.0, sz * s - 0.01), 0.0, wall),
+                  top_down((-sx * s / 2 + wall / 2, 0.0, sz * s - 0.01), 0.0, wall)]
         return Geometry(visual, parts, frames, uv)
     return build
 
@@ -133,8 +133,8 @@ def _board(sx, sy, sz, corner, tab=None):
             parts = [visual, handle]
             visual = g.concatenate(parts)
             uv = None
-        frames = [side((0.0, sy * s / 2, sz * s / 2), -math.pi / 2, sz * s + 0.01, closing="vertical"),
-                  side((0.0, -sy * s / 2, sz * s / 2), math.pi / 2, sz * s + 0.01, closing="vertical")]
+        frames = [side((0.0, sy * s / 2, sz * s / 2), -math.pi / 2, sz * s, closing="vertical"),
+                  side((0.0, -sy * s / 2, sz * s / 2), math.pi / 2, sz * s, closing="vertical")]
         return Geometry(visual, parts, frames, uv)
     return build
 
@@ -199,13 +199,13 @@ def _handle_frames(centre_x, z_low, z_high, reach, thickness, height) -> list:
     high enough for the palm to clear the mug's rim.
     """
     zc, rz = 0.5 * (z_low + z_high), 0.5 * (z_high - z_low)
-    width = 1.4 * thickness + 0.01
+    width = 1.4 * thickness  # the tube's extent across the fingers, oval cross-section included
     frames = []
     for pitch in (0.0, math.pi / 6, math.pi / 3):
-        # The pads straddle the tube where the approach line meets its outer half.
+        # The pads' middle on the tube's centre line, where the approach line meets its outer half.
         a = pitch / 2
         x, z = centre_x + reach * math.cos(a), zc + rz * math.sin(a)
-        frames.append(side((x - 0.002, 0.0, z), math.pi, width, pitch=pitch))
+        frames.append(side((x, 0.0, z), math.pi, width, pitch=pitch))
     z = min(height - GRIP_DEPTH, z_high - thickness)
     a = math.asin(max(-1.0, min(1.0, (z - zc) / rz)))
     frames.append(top_down((centre_x + reach * math.cos(a), 0.0, z), 0.0, width))
@@ -255,7 +255,7 @@ def _wine_glass(foot_r, stem_h, bowl_outer):
         frames = _rim_frames(bowl, 0.003 * s, 10)
         stem_z = max(sh * 0.5, STEM_GRIP_HEIGHT)
         if stem_z < sh - 0.012:
-            frames += [side((0.0, 0.0, stem_z), k * math.pi / 4, 2 * stem_r + 0.004) for k in range(8)]
+            frames += [side((0.0, 0.0, stem_z), k * math.pi / 4, 2 * stem_r) for k in range(8)]
         return Geometry(visual, parts, frames, None)
     return build
 

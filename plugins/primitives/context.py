@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 
 from muble import MotionPlanner, PlanningError, Pose, PoseGoal, Trajectory
+from muble.core.table import part_region as table_part_region
 from muble.sim.collision_world import MujocoCollisionWorld
 
 logger = logging.getLogger(__name__)
@@ -22,6 +23,7 @@ HOVER = 0.12  # m between an object's top and the hand when moving above it
 TABLE_MARGIN = 0.08  # m kept free along the table's edges when choosing a place on it
 
 _worlds: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_grips: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 @dataclass
@@ -46,6 +48,16 @@ def collision_world(env) -> MujocoCollisionWorld:
     if env.held_object is not None:
         world.hold(env.names.objects[env.held_object])
     return world
+
+
+def grip_geometry(env):
+    """The mounted gripper's pad geometry (``grasping.GripGeometry``), measured once per environment."""
+    from muble_plugins.primitives.grasping import measure_grip
+
+    grip = _grips.get(env)
+    if grip is None:
+        grip = _grips[env] = measure_grip(env)
+    return grip
 
 
 def planner(env, name: str) -> MotionPlanner:
@@ -142,27 +154,15 @@ class Table:
     body: int
 
     def part_region(self, part: str) -> tuple[np.ndarray, np.ndarray]:
-        """(low, high) corners in x, y of a named part of the table, seen from the front camera.
+        """(low, high) corners in x, y where a placed object's centre goes to lie in a named part of the table.
 
-        The front camera looks at the robot from the far side (+x), so its left is -y and "front" is the far
-        half (+x), "back" the half next to the robot.
+        The parts are those of ``muble.core.table`` (the one definition tasks and success checks use: seen from
+        the front camera, "left" is -y, "front" the far half), kept ``TABLE_MARGIN`` inside this table's top.
         """
-        lo = self.centre - self.half + TABLE_MARGIN
-        hi = self.centre + self.half - TABLE_MARGIN
-        c = self.centre
-        regions = {
-            "left": (np.array([lo[0], lo[1]]), np.array([hi[0], c[1] - 0.1])),
-            "right": (np.array([lo[0], c[1] + 0.1]), np.array([hi[0], hi[1]])),
-            "front": (np.array([c[0] + 0.05, lo[1]]), np.array([hi[0], hi[1]])),
-            "back": (np.array([lo[0], lo[1]]), np.array([c[0] - 0.05, hi[1]])),
-            "centre": (c - 0.12, c + 0.12),
-        }
-        regions["center"] = regions["centre"]
-        if part not in regions:
-            from muble.core.errors import unknown_name
-
-            raise PlanningError(unknown_name("table part", part, [k for k in regions if k != "center"]))
-        return regions[part]
+        (x0, x1), (y0, y1) = table_part_region(part)
+        lo = np.maximum([x0, y0], self.centre - self.half + TABLE_MARGIN)
+        hi = np.minimum([x1, y1], self.centre + self.half - TABLE_MARGIN)
+        return lo, hi
 
 
 def table(env) -> Table:

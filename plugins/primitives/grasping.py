@@ -1,23 +1,156 @@
 """Grasp and placement poses: from an object's grasp frames (object coordinates) to world poses of the hand,
 and free places on the table for putting an object down.
+
+A grasp frame says where the middle of the finger pads goes and how the hand is turned (x: the fingers' closing
+direction, z: the approach, from the hand into the object). ``GripGeometry`` measures, for the gripper actually
+mounted, where its pads sit relative to its grip site and which way they close, so one frame serves every
+gripper: a Panda's short pads just behind the site, a Robotiq's long pads that swing forwards as they close.
 """
 from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from muble import Pose
 
-FINGERTIP_CLEARANCE = 0.015  # m the grip site stays above the table so the fingertips do not scrape it
+TABLE_CLEARANCE = 0.004  # m the lowest fingertip stays above the table top in a grasp pose
 PRE_GRASP = 0.10  # m back along the approach from the grasp pose where the straight move in starts
+PAD_MARGIN = 0.002  # m free on each side of an object between the open pads
+FINGER_TRAVEL = 0.8  # s of simulated time for the fingers to open or close fully when measuring them
+
+
+def _quat_mat(quat) -> np.ndarray:
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, dtype=float))
+    return rot.reshape(3, 3)
+
+
+def _mat_quat(mat: np.ndarray) -> np.ndarray:
+    out = np.empty(4)
+    mujoco.mju_mat2Quat(out, np.ascontiguousarray(mat).ravel())
+    return out
+
+
+@dataclass
+class GripGeometry:
+    """Where a gripper's pads are, in its grip-site frame, with the fingers open and closed.
+
+    ``closing`` and ``approach`` are unit axes in the site frame; ``open_centre``/``closed_centre`` the midpoint
+    of the two pads; ``open_gap``/``closed_gap`` the distance between the pads' inner faces; ``tip_depth`` how
+    far the fingers reach beyond the pad midpoint along the approach (open).
+    """
+
+    closing: np.ndarray
+    approach: np.ndarray
+    open_centre: np.ndarray
+    closed_centre: np.ndarray
+    open_gap: float
+    closed_gap: float
+    tip_depth: float
+
+    @property
+    def max_width(self) -> float:
+        """Widest object the open pads close on with ``PAD_MARGIN`` to spare on each side."""
+        return self.open_gap - 2 * PAD_MARGIN
+
+    def centre(self, width: float) -> np.ndarray:
+        """Pad midpoint (site frame) when the pads have closed to ``width``: linkage grippers move it along the
+        approach as they close; between the measured ends it is interpolated."""
+        span = self.open_gap - self.closed_gap
+        s = 0.0 if span <= 1e-6 else float(np.clip((self.open_gap - width) / span, 0.0, 1.0))
+        return (1 - s) * self.open_centre + s * self.closed_centre
+
+    def site_pose(self, frame: Pose, width: float) -> Pose:
+        """Grip-site pose that puts the pads' midpoint on ``frame`` with the fingers closing along its x axis and
+        the hand approaching along its z axis."""
+        x = self.closing
+        z = self.approach - (self.approach @ x) * x
+        z /= np.linalg.norm(z)
+        in_site = np.column_stack([x, np.cross(z, x), z])  # the frame's axes in site coordinates
+        site_rot = _quat_mat(frame.quat) @ in_site.T
+        return Pose(frame.pos - site_rot @ self.centre(width), _mat_quat(site_rot))
+
+
+def _pad_faces(m, d, site: int, left: list[int], right: list[int]) -> tuple[np.ndarray, np.ndarray, float]:
+    """(closing axis, pad midpoint, gap between inner faces), site frame, from the finger pad geoms."""
+    rot, origin = d.site_xmat[site].reshape(3, 3), d.site_xpos[site]
+    centres = [np.mean([rot.T @ (d.geom_xpos[g] - origin) for g in pads], axis=0) for pads in (left, right)]
+    axis = centres[1] - centres[0]
+    axis /= np.linalg.norm(axis)
+
+    def half(g):  # half extent of a pad along the closing axis
+        geom_rot = rot.T @ d.geom_xmat[g].reshape(3, 3)
+        if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            return float(np.abs(axis @ geom_rot) @ m.geom_size[g])
+        return float(m.geom_size[g][0])
+
+    gap = float(axis @ (centres[1] - centres[0])) - half(left[0]) - half(right[0])
+    return axis, 0.5 * (centres[0] + centres[1]), gap
+
+
+def measure_grip(env) -> GripGeometry:
+    """The pad geometry of ``env``'s gripper, from its own model: the fingers are opened and closed in a copy
+    in which nothing but the gripper collides (the live simulation is not touched)."""
+    m = copy.deepcopy(env.model)
+    d = mujoco.MjData(m)
+    d.qpos[:] = env.data.qpos
+    m.opt.gravity[:] = 0.0
+    hand = m.body(env.names.hand_body).id
+    in_gripper = np.array([_below(m, b, hand) for b in range(m.nbody)])
+    outside = ~in_gripper[m.geom_bodyid]
+    m.geom_contype[outside] = 0
+    m.geom_conaffinity[outside] = 0
+    site = m.site(env.ee_site).id
+    left = [m.geom(n).id for n in env.names.left_pads]
+    right = [m.geom(n).id for n in env.names.right_pads]
+    arm = env.servos
+    ctrl_ids = env.gripper_actuator_ids
+    states = {}
+    for name, ctrl in (("open", env.gripper_open_ctrl), ("closed", env.gripper_closed_ctrl)):
+        d.ctrl[:] = env.data.ctrl
+        d.ctrl[ctrl_ids] = ctrl
+        arm.command(d, env.arm_q())
+        for _ in range(int(FINGER_TRAVEL / m.opt.timestep)):
+            mujoco.mj_step(m, d)
+        mujoco.mj_forward(m, d)
+        states[name] = _pad_faces(m, d, site, left, right)
+    closing, open_centre, open_gap = states["open"]
+    _, closed_centre, closed_gap = states["closed"]
+    approach = np.array([0.0, 0.0, 1.0])  # robosuite grip sites point out of the hand along z
+    approach = approach - (approach @ closing) * closing
+    approach /= np.linalg.norm(approach)
+    tip = max(_reach(m, d, site, g, approach) for g in np.flatnonzero(in_gripper[m.geom_bodyid])
+              if m.geom_contype[g] or m.geom_conaffinity[g]) - float(open_centre @ approach)
+    return GripGeometry(closing, approach, open_centre, closed_centre, open_gap, closed_gap, max(tip, 0.0))
+
+
+def _below(m, body: int, root: int) -> bool:
+    while body not in (root, 0):
+        body = int(m.body_parentid[body])
+    return body == root
+
+
+def _reach(m, d, site: int, g: int, axis: np.ndarray) -> float:
+    """Farthest point of geom ``g`` along ``axis`` (site frame) from the site."""
+    rot, origin = d.site_xmat[site].reshape(3, 3), d.site_xpos[site]
+    centre = rot.T @ (d.geom_xpos[g] - origin)
+    geom_rot = rot.T @ d.geom_xmat[g].reshape(3, 3)
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = m.geom_dataid[g]
+        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+        return float((m.mesh_vert[start:start + n] @ geom_rot.T @ axis).max() + centre @ axis)
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+        return float(centre @ axis + np.abs(axis @ geom_rot) @ m.geom_size[g])
+    return float(centre @ axis + m.geom_rbound[g])
 
 
 def _compose(pose_pos, pose_quat, pos, quat) -> tuple[np.ndarray, np.ndarray]:
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, pose_quat)
     out = np.empty(4)
     mujoco.mju_mulQuat(out, pose_quat, np.asarray(quat, dtype=float))
-    return pose_pos + rot.reshape(3, 3) @ np.asarray(pos, dtype=float), out
+    return pose_pos + _quat_mat(pose_quat) @ np.asarray(pos, dtype=float), out
 
 
 def _turned(quat: np.ndarray, angle: float) -> np.ndarray:
@@ -29,9 +162,7 @@ def _turned(quat: np.ndarray, angle: float) -> np.ndarray:
 
 
 def _axis(quat: np.ndarray, k: int) -> np.ndarray:
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, quat)
-    return rot.reshape(3, 3)[:, k]
+    return _quat_mat(quat)[:, k]
 
 
 def grasp_approach(grasp: Pose) -> np.ndarray:
@@ -39,24 +170,31 @@ def grasp_approach(grasp: Pose) -> np.ndarray:
     return _axis(grasp.quat, 2)
 
 
-def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: float = np.inf,
-                     rest_quat: np.ndarray | None = None) -> list[Pose]:
+def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: float | None = None,
+                     rest_quat: np.ndarray | None = None, grip: GripGeometry | None = None) -> list[Pose]:
     """World grip-site poses for grasping, best first.
 
-    A grasp frame is the grip site's pose in object coordinates (x: the fingers' closing direction, z: from the
-    hand into the object). Frames whose width does not fit between the open fingers (``max_width``) are left
-    out. Every frame is tried as given and turned half a turn about its approach axis (the fingers are
+    A grasp frame (object coordinates) places the pads' midpoint, x along the fingers' closing direction and z
+    along the approach; ``grip`` maps it to the grip site of the mounted gripper (without one the frame is
+    taken as the site itself). Frames wider than the open fingers (``max_width``, by default the gripper's)
+    or thinner than the closed ones are left out. Every frame is tried as given and turned half a turn about its approach axis (the fingers are
     symmetric, the wrist's limits are not); boxes, and cylinders gripped about their axis, also get the quarter
-    turns, since those grasps work from any side. Top-down grasps come first, then those whose closing direction is nearest the hand's
-    at ``rest_quat`` (less wrist travel).
+    turns, since those grasps work from any side. Top-down grasps come first, then those whose closing direction
+    is nearest the hand's at ``rest_quat`` (less wrist travel).
     """
-    rest_x = _axis(rest_quat, 0) if rest_quat is not None else None
+    if max_width is None:
+        max_width = grip.max_width if grip is not None else np.inf
+    # A part thinner than the closed pads' gap (a thin rim for a gripper that cannot close fully) is never held.
+    min_width = grip.closed_gap + PAD_MARGIN if grip is not None else 0.0
+    rest_x = None
+    if rest_quat is not None:
+        rest_x = _quat_mat(rest_quat) @ (grip.closing if grip is not None else np.array([1.0, 0.0, 0.0]))
+    tip = grip.tip_depth if grip is not None else 0.0
     scored = []
     for index, frame in enumerate(model.grasp_frames):
-        if frame.width > max_width:
+        if not min_width <= frame.width <= max_width:
             continue
         pos, quat = _compose(object_pose.pos, object_pose.quat, frame.position, frame.quat)
-        pos[2] = max(pos[2], table_top + FINGERTIP_CLEARANCE)
         yaws = [0.0, np.pi]
         on_axis = float(np.hypot(frame.position[0], frame.position[1])) < 1e-3
         if model.grasp_type == "box" or (model.grasp_type == "cylinder" and on_axis):
@@ -64,9 +202,13 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
         for yaw in yaws:
             q = _turned(quat, yaw)
             approach, closing = _axis(q, 2), _axis(q, 0)
+            # The fingertips reach past the pads along the approach; they must stay off the table top.
+            p = pos.copy()
+            p[2] = max(p[2], table_top + TABLE_CLEARANCE + tip * max(0.0, -approach[2]))
             tilt = float(np.arccos(np.clip(-approach[2], -1.0, 1.0)))
             turn = float(np.arccos(min(1.0, abs(float(closing @ rest_x))))) if rest_x is not None else 0.0
-            scored.append((tilt + 0.3 * turn + 0.002 * index, len(scored), Pose(pos.copy(), q)))
+            site = grip.site_pose(Pose(p, q), frame.width) if grip is not None else Pose(p, q)
+            scored.append((tilt + 0.3 * turn + 0.002 * index, len(scored), site))
     scored.sort(key=lambda item: item[:2])
     return [pose for *_, pose in scored]
 

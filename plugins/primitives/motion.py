@@ -17,8 +17,6 @@ from muble_plugins.primitives.grasping import (PRE_GRASP, footprint_radius, free
 logger = logging.getLogger(__name__)
 
 TABLE_PARTS = ("left", "right", "front", "back", "centre")
-# The open fingers' pads are ~8 mm thick together; 2 mm more on each side leaves room for tracking error.
-PAD_ALLOWANCE = 0.012
 # Clearance (m) the open hand keeps from the target in the grasp pose and on the way in: the fingers must
 # not already press on it, or closing would not pinch it between the pads.
 TARGET_TOUCH = 0.001
@@ -34,6 +32,12 @@ def _held_depth(env) -> float:
     lowest = min(_geom_bottom(env, g) for g in np.flatnonzero(m.geom_bodyid == b)
                  if m.geom_contype[g] or m.geom_conaffinity[g])
     return float(env.ee_pose().pos[2] - lowest)
+
+
+def _held_offset(env) -> np.ndarray:
+    """Horizontal offset (x, y) of the held object's centre from the grip site: fixed while it is held,
+    since the hand keeps its orientation when carrying and lowering."""
+    return env.object_pose(env.held_object).pos[:2] - env.ee_pose().pos[:2]
 
 
 def _geom_bottom(env, g: int) -> float:
@@ -71,7 +75,13 @@ class Move(PrimitiveAction):
         target = self.arguments.get("target")
         xy, top = _target_xy_and_top(env, target)
         world = ctx.collision_world(env)
-        goal = ctx.hover_pose(env, xy, top + _held_depth(env), ctx.top_down(env))
+        quat = ctx.top_down(env)
+        if env.held_object is not None:
+            # Carrying: the hand keeps its orientation (the object stays as it was lifted, whatever the grasp)
+            # and the object's centre, not the hand, comes over the target, ready to be lowered onto it.
+            quat = env.ee_pose().quat
+            xy = xy - _held_offset(env)
+        goal = ctx.hover_pose(env, xy, top + _held_depth(env), quat)
         trajectory = ctx.plan_to(env, world, goal)
         report = ctx.execute(env, trajectory, world)
         return _result(report, target=target)
@@ -98,13 +108,14 @@ class Approach(PrimitiveAction):
         world = ctx.collision_world(env)
         model = env.object_models[obj_id]
         table = ctx.table(env)
-        max_width = env.gripper_opening() - PAD_ALLOWANCE
-        candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z, max_width,
-                                      ctx.world_rest_quat(env))
+        grip = ctx.grip_geometry(env)
+        candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z,
+                                      rest_quat=ctx.world_rest_quat(env), grip=grip)
         if not candidates:
             env.restore(snap)
-            raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp narrower than the open "
-                                f"gripper ({max_width * 1000:.0f} mm)")
+            raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
+                                f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "
+                                "choose another robot.gripper or object")
         reasons = []
         for grasp in candidates:
             try:
@@ -221,7 +232,7 @@ class Lower(PrimitiveAction):
         if target is None or isinstance(target, str):
             support_body, support_top = table.body, table.top_z
             if target is None:
-                places = [env.ee_pose().pos[:2]]
+                places = [env.object_pose(held).pos[:2]]
             else:
                 others = [(env.object_pose(i).pos[:2], footprint_radius(env.object_models[i].extents))
                           for i in env.names.objects if i != held]
@@ -234,8 +245,11 @@ class Lower(PrimitiveAction):
             support_body = env.model.body(env.names.objects[int(target)]).id
             support_top = ctx.object_top(env, int(target))
             places = [env.object_pose(int(target)).pos[:2]]
+        # ``places`` are where the object's centre goes; the hand goes there less the grasp offset.
+        offset = _held_offset(env)
         reasons = []
         for xy in places[:12]:
+            xy = np.asarray(xy, dtype=float) - offset
             place = Pose(np.array([xy[0], xy[1], support_top + depth + 0.004]), quat)
             above = PoseGoal(Pose(place.pos + [0.0, 0.0, ctx.HOVER], quat), 0.005, 0.05)
             try:

@@ -26,7 +26,9 @@ class OracleAgent(Agent):
 
     After every primitive it reruns the program on the observed scene graph with the weights measured so far
     (from the scene's ``weight`` fields and from ``weigh`` results) and takes the first primitive of the new
-    plan; so a slipped grasp or a displaced object is simply planned around.
+    plan; so a slipped grasp or a displaced object is simply planned around. The gripper's state comes from the
+    scene's flags (``in_hand``, ``raised``, ``approached``, ``gripper_over``), which the symbolic and the
+    physical world both report.
     """
 
     def __init__(self) -> None:
@@ -40,24 +42,18 @@ class OracleAgent(Agent):
         self.last = None
 
     def _arm(self, observation: Observation) -> ArmState:
-        """The gripper state from the scene's flags, completed by what the last successful primitive did.
-
-        A physical scene graph need not report where the gripper hovers, and its "raised" flag is a height
-        test that a lowered-onto-a-stack object also passes; the last primitive settles both.
-        """
+        """The gripper state from the scene's flags; a world that reports no hover flags (``approached``,
+        ``gripper_over``) has them filled in from what the last successful primitive did."""
         arm = ArmState.of(observation.scene)
+        reported = any("gripper_over" in o.extra or "approached" in o.extra for o in observation.scene.objects)
         result, last = observation.last_result, self.last
-        if last is None or result is None or not result.success:
+        if reported or last is None or result is None or not result.success:
             return arm
         target = last.params.get("target")
-        if last.name == MOVE and isinstance(target, int) and arm.held is None and arm.over is None:
+        if last.name == MOVE and isinstance(target, int):
             arm.over = int(target)
-        elif last.name == APPROACH and arm.held is None and arm.approached is None:
+        elif last.name == APPROACH and arm.held is None:
             arm.approached = int(target)
-        elif last.name == LOWER and arm.held is not None:
-            arm.raised = False
-        elif last.name in (LIFT, WEIGH) and arm.held is not None:
-            arm.raised = True
         return arm
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:

@@ -6,11 +6,10 @@ import math
 import numpy as np
 
 from muble import SceneGraph, SceneObject
-from muble.core.program import TABLE_CENTRE, table_parts_of
+from muble.core.program import table_parts_of
+from muble.core.table import PLACE_REGION, part_region
 
-# Reachable tabletop area (world x, y in metres) where SHOP-VRB2 scenes place objects.
-TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
-SPLIT_MARGIN = 0.04  # keep placed objects this far from a split line, so their part is not borderline
+TABLE_REGION = PLACE_REGION  # where objects are placed (the table parts are defined in muble.core.table)
 DEFAULT_RADIUS = 0.04
 DEFAULT_HEIGHT = 0.06
 BROKEN_BELOW_Z = -0.05  # an object this far below the table top has fallen off
@@ -35,21 +34,6 @@ def footprint_radius(obj: SceneObject) -> float:
 
 def height(obj: SceneObject) -> float:
     return extents(obj)[2]
-
-
-def part_region(part: str) -> tuple[tuple[float, float], tuple[float, float]]:
-    """The x and y ranges of a table part, shrunk away from the split lines."""
-    (x0, x1), (y0, y1) = TABLE_REGION
-    cx, cy = TABLE_CENTRE
-    if part == "left":
-        return (x0, x1), (y0, cy - SPLIT_MARGIN)
-    if part == "right":
-        return (x0, x1), (cy + SPLIT_MARGIN, y1)
-    if part == "front":
-        return (cx + SPLIT_MARGIN, x1), (y0, y1)
-    if part == "back":
-        return (x0, cx - SPLIT_MARGIN), (y0, y1)
-    return (cx - 0.05, cx + 0.05), (cy - 0.05, cy + 0.05)
 
 
 def free_spot(scene: SceneGraph, obj: SceneObject, part: str, step: float = 0.02) -> list[float]:

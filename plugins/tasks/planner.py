@@ -39,8 +39,8 @@ def hold_up(obj_id: int, arm: ArmState) -> list[ActionCall]:
     actions: list[ActionCall] = []
     over, approached = arm.over, arm.approached
     if arm.held is not None:
-        # Put the other object back down where it is held.
-        actions += ([ActionCall(LOWER)] if arm.raised else []) + [ActionCall(RELEASE)]
+        # Put the other object back down where it is held (lowering lets go; the hand stays over it).
+        actions += put_down(arm)
         over, approached = arm.held, None
     if approached != obj_id:
         if over != obj_id:
@@ -53,23 +53,26 @@ def put_down(arm: ArmState) -> list[ActionCall]:
     """Leave the gripper empty, setting a held object down where it is."""
     if arm.held is None:
         return []
-    return ([ActionCall(LOWER)] if arm.raised else []) + [ActionCall(RELEASE)]
+    return [ActionCall(LOWER)] if arm.raised else [ActionCall(RELEASE)]
 
 
-def _carried_to(scene: SceneGraph, obj_id: int, arm: ArmState, xy) -> bool:
-    """The object is in the gripper and already above (or lowered onto) ``xy``."""
+def _carried_to(scene: SceneGraph, obj_id: int, arm: ArmState, base_id: int) -> bool:
+    """The object is in the gripper and already carried over ``base_id`` (or standing on it)."""
     if arm.held != obj_id:
         return False
-    pos = scene.object(obj_id).position
+    if arm.over == base_id:
+        return True
+    pos, xy = scene.object(obj_id).position, scene.object(base_id).position
     return math.hypot(pos[0] - xy[0], pos[1] - xy[1]) <= ARRIVAL_TOLERANCE
 
 
 def _deliver(obj_id: int, arrived: bool, destination: int | str, arm: ArmState) -> list[ActionCall]:
-    """Carry ``obj_id`` to ``destination`` (an object id or a table part), set it down there and let go."""
+    """Carry ``obj_id`` to ``destination`` (an object id or a table part) and set it down there (``lower``
+    lets go); an object grasped where it belongs but not lifted is just released."""
     lower = ActionCall(LOWER, {"target": destination})
     if arrived:
-        return ([lower] if arm.raised else []) + [ActionCall(RELEASE)]
-    return hold_up(obj_id, arm) + [ActionCall(MOVE, {"target": destination}), lower, ActionCall(RELEASE)]
+        return [lower] if arm.raised else [ActionCall(RELEASE)]
+    return hold_up(obj_id, arm) + [ActionCall(MOVE, {"target": destination}), lower]
 
 
 def place_at(scene: SceneGraph, obj_id: int, part: str, arm: ArmState) -> list[ActionCall]:
@@ -78,7 +81,7 @@ def place_at(scene: SceneGraph, obj_id: int, part: str, arm: ArmState) -> list[A
 
 
 def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> list[ActionCall]:
-    return _deliver(obj_id, _carried_to(scene, obj_id, arm, scene.object(base_id).position), base_id, arm)
+    return _deliver(obj_id, _carried_to(scene, obj_id, arm, base_id), base_id, arm)
 
 
 def stack_pairs(chains: list[list[int]]) -> list[tuple[int, int]]:

@@ -2,7 +2,8 @@
 
 The symbolic world is what ground-truth plans are rolled out against: it checks every precondition a real
 primitive has (grasping needs approaching, weighing needs a lifted object …), reveals a weight only when
-``weigh`` runs, and moves objects where ``lower`` would put them. The flags it keeps in ``SceneObject.extra``
+``weigh`` runs, and moves objects where ``lower`` would put them; like the physical ``lower``, it lets go of the
+object (``open_gripper`` is needed only to drop an object that was grasped but not lifted). The flags it keeps in ``SceneObject.extra``
 (``in_hand``, ``raised``, ``approached``, ``gripper_over``) are the ones the physical environment reports.
 """
 from __future__ import annotations
@@ -132,7 +133,10 @@ class SymbolicWorld:
             elif target is not None and not isinstance(target, str) and state.over != int(target):
                 return fail(f"move over object {target} before lowering onto it")
             self._lower(held, state)
+            # Lowering puts the object down and lets go; the hand retreats straight up, over it.
             held.extra["raised"] = False
+            self._set("in_hand", None)
+            self._set("gripper_over", held)
             return ActionResult(True)
         if call.name == RELEASE:
             if held is None or state.raised:
@@ -146,7 +150,6 @@ class SymbolicWorld:
         if state.over is not None and state.over != held.id:
             base = self.scene.object(state.over)
             held.position = base.position + [0.0, 0.0, height(base)]
-            self._set("gripper_over", None)
         elif self.destination is not None:
             held.position = held.position.copy()
             held.position[:2] = self.destination[:2]

@@ -124,7 +124,7 @@ def test_random_agent_rarely_succeeds(episodes):
 
 
 def test_oracle_works_from_a_scene_graph_without_hover_flags(episodes):
-    """A physical scene graph reports only in_hand and raised (by height); the oracle must still finish."""
+    """A world that reports only in_hand and raised (by height), no hover flags: the oracle must still finish."""
     for name, task, ins, scene in episodes[::7]:
         world = SymbolicWorld(scene)
         oracle = OracleAgent()

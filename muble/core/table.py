@@ -1,0 +1,65 @@
+"""The table's named parts: the one definition that task programs, placing primitives and success checks share.
+
+Scene frame: the robot stands at the origin looking along +x over the table, the top is the plane z = 0. Parts
+are named as seen from the scene camera, which looks at the robot from the far side: "left" is -y, "front" the
+far half (+x), "back" the half by the robot. The split lines pass through ``TABLE_CENTRE`` (turned by the scene's
+``directions`` when it has them); "centre" is a disc around it. Objects are placed within ``PLACE_REGION``, the
+area the scene generator fills and the arm reaches, and at least ``SPLIT_MARGIN`` from a split line, so a placed
+object's part is never borderline.
+"""
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+from muble.core.errors import PlanningError, unknown_name
+
+TABLE_CENTRE = (0.5, 0.0)  # x, y (m) where the split lines cross
+TABLE_CENTRE_RADIUS = 0.08  # m; objects this close to the centre are also in "centre"
+PLACE_REGION = ((0.30, 0.72), (-0.34, 0.12))  # x and y ranges (m) for the centre of a placed object
+SPLIT_MARGIN = 0.04  # m between a placed object's centre and a split line
+TABLE_PARTS = ("left", "right", "front", "back", "centre")
+OPPOSITE_PART = {"left": "right", "right": "left", "front": "back", "back": "front"}
+_ALIASES = {"center": "centre"}
+
+
+def canonical_part(part: str) -> str:
+    """The part's name (``center`` is ``centre``); an unknown name raises ``PlanningError`` listing the valid ones."""
+    name = _ALIASES.get(part, part)
+    if name not in TABLE_PARTS:
+        raise PlanningError(unknown_name("table part", str(part), TABLE_PARTS))
+    return name
+
+
+def parts_at(x: float, y: float, directions: Mapping[str, Sequence[float]] | None = None) -> frozenset[str]:
+    """The parts a point of the table top lies in: one side of each split line, plus "centre" near the middle."""
+    dx, dy = float(x) - TABLE_CENTRE[0], float(y) - TABLE_CENTRE[1]
+    left_dir, front_dir = (0.0, -1.0), (1.0, 0.0)
+    if directions:
+        if "left" in directions:
+            left_dir = tuple(directions["left"][:2])
+        if "front" in directions:
+            front_dir = tuple(directions["front"][:2])
+    along_left = dx * left_dir[0] + dy * left_dir[1]
+    along_front = dx * front_dir[0] + dy * front_dir[1]
+    parts = {"left" if along_left > 0 else "right", "front" if along_front > 0 else "back"}
+    if dx * dx + dy * dy <= TABLE_CENTRE_RADIUS ** 2:
+        parts.add("centre")
+    return frozenset(parts)
+
+
+def part_region(part: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The (x0, x1), (y0, y1) ranges where a placed object's centre may go to lie in ``part``."""
+    part = canonical_part(part)
+    (x0, x1), (y0, y1) = PLACE_REGION
+    cx, cy = TABLE_CENTRE
+    if part == "left":
+        return (x0, x1), (y0, cy - SPLIT_MARGIN)
+    if part == "right":
+        return (x0, x1), (cy + SPLIT_MARGIN, y1)
+    if part == "front":
+        return (cx + SPLIT_MARGIN, x1), (y0, y1)
+    if part == "back":
+        return (x0, cx - SPLIT_MARGIN), (y0, y1)
+    # A square inside the centre disc, its corners SPLIT_MARGIN / 2 within the circle.
+    half = (TABLE_CENTRE_RADIUS - SPLIT_MARGIN / 2) / 2 ** 0.5
+    return (cx - half, cx + half), (cy - half, cy + half)
