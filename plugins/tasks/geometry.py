@@ -12,6 +12,10 @@ from muble.core.table import PLACE_REGION, part_region
 TABLE_REGION = PLACE_REGION  # where objects are placed (the table parts are defined in muble.core.table)
 DEFAULT_RADIUS = 0.04
 DEFAULT_HEIGHT = 0.06
+# How much higher than its base a stacked object's origin (its bottom) stands at least: a plate or tray holds
+# what is put on it only its bottom's thickness (a few mm) above the table, while an object beside the base
+# stands level with it.
+RAISED_BY_BASE = 0.002
 BROKEN_BELOW_Z = -0.05  # an object this far below the table top has fallen off
 
 
@@ -58,7 +62,7 @@ def rests_on(top: SceneObject, base: SceneObject) -> bool:
     if top.extra.get("in_hand"):
         return False
     dxy = math.hypot(top.position[0] - base.position[0], top.position[1] - base.position[1])
-    return dxy <= max(0.6 * footprint_radius(base), 0.03) and top.position[2] > base.position[2] + 0.005
+    return dxy <= max(0.6 * footprint_radius(base), 0.03) and top.position[2] > base.position[2] + RAISED_BY_BASE
 
 
 def on_table_part(obj: SceneObject, part: str, scene: SceneGraph) -> bool:
