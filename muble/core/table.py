@@ -4,7 +4,7 @@ Scene frame: the robot stands at the origin looking along +x over the table, the
 are named as seen from the scene camera, which looks at the robot from the far side: "left" is -y, "front" the
 far half (+x), "back" the half by the robot. The split lines pass through ``TABLE_CENTRE`` (turned by the scene's
 ``directions`` when it has them); "centre" is a disc around it. Objects are placed within ``PLACE_REGION``, the
-area the scene generator fills and the arm reaches, and at least ``SPLIT_MARGIN`` from a split line, so a placed
+area the arm reaches over the table, and at least ``SPLIT_MARGIN`` from a split line, so a placed
 object's part is never borderline.
 """
 from __future__ import annotations
@@ -15,7 +15,10 @@ from muble.core.errors import PlanningError, unknown_name
 
 TABLE_CENTRE = (0.5, 0.0)  # x, y (m) where the split lines cross
 TABLE_CENTRE_RADIUS = 0.08  # m; objects this close to the centre are also in "centre"
-PLACE_REGION = ((0.30, 0.72), (-0.34, 0.12))  # x and y ranges (m) for the centre of a placed object
+# x and y ranges (m) for the centre of an object the robot places: the generated scenes' area (x 0.28-0.72,
+# y -0.36-0.12) widened to where a top-down hand still reaches comfortably, so that every part, "right"
+# included, has room beside the objects already standing in it.
+PLACE_REGION = ((0.28, 0.74), (-0.40, 0.26))
 SPLIT_MARGIN = 0.04  # m between a placed object's centre and a split line
 TABLE_PARTS = ("left", "right", "front", "back", "centre")
 OPPOSITE_PART = {"left": "right", "right": "left", "front": "back", "back": "front"}

@@ -23,6 +23,7 @@ logger = logging.getLogger(__name__)
 
 _ROBOT_CLASS = 1  # contype bit of robot (and held object) geoms; conaffinity of everything is 1
 _WORLD_CLASS = 2  # contype bit of world geoms: world & world never collide in the check model
+LIMIT_TOLERANCE = 0.003  # rad past a joint limit still accepted as valid
 
 
 def _subtree_bodies(model: mujoco.MjModel, root: int) -> set[int]:
@@ -233,7 +234,8 @@ class MujocoCollisionWorld(CollisionWorld):
 
     def is_valid(self, q: np.ndarray) -> bool:
         lim = self.kinematics.limits
-        if np.any(q < lim[:, 0] - 1e-9) or np.any(q > lim[:, 1] + 1e-9):
+        # A measured configuration may sit a hair past a limit (servo overshoot): that is no reason to refuse it.
+        if np.any(q < lim[:, 0] - LIMIT_TOLERANCE) or np.any(q > lim[:, 1] + LIMIT_TOLERANCE):
             return False
         return self._collide(np.asarray(q, dtype=float))
 

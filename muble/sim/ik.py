@@ -13,6 +13,8 @@ import numpy as np
 
 logger = logging.getLogger(__name__)
 
+LIMIT_MARGIN = 0.01  # rad kept between an IK solution and each joint limit
+
 
 def quat_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
     """Rotation vector (world frame, radians) that turns ``current`` into ``target`` (both w, x, y, z)."""
@@ -99,8 +101,11 @@ class ArmKinematics:
         Orientation is ignored when ``target_quat`` is None. Returns the best configuration found; the caller
         checks ``IKResult.within`` (the solver never raises, so seeds can be tried cheaply in turn).
         """
-        q = np.clip(np.asarray(seed, dtype=float).copy(), self.limits[:, 0], self.limits[:, 1])
-        lo, hi = self.limits[:, 0], self.limits[:, 1]
+        # Solutions keep LIMIT_MARGIN inside the limits: the servos overshoot a set-point on a limit slightly, and a
+        # start configuration past a limit is invalid for the next plan.
+        lo = self.limits[:, 0] + np.minimum(LIMIT_MARGIN, 0.25 * (self.limits[:, 1] - self.limits[:, 0]))
+        hi = self.limits[:, 1] - np.minimum(LIMIT_MARGIN, 0.25 * (self.limits[:, 1] - self.limits[:, 0]))
+        q = np.clip(np.asarray(seed, dtype=float).copy(), lo, hi)
         rows = 3 if target_quat is None else 6
         err = np.zeros(rows)
         pos_err = rot_err = np.inf

@@ -58,12 +58,33 @@ def _result(report: ctx.MotionReport, **info) -> ActionResult:
 
 
 def _target_xy_and_top(env, target) -> tuple[np.ndarray, float]:
+    """Where the hand (or the held object's centre) goes over ``target``, and the height to clear there.
+
+    Over a table part that is the place ``lower`` will put the held object on (the free place nearest the
+    part's centre), or the part's centre with an empty hand; what stands near it is cleared too.
+    """
     if isinstance(target, str):
         table = ctx.table(env)
-        lo, hi = table.part_region(target)
-        return 0.5 * (lo + hi), table.top_z
+        if env.held_object is not None:
+            places = _part_places(env, target, env.held_object)
+            if not places:
+                raise PlanningError(f"no free space on the {target} part of the table; choose another part")
+            xy = np.asarray(places[0], dtype=float)
+        else:
+            lo, hi = table.part_region(target)
+            xy = 0.5 * (lo + hi)
+        near = [ctx.object_top(env, i) for i in env.names.objects if i != env.held_object
+                and np.linalg.norm(env.object_pose(i).pos[:2] - xy) < 0.15]
+        return xy, max([table.top_z] + near)
     ctx.body_name(env, target)
     return env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
+
+
+def _part_places(env, part: str, held: int) -> list[np.ndarray]:
+    """Free places for the held object's centre on a table part, nearest the part's centre first."""
+    others = [(env.object_pose(i).pos[:2], footprint_radius(env.object_models[i].extents))
+              for i in env.names.objects if i != held]
+    return free_places(ctx.table(env).part_region(part), footprint_radius(env.object_models[held].extents), others)
 
 
 class Move(PrimitiveAction):
@@ -234,10 +255,7 @@ class Lower(PrimitiveAction):
             if target is None:
                 places = [env.object_pose(held).pos[:2]]
             else:
-                others = [(env.object_pose(i).pos[:2], footprint_radius(env.object_models[i].extents))
-                          for i in env.names.objects if i != held]
-                places = free_places(table.part_region(target), footprint_radius(env.object_models[held].extents),
-                                     others)
+                places = _part_places(env, target, held)
                 if not places:
                     raise PlanningError(f"no free space on the {target} part of the table; choose another part")
         else:

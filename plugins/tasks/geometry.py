@@ -7,9 +7,11 @@ import numpy as np
 
 from muble import SceneGraph, SceneObject
 from muble.core.program import table_parts_of
-from muble.core.table import PLACE_REGION, part_region
+from muble.core.table import part_region
 
-TABLE_REGION = PLACE_REGION  # where objects are placed (the table parts are defined in muble.core.table)
+# Where SHOP-VRB2 scenes stand objects (world x, y in metres; synthetic scenes sample it). The table parts and
+# where the robot places objects are defined in muble.core.table.
+TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
 DEFAULT_RADIUS = 0.04
 DEFAULT_HEIGHT = 0.06
 # How much higher than its base a stacked object's origin (its bottom) stands at least: a plate or tray holds

@@ -10,9 +10,12 @@ from muble.core.types import Pose
 
 from muble_plugins.objects.catalogue import SIZE_SCALES
 from muble_plugins.objects.shopvrb2 import CATALOGUE
-from muble_plugins.primitives.grasping import grasp_candidates
+from muble_plugins.primitives.grasping import grasp_candidates, measure_grip
 
 PANDA_GAP = 0.0768  # m between the open Panda pads
+# Gap between the open pads' inner faces: Panda hand 80 mm stroke, Robotiq 2F-85 85 mm, Rethink electric gripper
+# with robosuite's finger travel about 62 mm.
+OPEN_GAPS = {"Panda": (0.072, 0.082), "UR5e": (0.080, 0.090), "Sawyer": (0.056, 0.066)}
 
 
 def _axes(quat):
@@ -92,3 +95,25 @@ def test_planning_pick_and_weigh_wine_glasses_mugs_and_glasses_in_a_generated_sc
     finally:
         env.close()
         generator.close()
+
+
+@pytest.mark.parametrize("robot", sorted(OPEN_GAPS))
+def test_planning_grip_geometry_comes_from_the_mounted_gripper(robot):
+    from muble.sim.env import TabletopEnv
+    from muble.sim.fixtures import five_object_scene
+
+    scene, models = five_object_scene()
+    env = TabletopEnv(scene, models, name=robot)
+    grip = measure_grip(env)
+    lo, hi = OPEN_GAPS[robot]
+    assert lo < grip.open_gap < hi
+    assert grip.closed_gap < 0.02 < grip.max_width
+    assert abs(grip.closing[0]) > 0.99 and abs(grip.closing @ grip.approach) < 1e-9  # robosuite: across site x
+    # A grasp frame puts the pads' middle on the frame's origin, closing along its x, approaching along its z.
+    frame = Pose(np.array([0.5, 0.1, 0.05]), np.array([0.0, 1.0, 0.0, 0.0]))  # from above, closing along world x
+    for width in (0.01, 0.06):
+        site = grip.site_pose(frame, width)
+        rot = _axes(site.quat)
+        np.testing.assert_allclose(site.pos + rot @ grip.centre(width), frame.pos, atol=1e-9)
+        np.testing.assert_allclose(rot @ grip.closing, [1.0, 0.0, 0.0], atol=1e-9)
+        np.testing.assert_allclose(rot @ grip.approach, [0.0, 0.0, -1.0], atol=1e-9)

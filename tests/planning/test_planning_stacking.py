@@ -1,0 +1,62 @@
+"""Stacking with the SHOP-VRB2 set: pick a stackable object up and lower it onto a stack base; it must rest on
+the base (released, still, touching the base and not the table). ``benchmarks/stacking_acceptance.py`` runs
+every pair the set can produce."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from muble import get_registry
+from muble.sim.env import TabletopEnv
+from muble.sim.fixtures import simple_scene
+
+
+def act(env, name, **params):
+    return get_registry().create("primitive", name, params).execute(env)
+
+
+@pytest.fixture(scope="module")
+def objects():
+    return get_registry().create("object_set", "shopvrb2", {"cache_dir": None})
+
+
+def _touching(env, obj_id: int) -> set[int]:
+    m, d = env.model, env.data
+    body = m.body(env.names.objects[obj_id]).id
+    out = set()
+    for c in d.contact[: d.ncon]:
+        b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
+        if body in (b1, b2):
+            out.add(b2 if b1 == body else b1)
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("top, base", [("glass", "plate"), ("mug", "bowl"), ("soda can", "chopping board")])
+def test_planning_stack_a_stackable_object_on_a_stack_base(objects, top, base):
+    rng = np.random.default_rng(0)
+    models = []
+    for category in (top, base):
+        spec = objects.sample(rng, category=category)
+        spec.size, spec.scale = "medium-sized", 1.0
+        models.append(objects.build(spec))
+    assert models[0].stackable and models[1].stack_base
+    env = TabletopEnv(simple_scene([(0.42, -0.20), (0.52, 0.12)], models), dict(enumerate(models)))
+    try:
+        for name, params in [("approach", {"target": 0}), ("close_gripper", {}), ("lift", {})]:
+            result = act(env, name, **params)
+            assert result.success, (name, result.failure_reason)
+        result = act(env, "lower", target=1)
+        assert result.success, result.failure_reason
+        env.hold(0.5)
+        assert env.held_object is None
+        touching = _touching(env, 0)
+        base_body = env.model.body(env.names.objects[1]).id
+        table = env.model.geom_bodyid[env.model.geom("table_collision").id]
+        assert base_body in touching and table not in touching, (models[0].spec.model, models[1].spec.model)
+        top_body = env.model.body(env.names.objects[0]).id
+        assert float(np.linalg.norm(env.data.cvel[top_body][3:])) < 0.01  # at rest
+        top_xy, base_xy = env.object_pose(0).pos[:2], env.object_pose(1).pos[:2]
+        assert np.linalg.norm(top_xy - base_xy) < 0.5 * max(models[1].extents[:2])  # over the base, not beside it
+    finally:
+        env.close()
