@@ -7,7 +7,8 @@ category, the put-downs separately (a pick that succeeded stays a success when t
 with unintended contact (arm or held object touching another object, seen in physics).
 
 Run from the repository root:
-``python benchmarks/pick_acceptance.py [--scenes 100] [--seed 0] [--robot Panda] [--categories mug,glass]``.
+``python benchmarks/pick_acceptance.py [--scenes 100] [--seed 0] [--robot Panda] [--gripper Robotiq85Gripper]
+[--categories mug,glass]``.
 """
 from __future__ import annotations
 
@@ -28,7 +29,8 @@ def act(env, name, **params):
     return get_registry().create("primitive", name, params).execute(env)
 
 
-def run(scenes: int, seed: int, categories: list[str] | None = None, robot: str = "Panda") -> dict:
+def run(scenes: int, seed: int, categories: list[str] | None = None, robot: str = "Panda",
+        gripper: str | None = None) -> dict:
     options = {"masks": False}
     if categories:
         options["object_set_options"] = {"categories": categories}
@@ -39,7 +41,7 @@ def run(scenes: int, seed: int, categories: list[str] | None = None, robot: str 
     began = time.perf_counter()
     for index in range(scenes):
         scene = generator.generate(index)
-        env = env_from_object_set(scene, "shopvrb2", robot={"name": robot})
+        env = env_from_object_set(scene, "shopvrb2", robot={"name": robot, "gripper": gripper or None})
         for obj in scene.objects:
             if not obj.pickupable:
                 skipped += 1
@@ -93,6 +95,7 @@ def run(scenes: int, seed: int, categories: list[str] | None = None, robot: str 
         "unit": "fraction",
         "goal": 0.98,
         "robot": robot,
+        "gripper": gripper or "default",
         "per_category": {k: round(v[0] / v[1], 3) for k, v in sorted(per_category.items())},
         "per_category_counts": {k: f"{v[0]}/{v[1]}" for k, v in sorted(per_category.items())},
         "worst_category_rate": round(min(v[0] / v[1] for v in per_category.values()), 3) if per_category else 0,
@@ -113,11 +116,12 @@ def main() -> None:
     parser.add_argument("--scenes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--robot", default="Panda", help="Panda, Sawyer, UR5e, Kinova3 or IIWA")
+    parser.add_argument("--gripper", default="", help="a robosuite gripper instead of the robot's default")
     parser.add_argument("--categories", default="", help="comma-separated categories to sample (default: all)")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     categories = [c.strip() for c in args.categories.split(",") if c.strip()]
-    print(json.dumps(run(args.scenes, args.seed, categories or None, args.robot)))
+    print(json.dumps(run(args.scenes, args.seed, categories or None, args.robot, args.gripper or None)))
 
 
 if __name__ == "__main__":

@@ -146,27 +146,37 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
         if body.get("name", "").startswith(names.robot_geom_prefixes[:2]):
             body.set("gravcomp", "1")
 
+    _couple_linkage_fingers(world, names)
     model = _compile(world, names, timestep)
-    _steady_linkage_fingers(model, names)
+    if type(names.gripper_format).__name__ == "Robotiq85Gripper":
+        for side in ("left", "right"):  # pinned to the finger in the real linkage, never touching it
+            g = model.geom(f"{names.robot_geom_prefixes[1]}{side}_inner_knuckle_collision").id
+            model.geom_contype[g] = model.geom_conaffinity[g] = 0
     return model, names
 
 
-def _steady_linkage_fingers(model: mujoco.MjModel, names: WorldNames) -> None:
-    """Make robosuite's Robotiq 85 close: as shipped, each inner finger rubs on its inner knuckle, which
-    drives the finger joint to its limit against the coupling tendon's range, and the jaws stall 7-9 cm apart.
-    Without that contact (the real linkage is pinned there, not touching) the passive joints need a little
-    damping and inertia to stay stable at a 2 ms step."""
+def _couple_linkage_fingers(world, names: WorldNames) -> None:
+    """Make robosuite's Robotiq 85 a parallel gripper. As shipped, its four-bar fingers are held together by a
+    weak tendon only; each inner finger rubs on its inner knuckle, is driven against the tendon's range, and the
+    jaws stall 7-9 cm apart. Joint equalities close the four-bar linkage as in the real gripper: the inner knuckle
+    turns with the driven knuckle and the inner finger turns back by as much, keeping the pads parallel."""
     if type(names.gripper_format).__name__ != "Robotiq85Gripper":
         return
     prefix = names.robot_geom_prefixes[1]
-    for side in ("left", "right"):
-        g = model.geom(f"{prefix}{side}_inner_knuckle_collision").id
-        model.geom_contype[g] = model.geom_conaffinity[g] = 0
-    for joint in names.gripper_joints:
-        dof = model.jnt_dofadr[model.joint(joint).id]
-        model.dof_damping[dof] = max(model.dof_damping[dof], 0.05)
-        model.dof_armature[dof] += 0.001
-    model.tendon_limited[:] = 0
+    for tendon in world.root.iter("fixed"):  # superseded by the equalities, which it would fight
+        tendon.set("limited", "false")
+        tendon.set("stiffness", "0")
+    for driven, side in (("finger_joint", "left"), ("right_outer_knuckle_joint", "right")):
+        for joint, coef in ((f"{side}_inner_knuckle_joint", 1.0), (f"{side}_inner_finger_joint", -1.0)):
+            ET.SubElement(world.equality, "joint", joint1=prefix + joint, joint2=prefix + driven,
+                          polycoef=f"0 {coef} 0 0 0", solref="0.01 1")
+    # The finger links weigh 15-30 g: a little rotor inertia and damping keep the closed chain stable at 2 ms.
+    joints = {prefix + j for j in ("finger_joint", "right_outer_knuckle_joint", "left_inner_knuckle_joint",
+                                   "right_inner_knuckle_joint", "left_inner_finger_joint", "right_inner_finger_joint")}
+    for joint in world.root.iter("joint"):
+        if joint.get("name") in joints:
+            joint.set("armature", "0.001")
+            joint.set("damping", "0.05")
 
 
 def _compile(world, names: WorldNames, timestep: float) -> mujoco.MjModel:

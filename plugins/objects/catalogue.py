@@ -30,7 +30,7 @@ from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F
 log = logging.getLogger(__name__)
 
 # Bump when any geometry function changes, so cached meshes from older code are not reused.
-GEOMETRY_VERSION = 5
+GEOMETRY_VERSION = 7
 
 SIZE_SCALES = {"small": 0.85, "medium-sized": 1.0, "large": 1.15}
 

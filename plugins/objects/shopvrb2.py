@@ -55,12 +55,13 @@ def _rim_frames(profile, wall, sectors, skip=None) -> list:
     collision geometry (a flat face meets the pads, never a corner), jaws closing radially across the wall;
     ``skip(angle)`` leaves out places (a mug's handle).
 
-    Where the wall flares outwards the fingers lean with it (the hand comes from above and outside), so that a
-    fingertip does not meet the wall below the rim before the pads do.
+    The fingers lean with the wall below the rim (from above and outside where it flares outwards, from above and
+    inside where it bulges out below the rim, as on a wine glass), so that a fingertip does not meet the wall
+    below the rim before the pads do.
     """
     height = profile[-1][1]
     below = height - 0.015
-    lean = math.atan(max(0.0, (profile[-1][0] - _radius_at(profile, below)) / 0.015))
+    lean = math.atan((profile[-1][0] - _radius_at(profile, below)) / 0.015)
     z = height - RIM_DEPTH * math.cos(lean)
     outer = _radius_at(profile, z)
     r = math.cos(math.pi / sectors) * (outer / math.cos(math.pi / sectors) + outer - wall) / 2
@@ -80,6 +81,15 @@ def _rim_frames(profile, wall, sectors, skip=None) -> list:
 
 def _cylinder_frames(radius, grip_z) -> list:
     return [top_down((0.0, 0.0, grip_z), k * math.pi / 4, 2 * radius) for k in range(4)]
+
+
+def _side_frames(radius, z) -> list:
+    """Grasps around an upright body from the side, level and tilted down by 45 degrees, from eight directions:
+    for when neighbours leave no room for the hand above it. ``z`` is kept high enough for a level hand
+    (about 63 mm tall) to stay off the table."""
+    z = max(z, STEM_GRIP_HEIGHT)
+    return [side((0.0, 0.0, z), k * math.pi / 4, 2 * radius, pitch=pitch)
+            for pitch in (0.0, math.pi / 4) for k in range(8)]
 
 
 # --- bowls -----------------------------------------------------------------------------------------------
@@ -167,7 +177,9 @@ def _glass(outer, wall, base):
         pts = _scaled(outer, s)
         z = pts[-1][1] - GRIP_DEPTH
         # Around the body near the top; a glass too wide for the fingers is pinched at the rim instead.
-        return Geometry(visual, parts, _cylinder_frames(_radius_at(pts, z), z) + _rim_frames(pts, wall * s, 10), uv)
+        mid = 0.5 * pts[-1][1]
+        frames = _cylinder_frames(_radius_at(pts, z), z) + _rim_frames(pts, wall * s, 10)
+        return Geometry(visual, parts, frames + _side_frames(_radius_at(pts, max(mid, STEM_GRIP_HEIGHT)), mid), uv)
     return build
 
 
@@ -224,7 +236,8 @@ def _can(radius, height, neck):
         visual, uv = g.revolve(profile, 40)
         parts = [g.disc_part(r * 0.85, r, 0.0, 0.008 * s, 24), g.disc_part(r, r, 0.008 * s, h - 0.012 * s, 24),
                  g.disc_part(r, r * neck, h - 0.012 * s, h, 24)]
-        return Geometry(visual, parts, _cylinder_frames(r, h - 0.012 * s - GRIP_DEPTH / 2), uv)
+        frames = _cylinder_frames(r, h - 0.012 * s - GRIP_DEPTH / 2) + _side_frames(r, 0.5 * h)
+        return Geometry(visual, parts, frames, uv)
     return build
 
 
@@ -236,9 +249,10 @@ def _thermos(radius, body_h, cap_radius, cap_h):
         visual, uv = g.revolve(profile, 40)
         parts = [g.disc_part(r * 0.95, r, 0.0, h - 0.01 * s, 24), g.disc_part(r, r * 0.85, h - 0.01 * s, h, 24),
                  g.disc_part(rc, rc, h, h + hc, 24)]
-        # By the cap: the body of a wide flask does not fit between the fingers, and a grip low on a tall flask
-        # would put the palm into it.
-        return Geometry(visual, parts, _cylinder_frames(rc, h + hc - GRIP_DEPTH), uv)
+        # By the cap from above (the body of a wide flask does not fit between every gripper's fingers), or
+        # around the body from the side.
+        frames = _cylinder_frames(rc, h + hc - GRIP_DEPTH) + _side_frames(r, 0.5 * h)
+        return Geometry(visual, parts, frames, uv)
     return build
 
 

@@ -19,6 +19,7 @@ from muble import Pose
 TABLE_CLEARANCE = 0.004  # m the lowest fingertip stays above the table top in a grasp pose
 PRE_GRASP = 0.10  # m back along the approach from the grasp pose where the straight move in starts
 PAD_MARGIN = 0.002  # m free on each side of an object between the open pads
+SQUEEZE_MARGIN = 0.001  # m by which the closed pads must be narrower than what they are to hold
 FINGER_TRAVEL = 0.8  # s of simulated time for the fingers to open or close fully when measuring them
 
 
@@ -185,7 +186,7 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
     if max_width is None:
         max_width = grip.max_width if grip is not None else np.inf
     # A part thinner than the closed pads' gap (a thin rim for a gripper that cannot close fully) is never held.
-    min_width = grip.closed_gap + PAD_MARGIN if grip is not None else 0.0
+    min_width = grip.closed_gap + SQUEEZE_MARGIN if grip is not None else 0.0
     rest_x = None
     if rest_quat is not None:
         rest_x = _quat_mat(rest_quat) @ (grip.closing if grip is not None else np.array([1.0, 0.0, 0.0]))

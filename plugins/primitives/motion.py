@@ -11,7 +11,7 @@ import numpy as np
 
 from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, PrimitiveAction
 from muble_plugins.primitives import context as ctx
-from muble_plugins.primitives.grasping import (PRE_GRASP, footprint_radius, free_places, grasp_approach,
+from muble_plugins.primitives.grasping import (PRE_GRASP, footprint_radius, grasp_approach,
                                                 grasp_candidates)
 
 logger = logging.getLogger(__name__)
@@ -21,6 +21,8 @@ TABLE_PARTS = ("left", "right", "front", "back", "centre")
 # not already press on it, or closing would not pinch it between the pads.
 TARGET_TOUCH = 0.001
 GRIP_BACKOFF = 0.03  # m a grasp may be moved back along its approach to clear the target
+PAD_OVERLAP = 0.004  # m the pads' middle stays inside the object when a grasp is backed off
+PAD_HALF_WIDTH = 0.006  # m: the part of an object between the pads, across the closing direction
 
 
 def _held_depth(env) -> float:
@@ -80,11 +82,36 @@ def _target_xy_and_top(env, target) -> tuple[np.ndarray, float]:
     return env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
 
 
+RELEASE_GAPS = (0.004, 0.015, 0.03)  # m between the held object's bottom and its support when let go
+PLACE_GAP = 0.02  # m kept between a placed object's footprint and the others
+PLACE_SPACING = 0.02  # m between candidate places
+
+
 def _part_places(env, part: str, held: int) -> list[np.ndarray]:
-    """Free places for the held object's centre on a table part, nearest the part's centre first."""
-    others = [(env.object_pose(i).pos[:2], footprint_radius(env.object_models[i].extents))
-              for i in env.names.objects if i != held]
-    return free_places(ctx.table(env).part_region(part), footprint_radius(env.object_models[held].extents), others)
+    """Free places for the held object's centre on a table part, nearest the part's centre first.
+
+    The other objects' footprints are their boxes, turned with them, rather than enclosing circles: a circle
+    around a baking tray covers half of a part, the box only the tray.
+    """
+    lo, hi = ctx.table(env).part_region(part)
+    radius = footprint_radius(env.object_models[held].extents)
+    xs, ys = np.meshgrid(np.arange(lo[0], hi[0] + 1e-9, PLACE_SPACING), np.arange(lo[1], hi[1] + 1e-9, PLACE_SPACING),
+                         indexing="ij")
+    points = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    clearance = np.full(len(points), np.inf)
+    for i in env.names.objects:
+        if i == held:
+            continue
+        pose = env.object_pose(i)
+        w, z = pose.quat[0], pose.quat[3]
+        yaw = 2.0 * np.arctan2(z, w)  # objects stand upright: their turn about the vertical
+        rot = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])  # world -> object axes
+        half = 0.5 * np.asarray(env.object_models[i].extents[:2], dtype=float)
+        outside = np.maximum(np.abs((points - pose.pos[:2]) @ rot.T) - half, 0.0)
+        clearance = np.minimum(clearance, np.linalg.norm(outside, axis=1) - radius)
+    free = points[clearance >= PLACE_GAP]
+    centre = 0.5 * (lo + hi)
+    return list(free[np.argsort(np.linalg.norm(free - centre, axis=1), kind="stable")])
 
 
 class Move(PrimitiveAction):
@@ -140,7 +167,7 @@ class Approach(PrimitiveAction):
         reasons = []
         for grasp in candidates:
             try:
-                to_pre, down = self._plan(env, world, body, grasp)
+                to_pre, down = self._plan(env, world, body, grasp, grip)
             except PlanningError as e:
                 reasons.append(str(e))
                 continue
@@ -160,12 +187,13 @@ class Approach(PrimitiveAction):
                             f"({len(candidates)} tried): {reasons[0] if reasons else ''}")
 
     @staticmethod
-    def _plan(env, world, body: str, grasp: Pose):
+    def _plan(env, world, body: str, grasp: Pose, grip):
         """The move to the pre-grasp pose (backed off along the approach) and the straight line in."""
         approach = grasp_approach(grasp)
         # A frame set deeper than the hand fits (the palm inside a tall object) is backed off along the
-        # approach a little at a time; the pads still reach the object within GRIP_BACKOFF.
-        for backoff in np.arange(0.0, GRIP_BACKOFF + 1e-9, 0.01):
+        # approach a little at a time, up to GRIP_BACKOFF and never so far that the pads miss the object.
+        reach = min(GRIP_BACKOFF, _pad_overlap(env, body, grasp, grip) - PAD_OVERLAP)  # -inf: nothing seen
+        for backoff in [0.0, *(np.arange(0.01, reach + 1e-9, 0.01) if reach >= 0.01 else [])]:
             goal = PoseGoal(Pose(grasp.pos - approach * backoff, grasp.quat), 0.004, 0.05)
             world.allow_contact([body])
             q_grasp = world.inverse_kinematics(goal)
@@ -183,6 +211,36 @@ class Approach(PrimitiveAction):
         world.allow_contact([])
         to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world)
         return to_pre, down
+
+
+def _pad_overlap(env, body: str, grasp: Pose, grip) -> float:
+    """How far the object reaches back towards the hand from the pads' middle in ``grasp`` (a grip-site pose),
+    counting only the parts of it between the pads: backing the grasp off by more than this misses the object.
+
+    Rays along the approach through the space between the open pads find the object's surface nearest the hand.
+    """
+    import mujoco
+
+    m, d = env.model, env.data
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, grasp.quat)
+    rot = rot.reshape(3, 3)
+    centre = grasp.pos + rot @ grip.open_centre
+    closing, approach = rot @ grip.closing, rot @ grip.approach
+    across = np.cross(approach, closing)
+    target = m.body(body).id
+    groups = np.zeros(6, dtype=np.uint8)
+    groups[3] = 1  # object collision geoms
+    hit = np.zeros(1, dtype=np.int32)
+    start_back = 0.15
+    best = -np.inf
+    for u in np.linspace(-0.4, 0.4, 5) * grip.open_gap:
+        for v in (-PAD_HALF_WIDTH, 0.0, PAD_HALF_WIDTH):
+            origin = centre - approach * start_back + closing * u + across * v
+            t = mujoco.mj_ray(m, d, origin, approach, groups, 0, -1, hit)
+            if t >= 0 and m.geom_bodyid[hit[0]] == target:
+                best = max(best, start_back - t)
+    return best
 
 
 def _touches_lightly(world, qs) -> bool:
@@ -266,9 +324,12 @@ class Lower(PrimitiveAction):
         # ``places`` are where the object's centre goes; the hand goes there less the grasp offset.
         offset = _held_offset(env)
         reasons = []
-        for xy in places[:12]:
+        # Where a neighbour blocks the last centimetres of the descent (fingers beside a tall object), the
+        # object is let go a little higher over the same place: a short drop still lands it.
+        tries = [(xy, gap) for xy in places[:12] for gap in RELEASE_GAPS]
+        for xy, gap in tries:
             xy = np.asarray(xy, dtype=float) - offset
-            place = Pose(np.array([xy[0], xy[1], support_top + depth + 0.004]), quat)
+            place = Pose(np.array([xy[0], xy[1], support_top + depth + gap]), quat)
             above = PoseGoal(Pose(place.pos + [0.0, 0.0, ctx.HOVER], quat), 0.005, 0.05)
             try:
                 world.allow_contact([])
