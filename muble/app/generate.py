@@ -53,7 +53,8 @@ def write_combined(layout: DatasetLayout, wanted: list[int], version: str) -> di
     info = {"version": version, "split": layout.split}
     out = layout.split_dir
     scenes = [json.loads((out / layout.scene(i)).read_text()) for i in wanted]
-    instructions = [json.loads((out / layout.instruction(i)).read_text()) for i in wanted]
+    records = [json.loads((out / layout.instruction(i)).read_text()) for i in wanted]
+    instructions = [r for r in records if r.get("instruction") is not None]
     return {
         layout.combined_scenes(): write_bytes_atomic(out / layout.combined_scenes(),
                                                      json.dumps({"info": info, "scenes": scenes}).encode()),

@@ -55,13 +55,16 @@ def _components(config: dict[str, Any]) -> dict[str, Any]:
 
 
 def choose_instruction(tasks: list[Any], weights: np.ndarray, scene: Any, rng: np.random.Generator):
-    """An instruction from the template mix: a template drawn by weight, then the others in drawn order."""
+    """An instruction from the template mix: a template drawn by weight, then the others in drawn order.
+
+    Returns (None, None) when no template of the mix applies to the scene (e.g. a weight comparison in a scene
+    with a single object of each kind)."""
     order = rng.choice(len(tasks), size=len(tasks), replace=False, p=weights)
     for k in order:
         candidates = tasks[int(k)].generate(scene, rng)
         if candidates:
             return tasks[int(k)], candidates[0]
-    raise ConfigError("no template of the mix yields an instruction for this scene; widen dataset.templates")
+    return None, None
 
 
 def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
@@ -94,13 +97,12 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
         raise ConfigError("dataset.template_weights needs one non-negative weight per template, not all zero")
     rng = np.random.default_rng([seed, job.index, 1])
     task, instruction = choose_instruction(tasks, weights / weights.sum(), scene, rng)
-    instruction.split, instruction.image_index = job.split, job.index
 
     from muble.app.run import episode_runner
     from omegaconf import OmegaConf
 
     runner = episode_runner(OmegaConf.create(cfg), components)
-    if ds["sequences"]:
+    if instruction is not None and ds["sequences"]:
         output = runner.execute(scene, instruction, task)
         written.update(write_episode(output, out, layout.stem(job.index), gif=ds["gif"]))
         image = output.keyframes[0] if output.keyframes else None
@@ -110,8 +112,14 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
             out / layout.scene(job.index), json.dumps(scene_to_dict(scene)).encode())
     if image is not None:
         written[layout.image(job.index)] = write_bytes_atomic(out / layout.image(job.index), png_bytes(image))
-    record = instruction_to_dict(instruction)
-    record["ground_truth_actions"] = [[a.name, a.params] for a in task.ground_truth(instruction, scene)]
+    if instruction is None:
+        # The scene stays in the dataset (indices keep their meaning); its instruction record says why it has none.
+        record = {"split": job.split, "image_filename": scene.image_filename, "image_index": job.index,
+                  "instruction": None, "skipped": f"no template of {list(ds['templates'])} applies to this scene"}
+    else:
+        instruction.split, instruction.image_index = job.split, job.index
+        record = instruction_to_dict(instruction)
+        record["ground_truth_actions"] = [[a.name, a.params] for a in task.ground_truth(instruction, scene)]
     written[layout.instruction(job.index)] = write_bytes_atomic(
         out / layout.instruction(job.index), json.dumps(record).encode())
     return job.index, written

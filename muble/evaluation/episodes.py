@@ -39,6 +39,8 @@ def split_indices(layout: DatasetLayout) -> list[int]:
     for path in folder.glob("*.json") if folder.is_dir() else ():
         m = pattern.match(path.name)
         if m and (layout.split_dir / layout.scene(int(m.group(1)))).is_file():
+            if json.loads(path.read_text(encoding="utf-8")).get("instruction") is None:
+                continue  # a scene no template of the mix applied to
             found.append(int(m.group(1)))
     return sorted(found)
 
