@@ -161,12 +161,15 @@ class TabletopEnv:
             raise PhysicsError(f"the episode ended with a physics fault ({self.broken}); call reset() first")
         info: dict[str, Any] = {"outcome": None}
         try:
-            if not np.all(np.isfinite(action)):
+            if not np.isfinite(action).all():
                 raise PhysicsError(f"action contains NaN or infinite values: {action.tolist()}")
-            delta = np.clip(action[:6], -1.0, 1.0) * OSC_OUTPUT_MAX
+            delta = np.minimum(np.maximum(action[:6], -1.0), 1.0)
+            delta *= OSC_OUTPUT_MAX
             self.servos.command(self.data, self.osc.joint_target(self.data, delta))
-            self.set_gripper(float(np.clip(action[6], -1.0, 1.0)))
-            self.advance(self.control_dt)
+            self.set_gripper(action[6])
+            # One control period, as advance(control_dt) runs it, without its bookkeeping.
+            mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
+            self._after_control_step()
         except PhysicsError as e:
             self.broken = str(e)
             info.update(outcome=Outcome.BROKEN_SCENE, error=str(e))
@@ -239,7 +242,7 @@ class TabletopEnv:
     # ---------------------------------------------------------------------------------------------- gripper
     def set_gripper(self, command: float) -> None:
         """Gripper command in [-1 (open), 1 (closed)], applied at the next physics step."""
-        command = float(np.clip(command, -1.0, 1.0))
+        command = min(max(float(command), -1.0), 1.0)  # np.clip's result, without its per-call overhead
         self.gripper_command = command
         s = 0.5 * (command + 1.0)
         self.data.ctrl[self.gripper_actuator_ids] = (1 - s) * self.gripper_open_ctrl + s * self.gripper_closed_ctrl
@@ -335,9 +338,12 @@ class TabletopEnv:
     # ----------------------------------------------------------------------------------------- observation
     def observation(self) -> dict[str, Any]:
         """The built-in proprioception plus every sensor's reading under its name."""
-        pose = self.ee_pose()
+        # Built directly rather than through ee_pose(): this runs after every step.
+        ee_quat = np.empty(4)
+        mujoco.mju_mat2Quat(ee_quat, self.data.site_xmat[self.ee_site_id])
         obs: dict[str, Any] = {
-            "ee_pos": pose.pos, "ee_quat": pose.quat, "joint_pos": self.arm_q(), "joint_vel": self.arm_qd(),
+            "ee_pos": self.data.site_xpos[self.ee_site_id].copy(), "ee_quat": ee_quat,
+            "joint_pos": self.arm_q(), "joint_vel": self.arm_qd(),
             "gripper_command": self.gripper_command, "held_object": self.grasp.held,
         }
         for name, sensor in self.sensors.items():

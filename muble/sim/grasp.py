@@ -35,6 +35,11 @@ class GraspModel:
         self.jaws = JawContacts(model, finger_geom_sides(model, {1: list(names.left_pads), 2: list(names.right_pads)},
                                                          list(names.gripper_joints)),
                                 self.geom_object, self.body_of)
+        # geom -> 1 finger (jaw or pad), 2 object, 0 other: a contact between a finger and an object is the only
+        # pair whose codes sum to 3, so one gather and one sum tell whether any finger touches any object.
+        self._contact_code = np.zeros(model.ngeom, dtype=np.int8)
+        self._contact_code[self.geom_object >= 0] = 2
+        self._contact_code[(self.jaws.jaw_side > 0) | (self.pad_side > 0)] = 1
 
     def touching(self, data: mujoco.MjData) -> dict[int, int]:
         """Scene id -> bit mask of finger sides (1 left, 2 right) whose pads touch that object now."""
@@ -52,14 +57,22 @@ class GraspModel:
                 out[int(o)] = out.get(int(o), 0) | int(s)
         return out
 
+    def fingers_touch_objects(self, data: mujoco.MjData) -> bool:
+        """Whether any finger geom touches any object geom now (the cheap test run every control step)."""
+        n = data.ncon
+        return bool(n) and bool((self._contact_code[data.contact.geom[:n]].sum(axis=1) == 3).any())
+
     def update(self, data: mujoco.MjData, closing: bool) -> None:
         """Rescale jaw contacts; attach when closing and all pads touch one object; release when the gripper opens."""
-        self.jaws.update(data)
+        touch = self.fingers_touch_objects(data)
+        # With no finger on any object and no object rescaled, the jaw law has nothing to do.
+        if touch or self.jaws.scaled:
+            self.jaws.update(data)
         if self.mode != "weld":
             return
         if self.held is not None and not closing:
             self.release(data)
-        elif self.held is None and closing:
+        elif self.held is None and closing and touch:
             for obj, sides in self.touching(data).items():
                 if sides == 3:
                     self.attach(data, obj)

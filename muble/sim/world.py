@@ -170,13 +170,14 @@ def _couple_linkage_fingers(world, names: WorldNames) -> None:
         for joint, coef in ((f"{side}_inner_knuckle_joint", 1.0), (f"{side}_inner_finger_joint", -1.0)):
             ET.SubElement(world.equality, "joint", joint1=prefix + joint, joint2=prefix + driven,
                           polycoef=f"0 {coef} 0 0 0", solref="0.01 1")
-    # The finger links weigh 15-30 g: a little rotor inertia and damping keep the closed chain stable at 2 ms.
+    # The finger links weigh 15-30 g: rotor inertia keeps the closed chain stable at 2 ms, and damping slows the
+    # jaws from a slam (~1 m/s, which throws a mug off the table) to a few tenths of a m/s, closing in ~0.4 s.
     joints = {prefix + j for j in ("finger_joint", "right_outer_knuckle_joint", "left_inner_knuckle_joint",
                                    "right_inner_knuckle_joint", "left_inner_finger_joint", "right_inner_finger_joint")}
     for joint in world.root.iter("joint"):
         if joint.get("name") in joints:
             joint.set("armature", "0.001")
-            joint.set("damping", "0.05")
+            joint.set("damping", "1.0")
 
 
 def _compile(world, names: WorldNames, timestep: float) -> mujoco.MjModel:

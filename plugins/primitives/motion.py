@@ -268,6 +268,12 @@ class Lift(PrimitiveAction):
             own.add(env.model.body(env.names.objects[env.held_object]).id)
         support = ctx.touching_bodies(env, own)  # what it rests on may be touched while leaving it
         world.allow_contact(support)
+        # So may what the hand or the held object already overlaps within the planning clearance (a neighbour
+        # leaning on it, a tray rim under a wine glass's foot): rising can only move away from it.
+        m = env.model
+        for pair in world.contacts(env.arm_q()):
+            support |= {m.body(name).id for name in pair if m.body(name).id not in own}
+        world.allow_contact(support)
         pose = env.ee_pose()
         goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, height], pose.quat), 0.005, 0.05)
         try:
@@ -277,7 +283,14 @@ class Lift(PrimitiveAction):
             # straight rise, then plan freely to the raised pose.
             logger.info("straight lift failed (%s); rising 3 cm and planning the rest", e)
             rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, min(height, 0.03)], pose.quat), 0.005, 0.05)
-            first = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
+            try:
+                first = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
+            except PlanningError:
+                # Something overhangs the object (a tray's flared rim over a glass's foot): plan the whole way,
+                # sideways first where needed, touching only the support.
+                q_goal = world.inverse_kinematics(goal, seeds=env.arm_q()[None])
+                trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
+                return _result(ctx.execute(env, trajectory, world, allowed=support), height=height)
             report = ctx.execute(env, first, world, allowed=support)
             world = ctx.collision_world(env)
             q_goal = world.inverse_kinematics(goal, seeds=env.arm_q()[None])

@@ -117,3 +117,26 @@ def test_planning_grip_geometry_comes_from_the_mounted_gripper(robot):
         np.testing.assert_allclose(site.pos + rot @ grip.centre(width), frame.pos, atol=1e-9)
         np.testing.assert_allclose(rot @ grip.closing, [1.0, 0.0, 0.0], atol=1e-9)
         np.testing.assert_allclose(rot @ grip.approach, [0.0, 0.0, -1.0], atol=1e-9)
+
+
+@pytest.mark.slow
+def test_planning_ur5e_with_its_robotiq_gripper_picks_and_weighs_a_can_a_wine_glass_and_a_bowl(objects):
+    from muble.sim.env import TabletopEnv
+    from muble.sim.fixtures import simple_scene
+
+    rng = np.random.default_rng(0)
+    models = [objects.build(objects.sample(rng, category=c)) for c in ("soda can", "wine glass", "bowl")]
+    env = TabletopEnv(simple_scene([(0.40, -0.25), (0.42, 0.0), (0.62, 0.05)], models), dict(enumerate(models)),
+                      name="UR5e")
+    try:
+        for obj_id, model in enumerate(models):
+            env.reset()
+            for name, params in [("approach", {"target": obj_id}), ("close_gripper", {}), ("lift", {})]:
+                result = get_registry().create("primitive", name, params).execute(env)
+                assert result.success, (model.spec.model, name, result.failure_reason)
+            assert env.held_object == obj_id
+            assert env.object_pose(obj_id).pos[2] > 0.1
+            grams = get_registry().create("primitive", "weigh", {}).execute(env).measurement
+            assert abs(grams - model.spec.weight_g) < 0.01 * model.spec.weight_g, (model.spec.model, grams)
+    finally:
+        env.close()
