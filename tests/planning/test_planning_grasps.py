@@ -120,12 +120,12 @@ def test_planning_grip_geometry_comes_from_the_mounted_gripper(robot):
 
 
 @pytest.mark.slow
-def test_planning_ur5e_with_its_robotiq_gripper_picks_and_weighs_a_can_a_wine_glass_and_a_bowl(objects):
+def test_planning_ur5e_with_its_robotiq_gripper_picks_and_weighs_a_can_a_thermos_and_a_bowl(objects):
     from muble.sim.env import TabletopEnv
     from muble.sim.fixtures import simple_scene
 
     rng = np.random.default_rng(0)
-    models = [objects.build(objects.sample(rng, category=c)) for c in ("soda can", "wine glass", "bowl")]
+    models = [objects.build(objects.sample(rng, category=c)) for c in ("soda can", "thermos", "bowl")]
     env = TabletopEnv(simple_scene([(0.40, -0.25), (0.42, 0.0), (0.62, 0.05)], models), dict(enumerate(models)),
                       name="UR5e")
     try:
