@@ -13,6 +13,12 @@ from typing import Mapping, Sequence
 
 from muble.core.errors import PlanningError, unknown_name
 
+# The table top in the scene frame for robosuite's standard table placement (0.9 x 1.2 m, its near edge 0.16 m in
+# front of the robot's base axis), and the clearance every object keeps from that axis: the robot's pedestal
+# (radius 0.18 m) stands 0.14 m above the table top.
+TABLE_X = (0.16, 1.06)
+TABLE_Y = (-0.6, 0.6)
+ROBOT_CLEARANCE = 0.22
 TABLE_CENTRE = (0.5, 0.0)  # x, y (m) where the split lines cross
 TABLE_CENTRE_RADIUS = 0.08  # m; objects this close to the centre are also in "centre"
 # x and y ranges (m) for the centre of an object the robot places: the generated scenes' area (x 0.28-0.72,

@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_LENS_MM, DEFAULT_POSITION, DEFAULT_ROTATION_DEG, DEFAULT_WIDTH
+from muble.core.table import ROBOT_CLEARANCE, TABLE_X, TABLE_Y
 
 
 @dataclass
@@ -25,9 +26,10 @@ class GeneratorConfig:
     count_probabilities: list[float] = field(default_factory=lambda: [0.473, 0.527])
     reach_x: list[float] = field(default_factory=lambda: [0.28, 0.72])
     reach_y: list[float] = field(default_factory=lambda: [-0.36, 0.12])
-    table_x: list[float] = field(default_factory=lambda: [0.0, 0.9])
-    table_y: list[float] = field(default_factory=lambda: [-0.6, 0.6])
+    table_x: list[float] = field(default_factory=lambda: list(TABLE_X))
+    table_y: list[float] = field(default_factory=lambda: list(TABLE_Y))
     margin: float = 0.01  # m
+    robot_clearance: float = ROBOT_CLEARANCE  # m from the robot's base axis to any object footprint (pedestal)
     min_weight_gap: float = 5.0  # g
     min_visible_pixels: int = 200
     occlusion_scale: float = 1.0

@@ -131,7 +131,7 @@ class SceneGenerator:
 
     def _layout(self, models: list[ObjectModel], rng: np.random.Generator) -> list[Placement] | None:
         cfg = self.config
-        layout = TableLayout(cfg.reach_x, cfg.reach_y, cfg.table_x, cfg.table_y, cfg.margin)
+        layout = TableLayout(cfg.reach_x, cfg.reach_y, cfg.table_x, cfg.table_y, cfg.margin, cfg.robot_clearance)
         meshes = [self._collision_meshes.get(m) for m in models]
         placements: list[Placement | None] = [None] * len(models)
         for i in sorted(range(len(models)), key=lambda k: -meshes[k].radius):  # big footprints first pack best

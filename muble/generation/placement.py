@@ -73,6 +73,19 @@ class CollisionMesh:
         return bool(x.min() >= x_range[0] and x.max() <= x_range[1] and y.min() >= y_range[0]
                     and y.max() <= y_range[1])
 
+    def distance_to_point(self, placement: Placement, point_xy) -> float:
+        """Least distance (m) from the footprint at ``placement`` to a point of the table plane (0 if inside)."""
+        c, s = math.cos(placement.yaw), math.sin(placement.yaw)
+        fx, fy = self.footprint[:, 0], self.footprint[:, 1]
+        hull = np.stack([fx * c - fy * s + placement.x, fx * s + fy * c + placement.y], axis=1)
+        a, b = hull, np.roll(hull, -1, axis=0)
+        ab, ap = b - a, np.asarray(point_xy, dtype=float) - a
+        t = np.clip(np.einsum("ij,ij->i", ap, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18), 0.0, 1.0)
+        gap = float(np.linalg.norm(ap - t[:, None] * ab, axis=1).min())
+        # Inside a counter-clockwise convex hull the point is left of every edge.
+        inside = bool(np.all(ab[:, 0] * ap[:, 1] - ab[:, 1] * ap[:, 0] >= 0.0))
+        return 0.0 if inside else gap
+
     def collision_object(self, placement: Placement):
         import fcl
 
@@ -131,16 +144,20 @@ def mesh_distance(a, b) -> float:
 class TableLayout:
     """Objects placed so far, with the rule for where the next one may go."""
 
-    def __init__(self, reach_x, reach_y, table_x, table_y, margin: float):
+    def __init__(self, reach_x, reach_y, table_x, table_y, margin: float, robot_clearance: float = 0.0):
         self.reach_x, self.reach_y = tuple(reach_x), tuple(reach_y)
         self.table_x, self.table_y = tuple(table_x), tuple(table_y)
         self.margin = margin
+        self.robot_clearance = robot_clearance
         self.meshes: list[CollisionMesh] = []
         self.placements: list[Placement] = []
         self._objects: list = []
 
     def fits_table(self, mesh: CollisionMesh, placement: Placement) -> bool:
-        return mesh.fits(placement, self.table_x, self.table_y)
+        """On the table, and clear of the robot's base (at the origin) by ``robot_clearance``."""
+        if not mesh.fits(placement, self.table_x, self.table_y):
+            return False
+        return self.robot_clearance <= 0.0 or mesh.distance_to_point(placement, (0.0, 0.0)) >= self.robot_clearance
 
     def clearance(self, mesh: CollisionMesh, placement: Placement) -> float:
         """Least mesh distance to any placed object (``inf`` when none is within reach of the margin)."""
