@@ -15,6 +15,7 @@ from muble.core.errors import PlanningError
 from muble.core.interfaces import Renderer
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Frame, Observation
+from muble.sim.sync import is_lifted
 
 log = logging.getLogger(__name__)
 
@@ -80,24 +81,10 @@ class PhysicalWorld:
 
     def _flag(self, scene: SceneGraph) -> None:
         held = self.env.held_object
-        raised = held is not None and not self._supported(held)
+        raised = held is not None and is_lifted(self.env, held)
         for o in scene.objects:
             o.extra["in_hand"] = o.id == held
             o.extra["raised"] = o.id == held and raised
             o.extra["approached"] = held is None and o.id == self.approached
             o.extra["gripper_over"] = o.id == self.over
 
-    def _supported(self, obj_id: int) -> bool:
-        """The object touches the table or another object (contacts of the live physics)."""
-        env = self.env
-        m, d = env.model, env.data
-        body = env.grasp.body_of[obj_id]
-        supports = {int(m.geom_bodyid[m.geom("table_collision").id])}
-        supports |= {int(b) for i, b in env.grasp.body_of.items() if i != obj_id}
-        for c in d.contact[: d.ncon]:
-            if c.dist > 0.001:  # within the contact margin, not touching
-                continue
-            b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
-            if (b1 == body and b2 in supports) or (b2 == body and b1 in supports):
-                return True
-        return False

@@ -38,6 +38,7 @@ class Snapshot:
     tare: np.ndarray | None
     steps: int
     geom_solref: np.ndarray | None = None  # contact parameters the jaw contact law sets at run time
+    grasp_height: float | None = None
 
 
 @dataclass
@@ -132,6 +133,7 @@ class TabletopEnv:
         self.data.qpos[self.servos.qpos_adr] = self.names.init_qpos
         self.servos.command(self.data, self.names.init_qpos)
         self.grasp.held = None
+        self.grasp.grasp_height = None
         self.grasp.jaws.reset()
         self.osc.goal_quat = None
         self.tare_force = None
@@ -319,7 +321,7 @@ class TabletopEnv:
         mujoco.mj_getState(self.model, self.data, state, spec)
         return Snapshot(state, self.model.eq_data.copy(), self.grasp.held, self.gripper_command,
                         None if self.tare_force is None else self.tare_force.copy(), self.steps,
-                        self.model.geom_solref.copy())
+                        self.model.geom_solref.copy(), self.grasp.grasp_height)
 
     def restore(self, snap: Snapshot) -> None:
         """Return to ``snap`` exactly (e.g. after a failed plan)."""
@@ -328,6 +330,7 @@ class TabletopEnv:
         if snap.geom_solref is not None:
             self.model.geom_solref[:] = snap.geom_solref
         self.grasp.held = snap.held
+        self.grasp.grasp_height = snap.grasp_height
         self.osc.goal_quat = None
         self.gripper_command = snap.gripper_command
         self.tare_force = None if snap.tare is None else snap.tare.copy()

@@ -31,6 +31,7 @@ class GraspModel:
         self.pad_side[[model.geom(n).id for n in names.left_pads]] = 1
         self.pad_side[[model.geom(n).id for n in names.right_pads]] = 2
         self.held: int | None = None
+        self.grasp_height: float | None = None  # z of the held object's origin when it was grasped
         # The jaw contact law (see muble.sim.jaw_contact): jaws feel each object as one spring of its stiffness.
         self.jaws = JawContacts(model, finger_geom_sides(model, {1: list(names.left_pads), 2: list(names.right_pads)},
                                                          list(names.gripper_joints)),
@@ -95,6 +96,7 @@ class GraspModel:
         self.model.eq_data[eq, 10] = 1.0  # torque scale
         data.eq_active[eq] = 1
         self.held = obj
+        self.grasp_height = float(data.xpos[body][2])
         logger.debug("grasped object %d", obj)
 
     def release(self, data: mujoco.MjData) -> None:
@@ -107,4 +109,5 @@ class GraspModel:
         dof = self.model.jnt_dofadr[jnt]
         data.qvel[dof:dof + 6] = 0.0
         self.held = None
+        self.grasp_height = None
         logger.debug("released object %d", obj)

@@ -22,6 +22,32 @@ def world_bbox(env, obj_id: int) -> dict[str, float]:
     return {"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])}
 
 
+LIFT_CLEARANCE = 0.005  # m above the height at which it was grasped that a held object must be to count as lifted
+
+
+def touches_support(env, obj_id: int, tolerance: float = 0.001) -> bool:
+    """The object touches the table or another object (contacts of the live physics, within ``tolerance``)."""
+    m, d = env.model, env.data
+    body = env.grasp.body_of[obj_id]
+    supports = {int(m.geom_bodyid[m.geom("table_collision").id])}
+    supports |= {int(b) for i, b in env.grasp.body_of.items() if i != obj_id}
+    for c in d.contact[: d.ncon]:
+        if c.dist > tolerance:
+            continue
+        b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
+        if (b1 == body and b2 in supports) or (b2 == body and b1 in supports):
+            return True
+    return False
+
+
+def is_lifted(env, obj_id: int) -> bool:
+    """Held, clear of every support, and higher than where it was grasped: what weighing needs."""
+    if env.held_object != obj_id or touches_support(env, obj_id, tolerance=0.002):
+        return False
+    grasped_at = env.grasp.grasp_height
+    return grasped_at is None or env.object_pose(obj_id).pos[2] > grasped_at + LIFT_CLEARANCE
+
+
 def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
     """A copy of ``previous`` with every object's pose, bbox and flags taken from the simulation now."""
     scene = copy.deepcopy(previous)

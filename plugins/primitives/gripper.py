@@ -50,9 +50,13 @@ class Weigh(PrimitiveAction):
 
     def execute(self, env) -> ActionResult:
         from muble.sim.measure import weigh
+        from muble.sim.sync import touches_support
 
         if env.held_object is None:
             return ActionResult(False, failure_reason="nothing in the hand to weigh: pick an object up first")
+        if touches_support(env, env.held_object):
+            # Whatever it rests on would carry part of its weight: the reading would be wrong, not just noisy.
+            return ActionResult(False, failure_reason="the held object still touches its support: lift it first")
         grams = weigh(env)
         return ActionResult(True, measurement=grams, info={"object": env.held_object, "unit": "g"})
 

@@ -10,9 +10,10 @@ import logging
 import numpy as np
 
 from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
-from muble_plugins.primitives.grasping import (PRE_GRASP, footprint_radius, grasp_approach,
-                                                grasp_candidates)
+from muble_plugins.primitives import placement
+from muble_plugins.primitives.grasping import PRE_GRASP, grasp_approach, grasp_candidates
 
 logger = logging.getLogger(__name__)
 
@@ -23,35 +24,8 @@ TARGET_TOUCH = 0.001
 GRIP_BACKOFF = 0.03  # m a grasp may be moved back along its approach to clear the target
 PAD_OVERLAP = 0.004  # m the pads' middle stays inside the object when a grasp is backed off
 PAD_HALF_WIDTH = 0.006  # m: the part of an object between the pads, across the closing direction
-
-
-def _held_depth(env) -> float:
-    """How far the held object hangs below the grip site (0 when nothing is held)."""
-    if env.held_object is None:
-        return 0.0
-    m, d = env.model, env.data
-    b = m.body(env.names.objects[env.held_object]).id
-    lowest = min(_geom_bottom(env, g) for g in np.flatnonzero(m.geom_bodyid == b)
-                 if m.geom_contype[g] or m.geom_conaffinity[g])
-    return float(env.ee_pose().pos[2] - lowest)
-
-
-def _held_offset(env) -> np.ndarray:
-    """Horizontal offset (x, y) of the held object's centre from the grip site: fixed while it is held,
-    since the hand keeps its orientation when carrying and lowering."""
-    return env.object_pose(env.held_object).pos[:2] - env.ee_pose().pos[:2]
-
-
-def _geom_bottom(env, g: int) -> float:
-    import mujoco
-
-    m, d = env.model, env.data
-    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
-        mesh = m.geom_dataid[g]
-        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-        verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
-        return float(verts[:, 2].min())
-    return float(d.geom_xpos[g][2] - m.geom_rbound[g])
+RELEASE_GAPS = (0.004, 0.015, 0.03)  # m between the held object's bottom and its support when let go
+PUT_BACK_RADIUS = 0.05  # m a put-down without a target may shift the object to find a free place
 
 
 def _result(report: ctx.MotionReport, **info) -> ActionResult:
@@ -59,80 +33,81 @@ def _result(report: ctx.MotionReport, **info) -> ActionResult:
     return ActionResult(True, info=info)
 
 
-def _target_xy_and_top(env, target) -> tuple[np.ndarray, float]:
-    """Where the hand (or the held object's centre) goes over ``target``, and the height to clear there.
-
-    Over a table part that is the place ``lower`` will put the held object on (the free place nearest the
-    part's centre), or the part's centre with an empty hand; what stands near it is cleared too.
-    """
-    if isinstance(target, str):
-        table = ctx.table(env)
-        if env.held_object is not None:
-            places = _part_places(env, target, env.held_object)
-            if not places:
-                raise PlanningError(f"no free space on the {target} part of the table; choose another part")
-            xy = np.asarray(places[0], dtype=float)
-        else:
-            lo, hi = table.part_region(target)
-            xy = 0.5 * (lo + hi)
-        near = [ctx.object_top(env, i) for i in env.names.objects if i != env.held_object
-                and np.linalg.norm(env.object_pose(i).pos[:2] - xy) < 0.15]
-        return xy, max([table.top_z] + near)
-    ctx.body_name(env, target)
-    return env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
-
-
-RELEASE_GAPS = (0.004, 0.015, 0.03)  # m between the held object's bottom and its support when let go
-PLACE_GAP = 0.02  # m kept between a placed object's footprint and the others
-PLACE_SPACING = 0.02  # m between candidate places
-
-
 def _part_places(env, part: str, held: int) -> list[np.ndarray]:
-    """Free places for the held object's centre on a table part, nearest the part's centre first.
-
-    The other objects' footprints are their boxes, turned with them, rather than enclosing circles: a circle
-    around a baking tray covers half of a part, the box only the tray.
-    """
+    """Free places for the held object's centre on a table part, nearest the part's centre first."""
     lo, hi = ctx.table(env).part_region(part)
-    radius = footprint_radius(env.object_models[held].extents)
-    xs, ys = np.meshgrid(np.arange(lo[0], hi[0] + 1e-9, PLACE_SPACING), np.arange(lo[1], hi[1] + 1e-9, PLACE_SPACING),
-                         indexing="ij")
-    points = np.stack([xs.ravel(), ys.ravel()], axis=1)
-    clearance = np.full(len(points), np.inf)
-    for i in env.names.objects:
-        if i == held:
-            continue
-        pose = env.object_pose(i)
-        w, z = pose.quat[0], pose.quat[3]
-        yaw = 2.0 * np.arctan2(z, w)  # objects stand upright: their turn about the vertical
-        rot = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])  # world -> object axes
-        half = 0.5 * np.asarray(env.object_models[i].extents[:2], dtype=float)
-        outside = np.maximum(np.abs((points - pose.pos[:2]) @ rot.T) - half, 0.0)
-        clearance = np.minimum(clearance, np.linalg.norm(outside, axis=1) - radius)
-    free = points[clearance >= PLACE_GAP]
-    centre = 0.5 * (lo + hi)
-    return list(free[np.argsort(np.linalg.norm(free - centre, axis=1), kind="stable")])
+    return placement.free_places(env, lo, hi, held)
 
 
 class Move(PrimitiveAction):
-    """Move the hand above an object (scene id) or a table part (left/right/front/back/centre)."""
+    """Move the hand above an object (scene id) or a table part (left/right/front/back/centre).
+
+    Carrying an object to a table part, the hand goes over the free place ``lower`` will use: the first place
+    (nearest the part's centre) that the arm reaches and can descend to straight without touching anything.
+    """
 
     params = ("target",)
 
     def execute(self, env) -> ActionResult:
         target = self.arguments.get("target")
-        xy, top = _target_xy_and_top(env, target)
-        world = ctx.collision_world(env)
+        if isinstance(target, str):
+            ctx.table(env).part_region(target)  # an unknown part name fails before anything moves
+        else:
+            ctx.body_name(env, target)
+        snap = env.snapshot()
+        try:
+            rise = placement.clear_start(env, ctx.collision_world(env))
+            world = ctx.collision_world(env)
+            if isinstance(target, str) and env.held_object is not None:
+                goal = JointGoal(self._over_free_place(env, world, target))
+            else:
+                goal = self._hover_goal(env, target)
+            world.allow_contact([])
+            trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), goal, world)
+        except PlanningError:
+            env.restore(snap)
+            raise
+        report = ctx.execute(env, trajectory, world)
+        return _result(placement.merge(rise, report), target=target)
+
+    @staticmethod
+    def _hover_goal(env, target) -> PoseGoal:
+        table = ctx.table(env)
+        if isinstance(target, str):
+            lo, hi = table.part_region(target)
+            xy, top = 0.5 * (lo + hi), table.top_z
+        else:
+            xy, top = env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
         quat = ctx.top_down(env)
         if env.held_object is not None:
             # Carrying: the hand keeps its orientation (the object stays as it was lifted, whatever the grasp)
             # and the object's centre, not the hand, comes over the target, ready to be lowered onto it.
             quat = env.ee_pose().quat
-            xy = xy - _held_offset(env)
-        goal = ctx.hover_pose(env, xy, top + _held_depth(env), quat)
-        trajectory = ctx.plan_to(env, world, goal)
-        report = ctx.execute(env, trajectory, world)
-        return _result(report, target=target)
+            xy = xy - placement.held_offset(env)
+        if isinstance(target, str):
+            top = max(top, placement.clear_top(env, xy, table.top_z, env.held_object))
+        return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat)
+
+    @staticmethod
+    def _over_free_place(env, world, part: str) -> np.ndarray:
+        table = ctx.table(env)
+        places = _part_places(env, part, env.held_object)
+        if not places:
+            raise PlanningError(f"no free space on the {part} part of the table for object {env.held_object}; "
+                                "choose another part")
+        reasons = []
+        for xy in placement.spread(places):
+            place = placement.place_pose(env, xy, table.top_z, RELEASE_GAPS[0])
+            top = placement.clear_top(env, xy, table.top_z, env.held_object)
+            above = np.array([place.pos[0], place.pos[1], top + placement.held_depth(env) + ctx.HOVER])
+            try:
+                q_above, _ = placement.plan_descent(env, world, place, above, table.body)
+                return q_above
+            except PlanningError as e:
+                logger.debug("no descent to %s: %s", np.round(xy, 3).tolist(), e)
+                reasons.append(f"{np.round(xy, 3).tolist()}: {e}")
+        raise PlanningError(f"no free place on the {part} part of the table can be reached and descended to "
+                            f"({len(reasons)} tried): {reasons[0]}")
 
 
 class Approach(PrimitiveAction):
@@ -304,9 +279,11 @@ class Lift(PrimitiveAction):
 
 
 class Lower(PrimitiveAction):
-    """Put the held object down: on another object (scene id), on a table part, or straight down (no target).
+    """Put the held object down: on another object (scene id), on a table part, or where it is (no target).
 
-    A table part gets the free place nearest its centre; the object is released and left resting.
+    A table part gets the free place under the hand when there is one (``move`` chose it), else the free place
+    nearest the part's centre; without a target the object goes straight down, or to the nearest free place
+    within ``PUT_BACK_RADIUS`` in the same table parts. The object is released and left resting.
     """
 
     params = ("target",)
@@ -317,44 +294,65 @@ class Lower(PrimitiveAction):
         target = self.arguments.get("target")
         held = env.held_object
         held_body = env.model.body(env.names.objects[held]).id
-        depth = _held_depth(env)
-        quat = env.ee_pose().quat
         table = ctx.table(env)
-        world = ctx.collision_world(env)
-        if target is None or isinstance(target, str):
-            support_body, support_top = table.body, table.top_z
-            if target is None:
-                places = [env.object_pose(held).pos[:2]]
-            else:
-                places = _part_places(env, target, held)
-                if not places:
-                    raise PlanningError(f"no free space on the {target} part of the table; choose another part")
-        else:
-            ctx.body_name(env, target)
-            support_body = env.model.body(env.names.objects[int(target)]).id
-            support_top = ctx.object_top(env, int(target))
-            places = [env.object_pose(int(target)).pos[:2]]
-        # ``places`` are where the object's centre goes; the hand goes there less the grasp offset.
-        offset = _held_offset(env)
+        snap = env.snapshot()
+        try:
+            rise = placement.clear_start(env, ctx.collision_world(env))
+            world = ctx.collision_world(env)
+            support_body, support_top, places = self._places(env, target, held, table)
+            to_above, down = self._plan(env, world, target, places, support_body, support_top)
+        except PlanningError:
+            env.restore(snap)
+            raise
+        result = self._put_down(env, world, to_above, down, support_body, held_body, held)
+        result.info["unintended_contacts"] = sorted(set(result.info["unintended_contacts"])
+                                                    | (rise.unintended_contacts if rise else set()))
+        return result
+
+    @staticmethod
+    def _places(env, target, held, table):
+        here = env.object_pose(held).pos[:2]
+        if isinstance(target, str):
+            lo, hi = table.part_region(target)
+            places = placement.free_places(env, lo, hi, held)
+            if not places:
+                raise PlanningError(f"no free space on the {target} part of the table for object {held}; "
+                                    "choose another part")
+            inside = bool(np.all(here >= lo) and np.all(here <= hi))
+            if inside and placement.is_free(env, here, held):
+                places = [here, *places]
+            return table.body, table.top_z, placement.spread(places)
+        if target is None:
+            parts = parts_at(*here)
+            near = placement.free_places(env, here - PUT_BACK_RADIUS, here + PUT_BACK_RADIUS, held, prefer=here)
+            near = [p for p in near if parts_at(*p) == parts and np.linalg.norm(p - here) <= PUT_BACK_RADIUS]
+            return table.body, table.top_z, [here, *placement.spread(near, limit=6)]
+        ctx.body_name(env, target)
+        return (env.model.body(env.names.objects[int(target)]).id, ctx.object_top(env, int(target)),
+                [env.object_pose(int(target)).pos[:2]])
+
+    @staticmethod
+    def _plan(env, world, target, places, support_body, support_top):
         reasons = []
+        hand = env.ee_pose().pos
         # Where a neighbour blocks the last centimetres of the descent (fingers beside a tall object), the
         # object is let go a little higher over the same place: a short drop still lands it.
-        tries = [(xy, gap) for xy in places[:12] for gap in RELEASE_GAPS]
-        for xy, gap in tries:
-            xy = np.asarray(xy, dtype=float) - offset
-            place = Pose(np.array([xy[0], xy[1], support_top + depth + gap]), quat)
-            above = PoseGoal(Pose(place.pos + [0.0, 0.0, ctx.HOVER], quat), 0.005, 0.05)
-            try:
-                world.allow_contact([])
-                q_above = world.inverse_kinematics(above)
-                to_above = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_above), world)
-                world.allow_contact([support_body])
-                down = ctx.planner(env, "straight_line").plan(q_above, PoseGoal(place, 0.004, 0.05), world)
-            except PlanningError as e:
-                reasons.append(str(e))
-                continue
-            return self._put_down(env, world, to_above, down, support_body, held_body, held)
-        raise PlanningError(f"cannot put object {held} down on {target!r}: {reasons[0] if reasons else ''}")
+        for xy in places:
+            for gap in RELEASE_GAPS:
+                place = placement.place_pose(env, xy, support_top, gap)
+                above = place.pos + [0.0, 0.0, ctx.HOVER]
+                if np.linalg.norm(hand[:2] - place.pos[:2]) < 0.01 and hand[2] > place.pos[2]:
+                    above = hand.copy()  # already over the place (``move`` went there): straight down from here
+                try:
+                    q_above, down = placement.plan_descent(env, world, place, above, support_body)
+                    world.allow_contact([])
+                    to_above = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_above), world)
+                    return to_above, down
+                except PlanningError as e:
+                    logger.debug("no put-down at %s (gap %.3f): %s", np.round(xy, 3).tolist(), gap, e)
+                    reasons.append(str(e))
+        raise PlanningError(f"cannot put object {env.held_object} down on {target!r} ({len(places)} places "
+                            f"tried): {reasons[0] if reasons else ''}")
 
     @staticmethod
     def _put_down(env, world, to_above, down, support_body, held_body, held) -> ActionResult:
@@ -367,11 +365,20 @@ class Lower(PrimitiveAction):
         env.open_gripper()
         env.hold(0.5)
         world = ctx.collision_world(env)
+        # The opened fingers may now brush a neighbour: rising straight up can only leave it, so the plan may
+        # start there; contacts in physics with anything but the released object still count.
         world.allow_contact([held_body])
+        m = env.model
+        near = {m.body(name).id for pair in world.contacts(env.arm_q()) for name in pair} - world.robot_bodies
+        world.allow_contact({held_body} | near)
         pose = env.ee_pose()
-        retreat = ctx.planner(env, "straight_line").plan(
-            env.arm_q(), PoseGoal(Pose(pose.pos + [0.0, 0.0, 0.08], pose.quat), 0.005, 0.05), world)
-        third = ctx.execute(env, retreat, world, allowed={held_body})
+        try:
+            retreat = ctx.planner(env, "straight_line").plan(
+                env.arm_q(), PoseGoal(Pose(pose.pos + [0.0, 0.0, 0.08], pose.quat), 0.005, 0.05), world)
+            third = ctx.execute(env, retreat, world, allowed={held_body})
+        except PlanningError as e:  # the object is down: the next move starts by rising clear of it
+            logger.info("no straight retreat after letting go (%s); the hand stays where it released", e)
+            third = ctx.MotionReport()
         env.hold(0.3)
         speed = float(np.linalg.norm(env.data.cvel[held_body][3:]))
         contacts = first.unintended_contacts | second.unintended_contacts | third.unintended_contacts

@@ -1,0 +1,241 @@
+"""Putting a held object down: free places on the table from the objects' real footprints, and descents onto a
+place that are checked (reachable, continuous, collision-free) before anything moves.
+
+A footprint is the convex hull, seen from above, of a body's collision geometry in its current pose. The held
+object keeps its orientation while carried, so the centres where it would overlap another object form that
+object's footprint grown by the held one's (a Minkowski sum), grown again by the gap to keep; a place is free
+when it lies outside every such region.
+"""
+from __future__ import annotations
+
+import logging
+
+import mujoco
+import numpy as np
+
+from muble import PlanningError, Pose, PoseGoal, Trajectory
+from muble_plugins.primitives import context as ctx
+
+logger = logging.getLogger(__name__)
+
+PLACE_GAP = 0.015  # m kept between a placed object's footprint and the others'
+PLACE_SPACING = 0.01  # m between the places searched
+CANDIDATE_SPACING = 0.04  # m between the places a primitive tries in turn (neighbours fail alike)
+MAX_CANDIDATES = 20
+DESCENT_SEEDS = 6  # random arm configurations tried for a place the current arm cannot descend to
+RISE = 0.04  # m risen straight up to leave what the arm or held object touches at the start of a move
+_ANGLES = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
+_DISC = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1)  # unit circle, for round geoms and the gap
+
+
+def held_depth(env) -> float:
+    """How far the held object hangs below the grip site (0 when nothing is held)."""
+    if env.held_object is None:
+        return 0.0
+    m, d = env.model, env.data
+    b = m.body(env.names.objects[env.held_object]).id
+    lowest = min(geom_bottom(env, g) for g in np.flatnonzero(m.geom_bodyid == b)
+                 if m.geom_contype[g] or m.geom_conaffinity[g])
+    return float(env.ee_pose().pos[2] - lowest)
+
+
+def held_offset(env) -> np.ndarray:
+    """Horizontal offset (x, y) of the held object's centre from the grip site: fixed while it is held,
+    since the hand keeps its orientation when carrying and lowering."""
+    return env.object_pose(env.held_object).pos[:2] - env.ee_pose().pos[:2]
+
+
+def geom_bottom(env, g: int) -> float:
+    import mujoco
+
+    m, d = env.model, env.data
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = m.geom_dataid[g]
+        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+        verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
+        return float(verts[:, 2].min())
+    return float(d.geom_xpos[g][2] - m.geom_rbound[g])
+
+
+def clear_top(env, xy: np.ndarray, table_top: float, skip: int | None) -> float:
+    """The height to clear around ``xy``: the table top or whatever stands within 15 cm of it."""
+    near = [ctx.object_top(env, i) for i in env.names.objects if i != skip
+            and np.linalg.norm(env.object_pose(i).pos[:2] - xy) < 0.15]
+    return max([table_top] + near)
+
+
+def place_pose(env, xy: np.ndarray, support_top: float, gap: float) -> Pose:
+    """Grip-site pose that puts the held object's centre over ``xy``, its bottom ``gap`` above ``support_top``
+    (the hand keeps the orientation it carries the object with)."""
+    hand = np.asarray(xy, dtype=float) - held_offset(env)
+    return Pose(np.array([hand[0], hand[1], support_top + held_depth(env) + gap]), env.ee_pose().quat)
+
+
+def footprint(env, body: int) -> np.ndarray:
+    """World (x, y) points whose convex hull is the body's collision geometry seen from above."""
+    m, d = env.model, env.data
+    points = []
+    for g in np.flatnonzero(m.geom_bodyid == body):
+        if m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0:
+            continue
+        rot, pos = d.geom_xmat[g].reshape(3, 3), d.geom_xpos[g]
+        kind = m.geom_type[g]
+        if kind == mujoco.mjtGeom.mjGEOM_MESH:
+            mesh = m.geom_dataid[g]
+            start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+            points.append((m.mesh_vert[start:start + n] @ rot.T + pos)[:, :2])
+        elif kind == mujoco.mjtGeom.mjGEOM_BOX:
+            corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * m.geom_size[g]
+            points.append((corners @ rot.T + pos)[:, :2])
+        else:  # round shapes: their bounding circle
+            points.append(pos[:2] + m.geom_rbound[g] * _DISC)
+    if not points:
+        return d.xpos[body][:2][None].copy()
+    return _hull(np.vstack(points))
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return points[ConvexHull(points).vertices]
+    except (QhullError, ValueError):  # degenerate (a point or a line): keep the points themselves
+        return points
+
+
+def _forbidden(obstacle: np.ndarray, held: np.ndarray, gap: float) -> np.ndarray:
+    """Half-planes (a, b, c: a x + b y + c <= 0 inside) of the centres where ``held`` (points relative to its
+    centre) comes closer than ``gap`` to ``obstacle``."""
+    from scipy.spatial import ConvexHull
+
+    grown = (obstacle[:, None, :] - held[None, :, :]).reshape(-1, 2)
+    grown = (_hull(grown)[:, None, :] + gap * _DISC[None]).reshape(-1, 2)
+    return ConvexHull(grown).equations
+
+
+def free_places(env, lo: np.ndarray, hi: np.ndarray, held: int, prefer: np.ndarray | None = None,
+                gap: float = PLACE_GAP, spacing: float = PLACE_SPACING) -> list[np.ndarray]:
+    """Centres in the box ``lo``-``hi`` where the held object, as it is turned now, keeps ``gap`` from every
+    other object's footprint; nearest ``prefer`` (default: the box's centre) first."""
+    xs = np.arange(lo[0], hi[0] + 1e-9, spacing)
+    ys = np.arange(lo[1], hi[1] + 1e-9, spacing)
+    if len(xs) == 0 or len(ys) == 0:
+        return []
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    points = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    free = _free_mask(env, points, held, gap)
+    chosen = points[free]
+    prefer = 0.5 * (np.asarray(lo) + np.asarray(hi)) if prefer is None else np.asarray(prefer, dtype=float)
+    return list(chosen[np.argsort(np.linalg.norm(chosen - prefer, axis=1), kind="stable")])
+
+
+def _free_mask(env, points: np.ndarray, held: int, gap: float) -> np.ndarray:
+    m = env.model
+    held_body = m.body(env.names.objects[held]).id
+    held_shape = footprint(env, held_body) - env.data.xpos[held_body][:2]
+    free = np.ones(len(points), dtype=bool)
+    for i, name in env.names.objects.items():
+        if i == held:
+            continue
+        eq = _forbidden(footprint(env, m.body(name).id), held_shape, gap)
+        inside = np.all(points @ eq[:, :2].T + eq[:, 2] <= 0.0, axis=1)
+        free &= ~inside
+    return free
+
+
+def is_free(env, xy: np.ndarray, held: int, gap: float = PLACE_GAP) -> bool:
+    return bool(_free_mask(env, np.asarray(xy, dtype=float)[None], held, gap)[0])
+
+
+def spread(places: list[np.ndarray], spacing: float = CANDIDATE_SPACING, limit: int = MAX_CANDIDATES):
+    """The first places in order, each ``spacing`` or more from those already taken."""
+    out: list[np.ndarray] = []
+    for p in places:
+        if all(np.linalg.norm(p - q) >= spacing for q in out):
+            out.append(p)
+            if len(out) == limit:
+                break
+    return out
+
+
+def _reversed(path: Trajectory) -> Trajectory:
+    return Trajectory(path.q[::-1].copy(), path.t[-1] - path.t[::-1], path.joint_names)
+
+
+def plan_descent(env, world, place: Pose, above: np.ndarray, support: int) -> tuple[np.ndarray, Trajectory]:
+    """An arm configuration with the hand at ``above`` (collision-free) and the straight descent from it to
+    ``place`` (touching only ``support``): the arm's current branch first, then configurations found from the
+    place upwards, which avoid a singularity or joint limit met on the way down.
+
+    Raises ``PlanningError`` with the first reason when the place is out of reach or every descent is blocked.
+    """
+    line = ctx.planner(env, "straight_line")
+    above_goal = PoseGoal(Pose(np.asarray(above, dtype=float), place.quat), 0.005, 0.05)
+    place_goal = PoseGoal(place, 0.004, 0.05)
+    lim = world.joint_limits
+    seeds = [env.arm_q(), *np.random.default_rng(7).uniform(lim[:, 0], lim[:, 1], size=(DESCENT_SEEDS, len(lim)))]
+    reasons: list[str] = []
+    try:
+        world.allow_contact([])
+        q_above = world.inverse_kinematics(above_goal, seeds=seeds[0][None])
+        world.allow_contact([support])
+        return q_above, line.plan(q_above, place_goal, world)
+    except PlanningError as e:
+        reasons.append(str(e))
+        if "out of reach" in str(e):
+            raise
+    finally:
+        world.allow_contact([])
+    for seed in seeds:
+        try:
+            world.allow_contact([support])
+            q_place = world.local_inverse_kinematics(place_goal, seed)
+            up = line.plan(q_place, above_goal, world)
+            world.allow_contact([])
+            if not world.is_valid(up.q[-1]):
+                raise PlanningError(f"the pose above the place is in collision {world.last_contacts[:2]}")
+            world.allow_contact([support])
+            try:
+                return up.q[-1], line.plan(up.q[-1], place_goal, world)
+            except PlanningError:
+                return up.q[-1], _reversed(up)  # the same line, checked on the way up
+        except PlanningError as e:
+            reasons.append(str(e))
+        finally:
+            world.allow_contact([])
+    raise PlanningError(reasons[0])
+
+
+def clear_start(env, world) -> ctx.MotionReport | None:
+    """Where the arm or the held object starts in contact (a held object still touching what it stood on,
+    fingers beside the object just let go), rise straight up by ``RISE`` touching only that; ``None`` when the
+    start is clear. The caller re-syncs its collision world afterwards."""
+    world.allow_contact([])
+    q = env.arm_q()
+    if world.is_valid(q):
+        return None
+    m = env.model
+    own = set(world.robot_bodies)
+    if env.held_object is not None:
+        own.add(m.body(env.names.objects[env.held_object]).id)
+    touched = {m.body(name).id for pair in world.last_contacts for name in pair} - own
+    if not touched:
+        raise PlanningError(f"start configuration is in collision {world.last_contacts[:3]} (self-collision)")
+    world.allow_contact(touched)
+    pose = env.ee_pose()
+    rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, RISE], pose.quat), 0.005, 0.05)
+    trajectory = ctx.planner(env, "straight_line").plan(q, rise, world)
+    logger.info("starting in contact with %s: rising %.0f cm first", sorted(touched), RISE * 100)
+    return ctx.execute(env, trajectory, world, allowed=touched)
+
+
+
+def merge(*reports: ctx.MotionReport | None) -> ctx.MotionReport:
+    out = ctx.MotionReport()
+    for r in reports:
+        if r is None:
+            continue
+        out.duration += r.duration
+        out.final_error = r.final_error
+        out.unintended_contacts |= r.unintended_contacts
+    return out
