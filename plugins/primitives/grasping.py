@@ -21,6 +21,10 @@ PRE_GRASP = 0.10  # m back along the approach from the grasp pose where the stra
 PAD_MARGIN = 0.002  # m free on each side of an object between the open pads
 SQUEEZE_MARGIN = 0.001  # m by which the closed pads must be narrower than what they are to hold
 FINGER_TRAVEL = 0.8  # s of simulated time for the fingers to open or close fully when measuring them
+SWEEP_STEP = np.radians(6.0)  # rad between grasps swept about an object's vertical axis
+CLEAR_ENOUGH = 0.02  # m between the open hand and a neighbour beyond which a grasp is not ranked lower
+TOUCHING = 0.002  # m: an open hand closer than this to a neighbour at the grasp pose cannot be used there
+CROWDED = 10.0  # rank penalty putting such grasps after every other
 
 
 def _quat_mat(quat) -> np.ndarray:
@@ -172,7 +176,8 @@ def grasp_approach(grasp: Pose) -> np.ndarray:
 
 
 def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: float | None = None,
-                     rest_quat: np.ndarray | None = None, grip: GripGeometry | None = None) -> list[Pose]:
+                     rest_quat: np.ndarray | None = None, grip: GripGeometry | None = None,
+                     clearance=None) -> list[Pose]:
     """World grip-site poses for grasping, best first.
 
     A grasp frame (object coordinates) places the pads' midpoint, x along the fingers' closing direction and z
@@ -182,6 +187,12 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
     symmetric, the wrist's limits are not); boxes, and cylinders gripped about their axis, also get the quarter
     turns, since those grasps work from any side. Top-down grasps come first, then those whose closing direction
     is nearest the hand's at ``rest_quat`` (less wrist travel).
+
+    With ``clearance`` (a grip-site pose -> metres, e.g. ``hand_clearance``), frames that hold the same way from
+    any direction around the object (rim pinches within their flat wall piece, grasps about the object's axis)
+    are also tried swept about the vertical axis in ``SWEEP_STEP`` steps, so that the hand can face away from a
+    neighbour; candidates whose open hand comes closer than ``CLEAR_ENOUGH`` to anything but the target are
+    ranked lower in proportion, and those where it already touches something go last.
     """
     if max_width is None:
         max_width = grip.max_width if grip is not None else np.inf
@@ -195,23 +206,119 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
     for index, frame in enumerate(model.grasp_frames):
         if not min_width <= frame.width <= max_width:
             continue
-        pos, quat = _compose(object_pose.pos, object_pose.quat, frame.position, frame.quat)
-        yaws = [0.0, np.pi]
         on_axis = float(np.hypot(frame.position[0], frame.position[1])) < 1e-3
-        if model.grasp_type == "box" or (model.grasp_type == "cylinder" and on_axis):
-            yaws += [np.pi / 2, -np.pi / 2]
-        for yaw in yaws:
-            q = _turned(quat, yaw)
-            approach, closing = _axis(q, 2), _axis(q, 0)
-            # The fingertips reach past the pads along the approach; they must stay off the table top.
-            p = pos.copy()
-            p[2] = max(p[2], table_top + TABLE_CLEARANCE + tip * max(0.0, -approach[2]))
-            tilt = float(np.arccos(np.clip(-approach[2], -1.0, 1.0)))
-            turn = float(np.arccos(min(1.0, abs(float(closing @ rest_x))))) if rest_x is not None else 0.0
-            site = grip.site_pose(Pose(p, q), frame.width) if grip is not None else Pose(p, q)
-            scored.append((tilt + 0.3 * turn + 0.002 * index, len(scored), site))
+        sweeps = [(0.0, 1.0)]
+        if clearance is not None:
+            sweeps = _sweeps(frame, model.grasp_frames, on_axis, model.grasp_type)
+        for sweep, stretch in sweeps:
+            position, frame_quat = _swept(frame, sweep, stretch)
+            pos, quat = _compose(object_pose.pos, object_pose.quat, position, frame_quat)
+            yaws = [0.0, np.pi]
+            if model.grasp_type == "box" or (model.grasp_type == "cylinder" and on_axis):
+                yaws += [np.pi / 2, -np.pi / 2]
+            for yaw in yaws:
+                q = _turned(quat, yaw)
+                approach, closing = _axis(q, 2), _axis(q, 0)
+                # The fingertips reach past the pads along the approach; they must stay off the table top.
+                p = pos.copy()
+                p[2] = max(p[2], table_top + TABLE_CLEARANCE + tip * max(0.0, -approach[2]))
+                tilt = float(np.arccos(np.clip(-approach[2], -1.0, 1.0)))
+                turn = float(np.arccos(min(1.0, abs(float(closing @ rest_x))))) if rest_x is not None else 0.0
+                site = grip.site_pose(Pose(p, q), frame.width * stretch) if grip is not None else Pose(p, q)
+                score = tilt + 0.3 * turn + 0.002 * index + 0.001 * abs(sweep)
+                if clearance is not None:
+                    free = clearance(site)
+                    if sweep != 0.0 and free < TOUCHING:
+                        continue  # an extra that cannot be used here
+                    score += CROWDED if free < TOUCHING else max(0.0, CLEAR_ENOUGH - free) / CLEAR_ENOUGH
+                scored.append((score, len(scored), site))
     scored.sort(key=lambda item: item[:2])
     return [pose for *_, pose in scored]
+
+
+def _sweeps(frame, frames, on_axis: bool, grasp_type: str) -> list[tuple[float, float]]:
+    """(angle about the object's vertical axis, radial stretch) for the swept copies of a frame.
+
+    A frame on the axis turns freely (the body is round): a third of the way to the next of the 45-degree set
+    either side. A rim pinch (off the axis, closing radially) slides along its flat wall piece, short of the
+    corners: the pads close across the same wall, now slanted by the sweep angle, so the frame moves out to the
+    wall's middle there (1 / cos). Other frames (a handle, a box) hold one place only.
+    """
+    if grasp_type == "box":
+        return [(0.0, 1.0)]
+    if on_axis:
+        return [(a, 1.0) for a in (0.0, -np.pi / 12, np.pi / 12)]
+    radial = np.array([frame.position[0], frame.position[1], 0.0])
+    closing = _quat_mat(frame.quat)[:, 0].copy()
+    closing[2] = 0.0
+    size = np.linalg.norm(closing) * np.linalg.norm(radial)
+    if size < 1e-9 or abs(closing @ radial) < 0.99 * size:
+        return [(0.0, 1.0)]
+    half = 0.5 * _piece_angle(frame, frames)
+    steps = int(np.floor(0.75 * half / SWEEP_STEP))
+    return [(k * SWEEP_STEP, 1.0 / np.cos(k * SWEEP_STEP)) for k in (0, *range(-steps, 0), *range(1, steps + 1))]
+
+
+def _piece_angle(frame, frames) -> float:
+    """Angle between a rim pinch and its nearest sibling on the same rim (one wall piece of the rim)."""
+    r0, z0 = np.hypot(*frame.position[:2]), frame.position[2]
+    a0 = np.arctan2(frame.position[1], frame.position[0])
+    gaps = [abs(np.remainder(np.arctan2(f.position[1], f.position[0]) - a0 + np.pi, 2 * np.pi) - np.pi)
+            for f in frames if f is not frame and abs(np.hypot(*f.position[:2]) - r0) < 0.002
+            and abs(f.position[2] - z0) < 0.002]
+    gaps = [g for g in gaps if g > 1e-3]
+    return float(min(gaps)) if gaps else np.pi / 5
+
+
+def _swept(frame, angle: float, stretch: float) -> tuple[np.ndarray, np.ndarray]:
+    """A frame's position and orientation turned by ``angle`` about the object's vertical axis, its radial
+    distance scaled by ``stretch``."""
+    pos = np.asarray(frame.position, dtype=float)
+    if angle == 0.0 and stretch == 1.0:
+        return pos, np.asarray(frame.quat, dtype=float)
+    c, s = np.cos(angle), np.sin(angle)
+    pos = np.array([stretch * (c * pos[0] - s * pos[1]), stretch * (s * pos[0] + c * pos[1]), pos[2]])
+    spin = np.array([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)])
+    out = np.empty(4)
+    mujoco.mju_mulQuat(out, spin, np.asarray(frame.quat, dtype=float))
+    return pos, out
+
+
+def hand_clearance(world, target_body: int | str, ignore=(), reach: float = CLEAR_ENOUGH):
+    """A function of a grip-site pose: the smallest distance (capped at ``reach``) between the gripper as it is
+    now (fingers open) placed at that pose and any collidable body but ``target_body``, the ``ignore`` bodies
+    (the table: ``TABLE_CLEARANCE`` already keeps the fingers off it) and the robot, from the collision world's
+    model. The arm is left out: this ranks grasps cheaply before any inverse kinematics.
+    """
+    m = world.model
+    skip = {m.body(b).id if isinstance(b, str) else int(b) for b in (target_body, *ignore)}
+    d = mujoco.MjData(m)
+    d.qpos[:] = world.data.qpos
+    mujoco.mj_kinematics(m, d)
+    site = world.kinematics.site_id
+    site_rot, site_pos = d.site_xmat[site].reshape(3, 3).copy(), d.site_xpos[site].copy()
+    collidable = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
+    hand = np.flatnonzero(collidable & np.isin(m.geom_bodyid, list(world.gripper_bodies)))
+    others = np.flatnonzero(collidable & ~np.isin(m.geom_bodyid, list(world.robot_bodies | skip)))
+    rel_pos = [site_rot.T @ (d.geom_xpos[g] - site_pos) for g in hand]
+    rel_rot = [site_rot.T @ d.geom_xmat[g].reshape(3, 3) for g in hand]
+    other_pos = d.geom_xpos[others].copy()
+    other_r = m.geom_rbound[others]
+
+    def clearance(pose: Pose) -> float:
+        rot = _quat_mat(pose.quat)
+        best = reach
+        for g, p, r in zip(hand, rel_pos, rel_rot):
+            centre = pose.pos + rot @ p
+            d.geom_xpos[g] = centre
+            d.geom_xmat[g] = (rot @ r).ravel()
+            # Bounding spheres first; a zero bound (a plane) is always measured.
+            near = (other_r == 0) | (np.linalg.norm(other_pos - centre, axis=1) - other_r - m.geom_rbound[g] < best)
+            for o in others[near]:
+                best = min(best, mujoco.mj_geomDistance(m, d, int(g), int(o), best, None))
+        return float(best)
+
+    return clearance
 
 
 def footprint_radius(extents: np.ndarray) -> float:

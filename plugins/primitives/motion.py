@@ -13,7 +13,7 @@ from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, Primit
 from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
-from muble_plugins.primitives.grasping import PRE_GRASP, grasp_approach, grasp_candidates
+from muble_plugins.primitives.grasping import PRE_GRASP, grasp_approach, grasp_candidates, hand_clearance
 
 logger = logging.getLogger(__name__)
 
@@ -22,6 +22,7 @@ TABLE_PARTS = ("left", "right", "front", "back", "centre")
 # not already press on it, or closing would not pinch it between the pads.
 TARGET_TOUCH = 0.001
 GRIP_BACKOFF = 0.03  # m a grasp may be moved back along its approach to clear the target
+PRE_GRASP_HIGH = 0.18  # m above a top-down grasp for the second pre-grasp tried
 PAD_OVERLAP = 0.004  # m the pads' middle stays inside the object when a grasp is backed off
 PAD_HALF_WIDTH = 0.006  # m: the part of an object between the pads, across the closing direction
 RELEASE_GAPS = (0.004, 0.015, 0.03)  # m between the held object's bottom and its support when let go
@@ -132,8 +133,10 @@ class Approach(PrimitiveAction):
         model = env.object_models[obj_id]
         table = ctx.table(env)
         grip = ctx.grip_geometry(env)
+        # Ranked by how far the open hand stays from the neighbours, with more directions around round objects.
         candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z,
-                                      rest_quat=ctx.world_rest_quat(env), grip=grip)
+                                      rest_quat=ctx.world_rest_quat(env), grip=grip,
+                                      clearance=hand_clearance(world, body, ignore=[table.body]))
         if not candidates:
             env.restore(snap)
             raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
@@ -176,13 +179,22 @@ class Approach(PrimitiveAction):
                 break
         else:
             raise PlanningError(f"the open fingers would pierce the target at {np.round(grasp.pos, 3).tolist()}")
-        pre = PoseGoal(Pose(goal.pose.pos - approach * PRE_GRASP, grasp.quat), 0.005, 0.05)
-        world.allow_contact([])
-        q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
-        world.allow_contact([body])
-        down = ctx.planner(env, "straight_line").plan(q_pre, goal, world)
-        if not _touches_lightly(world, down.q):
-            raise PlanningError("the descent would push the fingers through the target")
+        # From above, a pre-grasp higher over the object (the arm clear of tall neighbours) when the usual one
+        # fails; the move in is always straight along the approach.
+        backs = (PRE_GRASP, PRE_GRASP_HIGH) if approach[2] < -0.9 else (PRE_GRASP,)
+        for k, back in enumerate(backs):
+            try:
+                pre = PoseGoal(Pose(goal.pose.pos - approach * back, grasp.quat), 0.005, 0.05)
+                world.allow_contact([])
+                q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
+                world.allow_contact([body])
+                down = ctx.planner(env, "straight_line").plan(q_pre, goal, world)
+                if not _touches_lightly(world, down.q):
+                    raise PlanningError("the descent would push the fingers through the target")
+                break
+            except PlanningError:
+                if k == len(backs) - 1:
+                    raise
         world.allow_contact([])
         to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world)
         return to_pre, down
