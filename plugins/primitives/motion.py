@@ -23,6 +23,7 @@ TABLE_PARTS = ("left", "right", "front", "back", "centre")
 TARGET_TOUCH = 0.001
 GRIP_BACKOFF = 0.03  # m a grasp may be moved back along its approach to clear the target
 PRE_GRASP_HIGH = 0.18  # m above a top-down grasp for the second pre-grasp tried
+PRE_GRASP_TRACKING = 0.05  # rad any arm joint may lag the pre-grasp configuration before the descent
 PAD_OVERLAP = 0.004  # m the pads' middle stays inside the object when a grasp is backed off
 PAD_HALF_WIDTH = 0.006  # m: the part of an object between the pads, across the closing direction
 RELEASE_GAPS = (0.004, 0.015, 0.03)  # m between the held object's bottom and its support when let go
@@ -152,6 +153,19 @@ class Approach(PrimitiveAction):
             world.allow_contact([])
             first = ctx.execute(env, to_pre, world)
             env.hold(0.3)
+            for _ in range(2):
+                # A long swing can leave a weak wrist joint far behind its set-point (the other joints' motion
+                # drags it); descending from there would meet the object with the hand turned, so move again.
+                if not np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
+                    break
+                world.allow_contact([])
+                first = ctx.execute(env, ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(to_pre.q[-1]), world),
+                                    world)
+                env.hold(0.3)
+            if np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
+                env.restore(snap)
+                raise PlanningError(f"the arm did not reach the pre-grasp pose over object {obj_id} "
+                                    f"(joint error {np.max(np.abs(env.arm_q() - to_pre.q[-1])):.2f} rad)")
             env.tare()  # the empty hand, still: the zero for weighing
             world = ctx.collision_world(env)
             second = ctx.execute(env, down.__class__(
