@@ -6,7 +6,6 @@ keyframes, a GIF and a manifest under the run's output folder. The last line pri
 """
 from __future__ import annotations
 
-import json
 import logging
 from pathlib import Path
 
@@ -21,11 +20,17 @@ from muble.plugins.registry import get_registry
 log = logging.getLogger(__name__)
 
 
-def build_components(cfg: DictConfig) -> dict[str, object]:
-    """Instantiate every configured plugin through the registry (a typo in any option fails here, early)."""
+def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) -> dict[str, object]:
+    """Instantiate every configured plugin through the registry (a typo in any option fails here, early).
+
+    ``renderer=False`` leaves the renderer out (None); ``task=False`` the task (when each instruction names its own).
+    """
     registry = get_registry()
-    components = {}
+    components: dict[str, object] = {}
     for kind, group in GROUP_OF_KIND.items():
+        if (kind == "renderer" and not renderer) or (kind == "task" and not task):
+            components[kind] = None
+            continue
         node = cfg[group]
         components[kind] = registry.create(kind, node.name, node)
     components["sensors"] = {name: registry.create("sensor", name, options or {})
@@ -56,7 +61,7 @@ def job(cfg: DictConfig) -> dict:
     components = build_components(cfg)
     manifest = make_manifest({"seed": cfg.seed, "scene_index": cfg.scene_index},
                              OmegaConf.to_container(cfg, resolve=True))
-    summary = {kind: type(c).__name__ for kind, c in components.items() if kind != "sensors"}
+    summary = {kind: type(c).__name__ for kind, c in components.items() if kind != "sensors" and c is not None}
     if cfg.dry_run:
         write_json_atomic(out_dir / "manifest.json", manifest, indent=2)
         print(f"muble run: dry run; built {', '.join(f'{k}={v}' for k, v in summary.items())}; "

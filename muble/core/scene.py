@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from muble.core.errors import SceneValidationError
 
 TABLE_PARTS = ("left", "right", "front", "back", "centre")
 RELATIONS = ("behind", "front", "left", "right")

@@ -41,16 +41,16 @@ def split_seed(seed: int, split: str) -> int:
     return int(seed) * 1_000_003 + zlib.crc32(split.encode())
 
 
-def _components(config: dict[str, Any]) -> dict[str, Any]:
-    """The configured plugins, built once per process (and config)."""
-    key = json.dumps(config, sort_keys=True, default=str)
+def cached_components(config: dict[str, Any], renderer: bool = True, task: bool = True) -> dict[str, Any]:
+    """The configured plugins, built once per worker process (and config): workers run many indices."""
+    key = json.dumps([config, renderer, task], sort_keys=True, default=str)
     if key not in _components_cache:
         from omegaconf import OmegaConf
 
         from muble.app.run import build_components
 
         _components_cache.clear()
-        _components_cache[key] = build_components(OmegaConf.create(config))
+        _components_cache[key] = build_components(OmegaConf.create(config), renderer=renderer, task=task)
     return _components_cache[key]
 
 
@@ -79,7 +79,7 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     ds = cfg["dataset"]
     layout = DatasetLayout(Path(ds["root"]), job.split)
     out = layout.split_dir
-    components = _components(cfg)
+    components = cached_components(cfg)
     registry = get_registry()
     seed = split_seed(cfg["seed"], job.split)
     generator_options = dict(cfg["generator"], split=job.split)

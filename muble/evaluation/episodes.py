@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import logging
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -16,19 +15,12 @@ import numpy as np
 
 from muble.core.errors import ConfigError, MubleError
 from muble.dataset.layout import PREFIX, DatasetLayout
+from muble.dataset.production import IndexJob, cached_components
 
 log = logging.getLogger(__name__)
 
-_components_cache: dict[str, Any] = {}
-
-
-@dataclass(frozen=True)
-class EvalJob:
-    """One unit of work: the resolved config (plain data, picklable), the split and the scene index."""
-
-    config: dict[str, Any]
-    split: str
-    index: int
+# One unit of evaluation work: the same (config, split, index) record as a dataset job.
+EvalJob = IndexJob
 
 
 def split_indices(layout: DatasetLayout) -> list[int]:
@@ -46,27 +38,9 @@ def split_indices(layout: DatasetLayout) -> list[int]:
 
 
 def build_components(config: dict[str, Any]) -> dict[str, Any]:
-    """The configured plugins, built once per process and config; no renderer unless ``evaluation.render``."""
-    key = json.dumps(config, sort_keys=True, default=str)
-    if key not in _components_cache:
-        from omegaconf import OmegaConf
-
-        from muble.app.config import GROUP_OF_KIND
-        from muble.plugins.registry import get_registry
-
-        cfg = OmegaConf.create(config)
-        registry = get_registry()
-        components: dict[str, Any] = {}
-        for kind, group in GROUP_OF_KIND.items():
-            if kind == "renderer" and not cfg.evaluation.render:
-                components[kind] = None
-            elif kind != "task":  # each instruction names its own task (its template)
-                components[kind] = registry.create(kind, cfg[group].name, cfg[group])
-        components["sensors"] = {name: registry.create("sensor", name, options or {})
-                                 for name, options in cfg.sensors.enabled.items()}
-        _components_cache.clear()
-        _components_cache[key] = components
-    return _components_cache[key]
+    """The configured plugins, once per process and config; no renderer unless ``evaluation.render``, and no task
+    (each instruction names its own template)."""
+    return cached_components(config, renderer=bool(config["evaluation"]["render"]), task=False)
 
 
 def plain(value: Any) -> Any:

@@ -8,7 +8,6 @@ robosuite builds its arena with the floor at z = 0; everything it places is shif
 from __future__ import annotations
 
 import logging
-import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
@@ -19,7 +18,7 @@ from muble.core.camera import CameraParams
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
-from muble.sim.object_mjcf import object_body_name, object_mjcf
+from muble.sim.object_mjcf import object_mjcf
 
 logger = logging.getLogger(__name__)
 
