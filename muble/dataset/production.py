@@ -71,7 +71,7 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     """Generate and write everything of one scene index; returns (index, {relative path: sha256})."""
     from muble.core.scene_io import scene_to_dict
     from muble.core.instructions_io import instruction_to_dict
-    from muble.episode.runner import png_bytes, write_episode
+    from muble.episode.runner import instruction_rng, png_bytes, write_episode
     from muble.generation.generator import SceneGenerator
     from muble.plugins.registry import get_registry
 
@@ -95,7 +95,7 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     weights = np.asarray(ds["template_weights"] or [1.0] * len(tasks), dtype=float)
     if len(weights) != len(tasks) or np.any(weights < 0) or weights.sum() <= 0:
         raise ConfigError("dataset.template_weights needs one non-negative weight per template, not all zero")
-    rng = np.random.default_rng([seed, job.index, 1])
+    rng = instruction_rng(seed, job.index)
     task, instruction = choose_instruction(tasks, weights / weights.sum(), scene, rng)
 
     from muble.app.run import episode_runner

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import io
+import json
 import logging
 import time
 from dataclasses import dataclass, field
@@ -18,6 +19,8 @@ import numpy as np
 from muble.core.errors import ConfigError
 from muble.core.interfaces import Instruction, MotionPlanner, Renderer, Task
 from muble.core.scene import SceneGraph
+from muble.core.scene_io import scene_to_dict
+from muble.dataset.atomic import write_bytes_atomic
 from muble.core.types import Frame
 from muble.episode.loop import EpisodeResult, StepRecord, run_episode
 from muble.episode.physical import PhysicalWorld
@@ -172,17 +175,9 @@ class EpisodeRunner:
         timing.physics = timing.total - timing.planning - timing.rendering
         return EpisodeOutput(scene, instruction, result, keyframes, timing=timing)
 
-    @staticmethod
-    def sequence(output: EpisodeOutput, image_paths: list[str]) -> dict[str, Any]:
-        return sequence_dict(output.instruction, output.result, image_paths)
-
 
 def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool = True) -> dict[str, str]:
     """Write keyframes, GIF and sequence file atomically; returns {relative path: sha256}."""
-    from muble.core.scene_io import scene_to_dict
-    from muble.dataset.atomic import write_bytes_atomic
-    import json
-
     written: dict[str, str] = {}
     paths = []
     for i, rgb in enumerate(output.keyframes):

@@ -38,7 +38,7 @@ def settle(placements: list[tuple[ObjectModel, tuple, tuple]], seconds: float = 
     qpos = data.qpos.reshape(n, 7)
     qvel = data.qvel.reshape(n, 6)
     # Tilt: angle between the body z axis and the world z axis.
-    w, x, y, z = qpos[:, 3], qpos[:, 4], qpos[:, 5], qpos[:, 6]
+    x, y = qpos[:, 4], qpos[:, 5]
     cos_tilt = np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0)
     touching, penetration = set(), 0.0
     for c in data.contact[: data.ncon]:

@@ -32,7 +32,7 @@ def held_depth(env) -> float:
     """How far the held object hangs below the grip site (0 when nothing is held)."""
     if env.held_object is None:
         return 0.0
-    m, d = env.model, env.data
+    m = env.model
     b = m.body(env.names.objects[env.held_object]).id
     lowest = min(geom_bottom(env, g) for g in np.flatnonzero(m.geom_bodyid == b)
                  if m.geom_contype[g] or m.geom_conaffinity[g])
