@@ -60,6 +60,15 @@ def grip_geometry(env):
     return grip
 
 
+def pad_gap(env) -> float:
+    """Distance (m) between the inner faces of the finger pads as the fingers are now."""
+    from muble_plugins.primitives.grasping import pad_faces
+
+    left = [env.model.geom(n).id for n in env.names.left_pads]
+    right = [env.model.geom(n).id for n in env.names.right_pads]
+    return pad_faces(env.model, env.data, env.model.site(env.ee_site).id, left, right)[2]
+
+
 def planner(env, name: str) -> MotionPlanner:
     """The environment's configured planner for long moves (``env.planner``) or a built-in one by name."""
     configured = getattr(env, "planner", None)

@@ -79,7 +79,7 @@ class GripGeometry:
         return Pose(frame.pos - site_rot @ self.centre(width), _mat_quat(site_rot))
 
 
-def _pad_faces(m, d, site: int, left: list[int], right: list[int]) -> tuple[np.ndarray, np.ndarray, float]:
+def pad_faces(m, d, site: int, left: list[int], right: list[int]) -> tuple[np.ndarray, np.ndarray, float]:
     """(closing axis, pad midpoint, gap between inner faces), site frame, from the finger pad geoms."""
     rot, origin = d.site_xmat[site].reshape(3, 3), d.site_xpos[site]
     centres = [np.mean([rot.T @ (d.geom_xpos[g] - origin) for g in pads], axis=0) for pads in (left, right)]
@@ -121,7 +121,7 @@ def measure_grip(env) -> GripGeometry:
         for _ in range(int(FINGER_TRAVEL / m.opt.timestep)):
             mujoco.mj_step(m, d)
         mujoco.mj_forward(m, d)
-        states[name] = _pad_faces(m, d, site, left, right)
+        states[name] = pad_faces(m, d, site, left, right)
     closing, open_centre, open_gap = states["open"]
     _, closed_centre, closed_gap = states["closed"]
     approach = np.array([0.0, 0.0, 1.0])  # robosuite grip sites point out of the hand along z

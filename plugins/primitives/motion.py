@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import logging
 
+import mujoco
 import numpy as np
 
 from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, PrimitiveAction
 from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
-from muble_plugins.primitives.grasping import PRE_GRASP, grasp_approach, grasp_candidates, hand_clearance
+from muble_plugins.primitives.grasping import PAD_MARGIN, PRE_GRASP, grasp_approach, grasp_candidates, hand_clearance
 
 logger = logging.getLogger(__name__)
 
@@ -24,9 +25,13 @@ TARGET_TOUCH = 0.001
 GRIP_BACKOFF = 0.03  # m a grasp may be moved back along its approach to clear the target
 PRE_GRASP_HIGH = 0.18  # m above a top-down grasp for the second pre-grasp tried
 PRE_GRASP_TRACKING = 0.05  # rad any arm joint may lag the pre-grasp configuration before the descent
+PRESHAPE_COMMANDS = (0.0,)  # gripper commands (-1 open, 1 closed) tried after the fully open hand
+PRESHAPE_SETTLE = 0.5  # s for the fingers to reach a part-way opening
+PRESHAPE_SLACK = 0.002  # m the part-way opening may still close while the arm moves
 PAD_OVERLAP = 0.004  # m the pads' middle stays inside the object when a grasp is backed off
 PAD_HALF_WIDTH = 0.006  # m: the part of an object between the pads, across the closing direction
 RELEASE_GAPS = (0.004, 0.015, 0.03)  # m between the held object's bottom and its support when let go
+CARRY_TURNS = tuple(np.radians([0, 45, -45, 90, -90, 135, -135, 180]))  # rad tried turning a carried object
 PUT_BACK_RADIUS = 0.05  # m a put-down without a target may shift the object to find a free place
 
 
@@ -61,11 +66,23 @@ class Move(PrimitiveAction):
             rise = placement.clear_start(env, ctx.collision_world(env))
             world = ctx.collision_world(env)
             if isinstance(target, str) and env.held_object is not None:
-                goal = JointGoal(self._over_free_place(env, world, target))
+                goals = [JointGoal(self._over_free_place(env, world, target))]
+            elif env.held_object is not None:
+                # Over an object near the edge of the workspace the hand may have to turn about the vertical
+                # (the object turning with it) to reach; the smallest turn that works is taken.
+                goals = [self._hover_goal(env, target, yaw) for yaw in CARRY_TURNS]
             else:
-                goal = self._hover_goal(env, target)
-            world.allow_contact([])
-            trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), goal, world)
+                goals = [self._hover_goal(env, target)]
+            reasons = []
+            for goal in goals:
+                world.allow_contact([])
+                try:
+                    trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), goal, world)
+                    break
+                except PlanningError as e:
+                    reasons.append(e)
+            else:
+                raise reasons[0]
         except PlanningError:
             env.restore(snap)
             raise
@@ -73,7 +90,7 @@ class Move(PrimitiveAction):
         return _result(placement.merge(rise, report), target=target)
 
     @staticmethod
-    def _hover_goal(env, target) -> PoseGoal:
+    def _hover_goal(env, target, yaw: float = 0.0) -> PoseGoal:
         table = ctx.table(env)
         if isinstance(target, str):
             lo, hi = table.part_region(target)
@@ -83,9 +100,12 @@ class Move(PrimitiveAction):
         quat = ctx.top_down(env)
         if env.held_object is not None:
             # Carrying: the hand keeps its orientation (the object stays as it was lifted, whatever the grasp)
-            # and the object's centre, not the hand, comes over the target, ready to be lowered onto it.
-            quat = env.ee_pose().quat
-            xy = xy - placement.held_offset(env)
+            # and the object's centre, not the hand, comes over the target, ready to be lowered onto it. Turned
+            # by ``yaw`` about the vertical, the object's offset from the hand turns too.
+            c, s = np.cos(yaw), np.sin(yaw)
+            quat = np.empty(4)
+            mujoco.mju_mulQuat(quat, np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]), env.ee_pose().quat)
+            xy = xy - np.array([[c, -s], [s, c]]) @ placement.held_offset(env)
         if isinstance(target, str):
             top = max(top, placement.clear_top(env, xy, table.top_z, env.held_object))
         return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat)
@@ -128,55 +148,67 @@ class Approach(PrimitiveAction):
         if env.held_object is not None:
             raise PlanningError(f"the hand already holds object {env.held_object}; lower it before approaching")
         snap = env.snapshot()
-        env.open_gripper()
-        env.hold(0.3)
-        world = ctx.collision_world(env)
         model = env.object_models[obj_id]
-        table = ctx.table(env)
         grip = ctx.grip_geometry(env)
-        # Ranked by how far the open hand stays from the neighbours, with more directions around round objects.
-        candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z,
-                                      rest_quat=ctx.world_rest_quat(env), grip=grip,
-                                      clearance=hand_clearance(world, body, ignore=[table.body]))
-        if not candidates:
-            env.restore(snap)
-            raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
-                                f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "
-                                "choose another robot.gripper or object")
-        reasons = []
-        for grasp in candidates:
-            try:
-                to_pre, down = self._plan(env, world, body, grasp, grip)
-            except PlanningError as e:
-                reasons.append(str(e))
-                continue
-            world.allow_contact([])
-            first = ctx.execute(env, to_pre, world)
-            env.hold(0.3)
-            for _ in range(2):
-                # A long swing can leave a weak wrist joint far behind its set-point (the other joints' motion
-                # drags it); descending from there would meet the object with the hand turned, so move again.
-                if not np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
-                    break
-                world.allow_contact([])
-                first = ctx.execute(env, ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(to_pre.q[-1]), world),
-                                    world)
-                env.hold(0.3)
-            if np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
-                env.restore(snap)
-                raise PlanningError(f"the arm did not reach the pre-grasp pose over object {obj_id} "
-                                    f"(joint error {np.max(np.abs(env.arm_q() - to_pre.q[-1])):.2f} rad)")
-            env.tare()  # the empty hand, still: the zero for weighing
+        reasons, tried = [], 0
+        # Fully open first; in clutter (or next to the object's own handle) a hand opened only part way, still
+        # wide enough for a rim or a handle, may fit where the open one touches something.
+        for command in (-1.0, *PRESHAPE_COMMANDS):
+            env.set_gripper(command)
+            if command == -1.0:
+                env.hold(0.3)  # the fingers go on opening on the way; the measured open gap applies
+                max_width = grip.max_width
+            else:
+                env.hold(PRESHAPE_SETTLE)
+                max_width = ctx.pad_gap(env) - 2 * PAD_MARGIN - PRESHAPE_SLACK
             world = ctx.collision_world(env)
-            second = ctx.execute(env, down.__class__(
-                np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names), world,
-                allowed={env.model.body(body).id})
-            report = ctx.MotionReport(first.duration + second.duration, second.final_error,
-                                      first.unintended_contacts | second.unintended_contacts)
-            return _result(report, target=obj_id, grasp_pos=grasp.pos.tolist(), candidates_tried=len(reasons) + 1)
+            # Ranked by how far the hand stays from the neighbours, with more directions around round objects.
+            candidates = grasp_candidates(env.object_pose(obj_id), model, ctx.table(env).top_z, max_width=max_width,
+                                          rest_quat=ctx.world_rest_quat(env), grip=grip,
+                                          clearance=hand_clearance(world, body, ignore=[ctx.table(env).body]))
+            if not candidates and command == -1.0:
+                env.restore(snap)
+                raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
+                                    f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "
+                                    "choose another robot.gripper or object")
+            tried += len(candidates)
+            for grasp in candidates:
+                try:
+                    to_pre, down = self._plan(env, world, body, grasp, grip)
+                except PlanningError as e:
+                    reasons.append(str(e))
+                    continue
+                return self._go(env, snap, obj_id, body, to_pre, down, grasp, len(reasons) + 1)
         env.restore(snap)
         raise PlanningError(f"no grasp of object {obj_id} is reachable without collision "
-                            f"({len(candidates)} tried): {reasons[0] if reasons else ''}")
+                            f"({tried} tried): {reasons[0] if reasons else ''}")
+
+    @staticmethod
+    def _go(env, snap, obj_id: int, body: str, to_pre, down, grasp: Pose, tried: int) -> ActionResult:
+        world = ctx.collision_world(env)
+        first = ctx.execute(env, to_pre, world)
+        env.hold(0.3)
+        for _ in range(2):
+            # A long swing can leave a weak wrist joint far behind its set-point (the other joints' motion
+            # drags it); descending from there would meet the object with the hand turned, so move again.
+            if not np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
+                break
+            world.allow_contact([])
+            first = ctx.execute(env, ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(to_pre.q[-1]), world),
+                                world)
+            env.hold(0.3)
+        if np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
+            env.restore(snap)
+            raise PlanningError(f"the arm did not reach the pre-grasp pose over object {obj_id} "
+                                f"(joint error {np.max(np.abs(env.arm_q() - to_pre.q[-1])):.2f} rad)")
+        env.tare()  # the empty hand, still: the zero for weighing
+        world = ctx.collision_world(env)
+        second = ctx.execute(env, down.__class__(
+            np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names), world,
+            allowed={env.model.body(body).id})
+        report = ctx.MotionReport(first.duration + second.duration, second.final_error,
+                                  first.unintended_contacts | second.unintended_contacts)
+        return _result(report, target=obj_id, grasp_pos=grasp.pos.tolist(), candidates_tried=tried)
 
     @staticmethod
     def _plan(env, world, body: str, grasp: Pose, grip):
