@@ -140,3 +140,28 @@ def test_planning_ur5e_with_its_robotiq_gripper_picks_and_weighs_a_can_a_thermos
             assert abs(grams - model.spec.weight_g) < 0.01 * model.spec.weight_g, (model.spec.model, grams)
     finally:
         env.close()
+
+
+@pytest.mark.slow
+def test_planning_mug_hemmed_in_by_wine_glasses_is_grasped_from_above_it_with_the_hand_part_open():
+    """A mug 9 cm from a wine glass, its handle towards another: from the hover pose over it, every rim grasp with
+    the fully open hand touches a glass or the mug's own handle; the hand opened part way fits and holds it."""
+    from pathlib import Path
+
+    from muble.core.scene_io import load_scene
+    from muble.sim.build import env_from_object_set
+
+    scene = load_scene(Path(__file__).parent / "data" / "mug_handle_between_wine_glasses.json")
+    mug = next(o for o in scene.objects if o.name == "mug")
+    env = env_from_object_set(scene, "shopvrb2")
+    try:
+        for name, params in [("move", {"target": mug.id}), ("approach", {"target": mug.id}), ("close_gripper", {}),
+                             ("lift", {})]:
+            result = get_registry().create("primitive", name, params).execute(env)
+            assert result.success, (name, result.failure_reason)
+            assert not result.info.get("unintended_contacts"), (name, result.info)
+        assert env.held_object == mug.id
+        grams = get_registry().create("primitive", "weigh", {}).execute(env).measurement
+        assert abs(grams - mug.weight_gt) < 0.01 * mug.weight_gt
+    finally:
+        env.close()
