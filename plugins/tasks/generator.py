@@ -84,13 +84,16 @@ def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.
                           index: SceneIndex | None = None, weight_margin: float = 2.0) -> list[Instruction]:
     """Up to ``count`` instructions of ``template`` for ``scene`` (``count < 0``: one per valid option)."""
     index = index or SceneIndex(scene)
-    options = list(template.options(OptionContext(index, weight_margin)))
+    context = OptionContext(index, weight_margin)
+    options = list(template.options(context))
     if not options:
         return []
     build = _BUILDERS[template.template_id]
     out: list[Instruction] = []
     for k in rng.permutation(len(options)):
         option = options[int(k)]
+        if template.feasible is not None and not template.feasible(option, context):
+            continue
         descs = [_choose(rng, index.unique[x] if isinstance(x, int) else index.groups[x])
                  for x in _described(option)]
         slots, program = build(option, descs)

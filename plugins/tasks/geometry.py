@@ -19,6 +19,11 @@ DEFAULT_HEIGHT = 0.06
 # stands level with it.
 RAISED_BY_BASE = 0.002
 BROKEN_BELOW_Z = -0.05  # an object this far below the table top has fallen off
+# Room on a table part for an object to be put there: the placing primitives keep 15 mm between real footprints
+# on a 1 cm grid; here bboxes (centred on the object's origin, so a mug's handle side may reach a little past
+# them) stand in for footprints, with a wider gap.
+ROOM_GAP = 0.02
+ROOM_SPACING = 0.01
 
 
 def extents(obj: SceneObject) -> tuple[float, float, float]:
@@ -57,6 +62,49 @@ def free_spot(scene: SceneGraph, obj: SceneObject, part: str, step: float = 0.02
         clearance = np.minimum(clearance, d)
     best = np.unravel_index(int(np.argmax(clearance)), clearance.shape)
     return [round(float(gx[best]), 4), round(float(gy[best]), 4), 0.0]
+
+
+def _box(obj: SceneObject) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(centre x, y; object x and y axes as world columns; half sizes) of the object's bbox seen from above."""
+    ex, ey, _ = extents(obj)
+    w, z = float(obj.orientation[0]), float(obj.orientation[3])
+    yaw = 2.0 * math.atan2(z, w) if abs(w) + abs(z) > 1e-9 else 0.0
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.asarray(obj.position[:2], dtype=float), np.array([[c, -s], [s, c]]), np.array([ex / 2, ey / 2])
+
+
+def _blocked(points: np.ndarray, mover, obstacle, gap: float) -> np.ndarray:
+    """Which centres ``points`` for ``mover`` (its box, turned as it stands) come within ``gap`` of ``obstacle``'s
+    box: overlapping on all four axes of the two boxes (separating-axis test, the gap added on each axis)."""
+    _, rot_a, half_a = mover
+    centre_b, rot_b, half_b = obstacle
+    axes = np.hstack([rot_a, rot_b])  # (2, 4) unit columns
+    reach = np.abs(rot_a.T @ axes).T @ half_a + np.abs(rot_b.T @ axes).T @ half_b + gap
+    return np.all(np.abs((points - centre_b) @ axes) < reach, axis=1)
+
+
+def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: float = ROOM_GAP,
+                 spacing: float = ROOM_SPACING) -> bool:
+    """Whether ``movers``, put down one after another on ``part`` (each at the free centre nearest the part's
+    middle, as the placing primitives choose), all find room beside the objects that stay and those placed
+    before. Boxes from the scene's bboxes, turned as the objects stand, stand in for their footprints."""
+    (x0, x1), (y0, y1) = part_region(part)
+    gx, gy = np.meshgrid(np.arange(x0, x1 + 1e-9, spacing), np.arange(y0, y1 + 1e-9, spacing), indexing="ij")
+    points = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    middle = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    order = np.argsort(np.linalg.norm(points - middle, axis=1), kind="stable")
+    points = points[order]
+    moving = {o.id for o in movers}
+    obstacles = [_box(o) for o in scene.objects if o.id not in moving]
+    for obj in movers:
+        box = _box(obj)
+        free = np.ones(len(points), dtype=bool)
+        for other in obstacles:
+            free &= ~_blocked(points, box, other, gap)
+        if not free.any():
+            return False
+        obstacles.append((points[int(np.argmax(free))], box[1], box[2]))
+    return True
 
 
 def rests_on(top: SceneObject, base: SceneObject) -> bool:

@@ -10,9 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
-from muble.core.program import table_parts_of
+from muble.core.program import OPPOSITE_PART, table_parts_of
 
 from muble_plugins.tasks.descriptions import SceneIndex
+from muble_plugins.tasks.geometry import room_on_part
 
 TABLE_PARTS = ("left", "right", "front", "back")
 SUPERLATIVES = ("heaviest", "lightest")
@@ -28,6 +29,9 @@ class Template:
     texts: tuple[str, ...]
     options: Callable[["OptionContext"], Iterator[tuple]]
     description: str
+    # Checked only for the options the generator samples (dearer than the constraints in ``options``): whether
+    # the objects the option puts down on a table part have room there.
+    feasible: Callable[[tuple, "OptionContext"], bool] | None = None
 
 
 @dataclass
@@ -47,6 +51,10 @@ class OptionContext:
     def pickable_groups(self, max_size: int | None = None) -> list[tuple[int, ...]]:
         return [g for g in self.index.groups if all(self.obj(i).pickupable for i in g)
                 and (max_size is None or len(g) <= max_size)]
+
+    def room(self, movers: list[int], part: str) -> bool:
+        """Whether the objects ``movers``, put down one after another on ``part``, all find room there."""
+        return room_on_part(self.index.scene, [self.obj(i) for i in movers], part)
 
     def by_weight(self, group: tuple[int, ...]) -> list[int] | None:
         """Group ids heaviest first, or ``None`` when two weights are closer than the margin."""
@@ -103,6 +111,20 @@ def _move_weight(c: OptionContext) -> Iterator[tuple]:
             for tp in TABLE_PARTS:
                 if tp not in c.parts(target):
                     yield (g, ws, tp)
+
+
+def _room_move_single(option: tuple, c: OptionContext) -> bool:
+    return c.room([option[0]], option[1])
+
+
+def _room_remove(option: tuple, c: OptionContext) -> bool:
+    group, part = option
+    return c.room([i for i in group if part in c.parts(i)], OPPOSITE_PART[part])
+
+
+def _room_move_weight(option: tuple, c: OptionContext) -> bool:
+    group, ws, part = option
+    return c.room([c.extreme(group, ws)], part)
 
 
 def _stack_simple(c: OptionContext) -> Iterator[tuple]:
@@ -173,17 +195,17 @@ TEMPLATES: dict[str, Template] = {t.template_id: t for t in [
         "Move the {O1} to the {TP} part of the table.",
         "Place the {O1} on the {TP} part of the table.",
         "Put the {O1} on the {TP} side of the table.",
-    ), _move_single, "move one object to a table part"),
+    ), _move_single, "move one object to a table part", _room_move_single),
     Template("remove", "move", 4, (
         "Remove all {O1s} from the {TP} part of the table.",
         "Clean the {TP} part of the table from all {O1s}.",
         "Clear all {O1s} off the {TP} side of the table.",
-    ), _remove, "remove every object of a kind from a table part"),
+    ), _remove, "remove every object of a kind from a table part", _room_remove),
     Template("move_weight", "move", 5, (
         "Place the {WS} of all {O1s} on the {TP} part of the table.",
         "Move the {WS} of {O1s} to the {TP} part of the table.",
         "Put the {WS} of the {O1s} on the {TP} side of the table.",
-    ), _move_weight, "move the heaviest or lightest object of a kind to a table part"),
+    ), _move_weight, "move the heaviest or lightest object of a kind to a table part", _room_move_weight),
     Template("stack_simple", "stack", 6, (
         "Stack the {O1} on the {O2}.",
         "Stack the {O1} on top of the {O2}.",

@@ -6,7 +6,8 @@ import pytest
 
 from muble.core.program import execute, outputs_match
 from muble_plugins.tasks.descriptions import SceneIndex
-from muble_plugins.tasks.generator import generate_instructions
+from muble_plugins.tasks.generator import generate_for_template, generate_instructions
+from muble_plugins.tasks.geometry import room_on_part
 from muble_plugins.tasks.synthetic import sample_scenes
 from muble_plugins.tasks.templates import TEMPLATES, OptionContext
 from muble_plugins.tasks.vocabulary import ATTRIBUTE_STEP, describe
@@ -41,7 +42,9 @@ def test_every_template_yields_where_the_scene_allows(generated):
         made = {i.template_id for i in instructions}
         index = SceneIndex(scene)
         for name, template in TEMPLATES.items():
-            has_options = any(True for _ in template.options(OptionContext(index, 2.0)))
+            context = OptionContext(index, 2.0)
+            has_options = any(template.feasible is None or template.feasible(o, context)
+                              for o in template.options(context))
             assert (name in made) == has_options, (name, scene.image_index)
     counts = {n: sum(any(i.template_id == n for i in ins) for _, ins in generated) for n in TEMPLATES}
     assert all(c > 0 for c in counts.values()), counts
@@ -85,3 +88,22 @@ def test_weight_superlatives_have_a_margin(generated):
                     group = sorted(scene.object(i).weight_gt for i in ins.program[k - 1]["output"])
                     gap = group[-1] - group[-2] if step["input_value"] == "heaviest" else group[1] - group[0]
                     assert gap >= 2.0, ins.instruction
+
+
+def test_objects_are_only_sent_to_table_parts_with_room_for_them():
+    """The left part holds two plates and a chopping board: the mug (object 3) has no room there (the placing
+    primitives find no free place for it either), but it has on the front part; instructions only use the latter."""
+    from pathlib import Path
+
+    from muble.core.scene_io import load_scene
+
+    scene = load_scene(Path(__file__).parent / "data" / "left_part_full.json")
+    mug, large_plate, small_plate = scene.object(3), scene.object(0), scene.object(1)
+    assert not room_on_part(scene, [mug], "left")
+    assert room_on_part(scene, [mug], "front")
+    made = generate_for_template(TEMPLATES["move_single"], scene, np.random.default_rng(0), count=-1)
+    moves = {(ins.program[-2]["output"][0], ins.program[-1]["input_value"]) for ins in made}
+    assert (3, "front") in moves and (3, "left") not in moves
+    # Objects put down in turn: the second must fit beside the first (the right part takes either plate).
+    assert room_on_part(scene, [large_plate], "right") and room_on_part(scene, [small_plate], "right")
+    assert not room_on_part(scene, [large_plate, small_plate], "right")
