@@ -5,9 +5,9 @@ primitive that fails after moving restores the snapshot taken at its start befor
 """
 from __future__ import annotations
 
+import itertools
 import logging
 
-import mujoco
 import numpy as np
 
 from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, PrimitiveAction
@@ -102,10 +102,8 @@ class Move(PrimitiveAction):
             # Carrying: the hand keeps its orientation (the object stays as it was lifted, whatever the grasp)
             # and the object's centre, not the hand, comes over the target, ready to be lowered onto it. Turned
             # by ``yaw`` about the vertical, the object's offset from the hand turns too.
-            c, s = np.cos(yaw), np.sin(yaw)
-            quat = np.empty(4)
-            mujoco.mju_mulQuat(quat, np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]), env.ee_pose().quat)
-            xy = xy - np.array([[c, -s], [s, c]]) @ placement.held_offset(env)
+            offset, quat = placement.turned(env, yaw)
+            xy = xy - offset
         if isinstance(target, str):
             top = max(top, placement.clear_top(env, xy, table.top_z, env.held_object))
         return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat)
@@ -394,21 +392,23 @@ class Lower(PrimitiveAction):
         reasons = []
         hand = env.ee_pose().pos
         # Where a neighbour blocks the last centimetres of the descent (fingers beside a tall object), the
-        # object is let go a little higher over the same place: a short drop still lands it.
-        for xy in places:
-            for gap in RELEASE_GAPS:
-                place = placement.place_pose(env, xy, support_top, gap)
-                above = place.pos + [0.0, 0.0, ctx.HOVER]
-                if np.linalg.norm(hand[:2] - place.pos[:2]) < 0.01 and hand[2] > place.pos[2]:
-                    above = hand.copy()  # already over the place (``move`` went there): straight down from here
-                try:
-                    q_above, down = placement.plan_descent(env, world, place, above, support_body)
-                    world.allow_contact([])
-                    to_above = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_above), world)
-                    return to_above, down
-                except PlanningError as e:
-                    logger.debug("no put-down at %s (gap %.3f): %s", np.round(xy, 3).tolist(), gap, e)
-                    reasons.append(str(e))
+        # object is let go a little higher over the same place: a short drop still lands it. Onto an object,
+        # the hand may also turn about the vertical (the held object with it) where it cannot go down as it is.
+        yaws = CARRY_TURNS if isinstance(target, (int, np.integer)) else (0.0,)
+        for xy, yaw, gap in itertools.product(places, yaws, RELEASE_GAPS):
+            place = placement.place_pose(env, xy, support_top, gap, yaw)
+            above = place.pos + [0.0, 0.0, ctx.HOVER]
+            if yaw == 0.0 and np.linalg.norm(hand[:2] - place.pos[:2]) < 0.01 and hand[2] > place.pos[2]:
+                above = hand.copy()  # already over the place (``move`` went there): straight down from here
+            try:
+                q_above, down = placement.plan_descent(env, world, place, above, support_body)
+                world.allow_contact([])
+                to_above = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_above), world)
+                return to_above, down
+            except PlanningError as e:
+                logger.debug("no put-down at %s (turn %.0f deg, gap %.3f): %s", np.round(xy, 3).tolist(),
+                             np.degrees(yaw), gap, e)
+                reasons.append(str(e))
         raise PlanningError(f"cannot put object {env.held_object} down on {target!r} ({len(places)} places "
                             f"tried): {reasons[0] if reasons else ''}")
 

@@ -64,11 +64,21 @@ def clear_top(env, xy: np.ndarray, table_top: float, skip: int | None) -> float:
     return max([table_top] + near)
 
 
-def place_pose(env, xy: np.ndarray, support_top: float, gap: float) -> Pose:
+def turned(env, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+    """(held object's horizontal offset from the grip site, grip-site orientation) once the hand has turned by
+    ``yaw`` about the vertical, the object turning with it."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    quat = np.empty(4)
+    mujoco.mju_mulQuat(quat, np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]), env.ee_pose().quat)
+    return np.array([[c, -s], [s, c]]) @ held_offset(env), quat
+
+
+def place_pose(env, xy: np.ndarray, support_top: float, gap: float, yaw: float = 0.0) -> Pose:
     """Grip-site pose that puts the held object's centre over ``xy``, its bottom ``gap`` above ``support_top``
-    (the hand keeps the orientation it carries the object with)."""
-    hand = np.asarray(xy, dtype=float) - held_offset(env)
-    return Pose(np.array([hand[0], hand[1], support_top + held_depth(env) + gap]), env.ee_pose().quat)
+    (the hand keeps the orientation it carries the object with, or turns by ``yaw`` about the vertical)."""
+    offset, quat = turned(env, yaw)
+    hand = np.asarray(xy, dtype=float) - offset
+    return Pose(np.array([hand[0], hand[1], support_top + held_depth(env) + gap]), quat)
 
 
 def footprint(env, body: int) -> np.ndarray:
