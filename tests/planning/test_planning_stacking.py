@@ -93,3 +93,31 @@ def test_planning_a_carried_bowl_turns_about_the_vertical_to_reach_a_base_in_the
         assert np.linalg.norm(env.object_pose(top).pos[:2] - env.object_pose(base).pos[:2]) < 0.03
     finally:
         env.close()
+
+
+@pytest.mark.slow
+def test_planning_lower_turns_the_held_bowl_where_a_tall_thermos_blocks_the_straight_descent():
+    """Bowl 0 carried over bowl 3 as it was picked up: going down, the wrist would hit the 29 cm thermos beside
+    the base, so lower turns the hand (and the bowl) about the vertical and puts it down from there."""
+    from pathlib import Path
+
+    from muble.core.scene_io import load_scene
+    from muble.sim.build import env_from_object_set
+
+    scene = load_scene(Path(__file__).parent / "data" / "stack_base_beside_a_tall_neighbour.json")
+    top, base = 0, 3
+    env = env_from_object_set(scene, "shopvrb2")
+    try:
+        for name, params in [("move", {"target": top}), ("approach", {"target": top}), ("close_gripper", {}),
+                             ("lift", {}), ("move", {"target": base}), ("lower", {"target": base})]:
+            result = act(env, name, **params)
+            assert result.success, (name, result.failure_reason)
+            assert not result.info.get("unintended_contacts"), (name, result.info)
+        env.hold(0.5)
+        base_body = env.model.body(env.names.objects[base]).id
+        table = env.model.geom_bodyid[env.model.geom("table_collision").id]
+        touching = _touching(env, top)
+        assert base_body in touching and table not in touching
+        assert np.linalg.norm(env.object_pose(top).pos[:2] - env.object_pose(base).pos[:2]) < 0.03
+    finally:
+        env.close()
