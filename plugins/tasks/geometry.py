@@ -1,6 +1,7 @@
 """Table geometry the tasks need: object footprints and heights, free spots in a table part, resting-on tests."""
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -24,6 +25,7 @@ BROKEN_BELOW_Z = -0.05  # an object this far below the table top has fallen off
 # them) stand in for footprints, with a wider gap.
 ROOM_GAP = 0.02
 ROOM_SPACING = 0.01
+ROOM_BATCH = 96  # candidate centres tested at once
 
 
 def extents(obj: SceneObject) -> tuple[float, float, float]:
@@ -73,14 +75,30 @@ def _box(obj: SceneObject) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.asarray(obj.position[:2], dtype=float), np.array([[c, -s], [s, c]]), np.array([ex / 2, ey / 2])
 
 
-def _blocked(points: np.ndarray, mover, obstacle, gap: float) -> np.ndarray:
-    """Which centres ``points`` for ``mover`` (its box, turned as it stands) come within ``gap`` of ``obstacle``'s
-    box: overlapping on all four axes of the two boxes (separating-axis test, the gap added on each axis)."""
+def _separating_axes(mover, obstacles: list, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For the separating-axis test of ``mover``'s box (turned as it stands) against each obstacle box: the four
+    axes of every pair as columns (2, 4n), each obstacle centre's projection on them, and the distance below
+    which the two boxes come closer than ``gap`` along each."""
     _, rot_a, half_a = mover
-    centre_b, rot_b, half_b = obstacle
-    axes = np.hstack([rot_a, rot_b])  # (2, 4) unit columns
-    reach = np.abs(rot_a.T @ axes).T @ half_a + np.abs(rot_b.T @ axes).T @ half_b + gap
-    return np.all(np.abs((points - centre_b) @ axes) < reach, axis=1)
+    axes, centres, reach = [], [], []
+    for centre_b, rot_b, half_b in obstacles:
+        pair = np.hstack([rot_a, rot_b])
+        axes.append(pair)
+        centres.append(centre_b @ pair)
+        reach.append(np.abs(rot_a.T @ pair).T @ half_a + np.abs(rot_b.T @ pair).T @ half_b + gap)
+    return np.hstack(axes), np.concatenate(centres), np.concatenate(reach)
+
+
+@functools.lru_cache(maxsize=None)
+def _grid(part: str, spacing: float) -> tuple[np.ndarray, tuple[tuple[float, float], tuple[float, float]]]:
+    """The part's candidate centres on a ``spacing`` grid, nearest its middle first, and its ranges."""
+    (x0, x1), (y0, y1) = region = part_region(part)
+    gx, gy = np.meshgrid(np.arange(x0, x1 + 1e-9, spacing), np.arange(y0, y1 + 1e-9, spacing), indexing="ij")
+    points = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    middle = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+    points = points[np.argsort(np.linalg.norm(points - middle, axis=1), kind="stable")]
+    points.setflags(write=False)
+    return points, region
 
 
 def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: float = ROOM_GAP,
@@ -88,22 +106,31 @@ def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: f
     """Whether ``movers``, put down one after another on ``part`` (each at the free centre nearest the part's
     middle, as the placing primitives choose), all find room beside the objects that stay and those placed
     before. Boxes from the scene's bboxes, turned as the objects stand, stand in for their footprints."""
-    (x0, x1), (y0, y1) = part_region(part)
-    gx, gy = np.meshgrid(np.arange(x0, x1 + 1e-9, spacing), np.arange(y0, y1 + 1e-9, spacing), indexing="ij")
-    points = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    middle = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
-    order = np.argsort(np.linalg.norm(points - middle, axis=1), kind="stable")
-    points = points[order]
+    points, ((x0, x1), (y0, y1)) = _grid(part, spacing)
     moving = {o.id for o in movers}
     obstacles = [_box(o) for o in scene.objects if o.id not in moving]
     for obj in movers:
         box = _box(obj)
-        free = np.ones(len(points), dtype=bool)
-        for other in obstacles:
-            free &= ~_blocked(points, box, other, gap)
-        if not free.any():
+        # Only what can come within reach of a centre in the part matters (bounding circles against its ranges).
+        reach = float(np.linalg.norm(box[2])) + gap
+        near = [b for b in obstacles
+                if math.hypot(max(x0 - b[0][0], 0.0, b[0][0] - x1), max(y0 - b[0][1], 0.0, b[0][1] - y1))
+                < reach + float(np.linalg.norm(b[2]))]
+        spot = points[0] if not near else None
+        if near:
+            axes, centres, reach = _separating_axes(box, near, gap)
+            # Nearest the middle first, a batch at a time: a part with room usually has it in the first batch.
+            # A centre is blocked by an obstacle when the boxes overlap (within the gap) along all four axes.
+            for start in range(0, len(points), ROOM_BATCH):
+                batch = points[start:start + ROOM_BATCH]
+                close = np.abs(batch @ axes - centres) < reach
+                free = ~close.reshape(len(batch), len(near), 4).all(axis=2).any(axis=1)
+                if free.any():
+                    spot = batch[int(np.argmax(free))]
+                    break
+        if spot is None:
             return False
-        obstacles.append((points[int(np.argmax(free))], box[1], box[2]))
+        obstacles.append((spot, box[1], box[2]))
     return True
 
 
