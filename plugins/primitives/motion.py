@@ -32,6 +32,13 @@ PAD_OVERLAP = 0.004  # m the pads' middle stays inside the object when a grasp i
 PAD_HALF_WIDTH = 0.006  # m: the part of an object between the pads, across the closing direction
 RELEASE_GAPS = (0.004, 0.015, 0.03)  # m between the held object's bottom and its support when let go
 CARRY_TURNS = tuple(np.radians([0, 45, -45, 90, -90, 135, -135, 180]))  # rad tried turning a carried object
+LONG_SWING = 2.0  # rad any arm joint travels to a pre-grasp pose beyond which other grasps are looked for first
+SWING_ALTERNATIVES = 6  # candidates tried for a nearer grasp once one with a long swing was found
+HOVER_TURNS = tuple(np.radians([0, 90, -90, 45, -45]))  # rad the empty hand may turn to hover over an object
+RESTING_SPEED = 0.01  # m/s below which a put-down object counts as resting
+REST_WAIT = 1.5  # s a put-down object may take to come to rest after the hand let go
+LIFT_SIDESTEPS = ((0.0, 0.0), *((r * np.cos(a), r * np.sin(a)) for r in (0.04, 0.08)
+                                for a in np.linspace(0.0, 2 * np.pi, 8, endpoint=False)))
 PUT_BACK_RADIUS = 0.05  # m a put-down without a target may shift the object to find a free place
 
 
@@ -67,12 +74,17 @@ class Move(PrimitiveAction):
             world = ctx.collision_world(env)
             if isinstance(target, str) and env.held_object is not None:
                 goals = [JointGoal(self._over_free_place(env, world, target))]
-            elif env.held_object is not None:
-                # Over an object near the edge of the workspace the hand may have to turn about the vertical
-                # (the object turning with it) to reach; the smallest turn that works is taken.
-                goals = [self._hover_goal(env, target, yaw) for yaw in CARRY_TURNS]
             else:
-                goals = [self._hover_goal(env, target)]
+                # Over an object near the edge of the workspace the hand may have to turn about the vertical
+                # (a carried object turning with it) to reach, and beside a tall neighbour rise above it or turn
+                # the open fingers away from it; the first that works is taken, the usual pose first.
+                turns = CARRY_TURNS if env.held_object is not None else HOVER_TURNS
+                goals = []
+                for clear, yaw in itertools.product((False, True), turns):
+                    goal = self._hover_goal(env, target, yaw, clear)
+                    if not any(np.allclose(goal.pose.pos, g.pose.pos) and np.allclose(goal.pose.quat, g.pose.quat)
+                               for g in goals):
+                        goals.append(goal)
             reasons = []
             for goal in goals:
                 world.allow_contact([])
@@ -90,21 +102,23 @@ class Move(PrimitiveAction):
         return _result(placement.merge(rise, report), target=target)
 
     @staticmethod
-    def _hover_goal(env, target, yaw: float = 0.0) -> PoseGoal:
+    def _hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
+        """Hover pose over ``target``: the hand turned by ``yaw`` about the vertical; with ``clear``, above
+        everything standing near it rather than above the target alone."""
         table = ctx.table(env)
         if isinstance(target, str):
             lo, hi = table.part_region(target)
             xy, top = 0.5 * (lo + hi), table.top_z
         else:
             xy, top = env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
-        quat = ctx.top_down(env)
+        quat = ctx.top_down(env, yaw)
         if env.held_object is not None:
             # Carrying: the hand keeps its orientation (the object stays as it was lifted, whatever the grasp)
             # and the object's centre, not the hand, comes over the target, ready to be lowered onto it. Turned
             # by ``yaw`` about the vertical, the object's offset from the hand turns too.
             offset, quat = placement.turned(env, yaw)
             xy = xy - offset
-        if isinstance(target, str):
+        if isinstance(target, str) or clear:
             top = max(top, placement.clear_top(env, xy, table.top_z, env.held_object))
         return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat)
 
@@ -170,13 +184,26 @@ class Approach(PrimitiveAction):
                                     f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "
                                     "choose another robot.gripper or object")
             tried += len(candidates)
+            # A grasp whose arm configuration lies on another branch (wrist turned most of a turn) is kept back:
+            # on such a long swing the wrist lags and the hand sweeps where the plan did not go. A few more
+            # candidates are tried for a nearer one first.
+            swing, after_swing = None, 0
             for grasp in candidates:
+                if swing is not None and after_swing == SWING_ALTERNATIVES:
+                    break
                 try:
                     to_pre, down = self._plan(env, world, body, grasp, grip)
                 except PlanningError as e:
                     reasons.append(str(e))
+                    after_swing += swing is not None
                     continue
-                return self._go(env, snap, obj_id, body, to_pre, down, grasp, len(reasons) + 1)
+                if np.max(np.abs(to_pre.q[-1] - to_pre.q[0])) <= LONG_SWING:
+                    return self._go(env, snap, obj_id, body, to_pre, down, grasp, len(reasons) + 1)
+                if swing is None:
+                    swing = (to_pre, down, grasp)
+                after_swing += swing is not None
+            if swing is not None:
+                return self._go(env, snap, obj_id, body, *swing, len(reasons) + 1)
         env.restore(snap)
         raise PlanningError(f"no grasp of object {obj_id} is reachable without collision "
                             f"({tried} tried): {reasons[0] if reasons else ''}")
@@ -204,6 +231,12 @@ class Approach(PrimitiveAction):
         second = ctx.execute(env, down.__class__(
             np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names), world,
             allowed={env.model.body(body).id})
+        if second.final_error > PRE_GRASP_TRACKING:
+            # Held up on the way in (a finger on a neighbour): closing here would not hold the object.
+            contacts = sorted(first.unintended_contacts | second.unintended_contacts)
+            env.restore(snap)
+            raise PlanningError(f"the hand was stopped on its way in to object {obj_id} (joint error "
+                                f"{second.final_error:.2f} rad, contacts {contacts})")
         report = ctx.MotionReport(first.duration + second.duration, second.final_error,
                                   first.unintended_contacts | second.unintended_contacts)
         return _result(report, target=obj_id, grasp_pos=grasp.pos.tolist(), candidates_tried=tried)
@@ -319,12 +352,12 @@ class Lift(PrimitiveAction):
             except PlanningError:
                 # Something overhangs the object (a tray's flared rim over a glass's foot): plan the whole way,
                 # sideways first where needed, touching only the support.
-                q_goal = world.inverse_kinematics(goal, seeds=env.arm_q()[None])
+                q_goal = self._raised(env, world, goal)
                 trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
                 return _result(ctx.execute(env, trajectory, world, allowed=support), height=height)
             report = ctx.execute(env, first, world, allowed=support)
             world = ctx.collision_world(env)
-            q_goal = world.inverse_kinematics(goal, seeds=env.arm_q()[None])
+            q_goal = self._raised(env, world, goal)
             trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
             second = ctx.execute(env, trajectory, world)
             report = ctx.MotionReport(report.duration + second.duration, second.final_error,
@@ -332,6 +365,21 @@ class Lift(PrimitiveAction):
             return _result(report, height=height)
         report = ctx.execute(env, trajectory, world, allowed=support)
         return _result(report, height=height)
+
+
+    @staticmethod
+    def _raised(env, world, goal: PoseGoal) -> np.ndarray:
+        """An arm configuration for the raised pose, or, where something overhangs it (a bowl stacked on a
+        neighbour, its rim over the object), for the nearest pose beside it at the same height."""
+        reasons = []
+        for dx, dy in LIFT_SIDESTEPS:
+            shifted = PoseGoal(Pose(goal.pose.pos + [dx, dy, 0.0], goal.pose.quat), goal.position_tolerance,
+                               goal.orientation_tolerance)
+            try:
+                return world.inverse_kinematics(shifted, seeds=env.arm_q()[None])
+            except PlanningError as e:
+                reasons.append(e)
+        raise reasons[0]
 
 
 class Lower(PrimitiveAction):
@@ -439,10 +487,16 @@ class Lower(PrimitiveAction):
             third = ctx.MotionReport()
         env.hold(0.3)
         speed = float(np.linalg.norm(env.data.cvel[held_body][3:]))
+        waited = 0.3
+        while speed >= RESTING_SPEED and waited < REST_WAIT:
+            # Something set down on a round or tilted base may rock a moment before it settles.
+            env.hold(0.25)
+            waited += 0.25
+            speed = float(np.linalg.norm(env.data.cvel[held_body][3:]))
         contacts = first.unintended_contacts | second.unintended_contacts | third.unintended_contacts
         report = ctx.MotionReport(first.duration + second.duration + third.duration, third.final_error, contacts)
         result = _result(report, resting_speed=speed, released=env.held_object is None)
-        result.success = env.held_object is None and speed < 0.01
+        result.success = env.held_object is None and speed < RESTING_SPEED
         if not result.success:
             result.failure_reason = f"object {held} did not come to rest (speed {speed:.3f} m/s)"
         return result
