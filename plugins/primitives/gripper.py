@@ -8,6 +8,7 @@ from muble import ActionResult, PrimitiveAction
 logger = logging.getLogger(__name__)
 
 GRIPPER_SETTLE = 0.6  # s for the fingers to travel fully and the weld to engage
+GRIPPER_SETTLE_MAX = 1.2  # s at most, while no object is held yet
 
 
 class CloseGripper(PrimitiveAction):
@@ -21,6 +22,11 @@ class CloseGripper(PrimitiveAction):
     def execute(self, env) -> ActionResult:
         env.close_gripper()
         env.hold(GRIPPER_SETTLE)
+        waited = GRIPPER_SETTLE
+        while env.held_object is None and waited < GRIPPER_SETTLE_MAX:
+            # A linkage gripper's jaws may still be closing onto a thin part (a stem, a rim).
+            env.hold(0.2)
+            waited += 0.2
         held = env.held_object
         if held is None:
             return ActionResult(False, failure_reason="the fingers closed on nothing: approach an object first")
