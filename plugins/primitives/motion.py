@@ -432,7 +432,7 @@ class Lower(PrimitiveAction):
             near = [p for p in near if parts_at(*p) == parts and np.linalg.norm(p - here) <= PUT_BACK_RADIUS]
             return table.body, table.top_z, [here, *placement.spread(near, limit=6)]
         ctx.body_name(env, target)
-        return (env.model.body(env.names.objects[int(target)]).id, ctx.object_top(env, int(target)),
+        return (env.model.body(env.names.objects[int(target)]).id, placement.resting_top(env, int(target), held),
                 [env.object_pose(int(target)).pos[:2]])
 
     @staticmethod

@@ -81,6 +81,30 @@ def place_pose(env, xy: np.ndarray, support_top: float, gap: float, yaw: float =
     return Pose(np.array([hand[0], hand[1], support_top + held_depth(env) + gap]), quat)
 
 
+def resting_top(env, target: int, held: int) -> float:
+    """Height the held object's bottom comes to rest at on ``target`` (scene ids), its centre over the
+    target's: the highest point of the target under the held object's footprint, found by rays straight down
+    (the inner bottom of a bowl a can fits into, the rim of one a wider object spans). Falls back to the
+    target's top where no ray meets it."""
+    m, d = env.model, env.data
+    target_body = m.body(env.names.objects[target]).id
+    held_body = m.body(env.names.objects[held]).id
+    top = ctx.object_top(env, target)
+    shape = footprint(env, held_body) - d.xpos[held_body][:2]
+    points = np.vstack([np.zeros((1, 2)), shape, 0.5 * shape]) + env.object_pose(target).pos[:2]
+    groups = np.zeros(6, dtype=np.uint8)
+    groups[3] = 1  # object collision geoms
+    hit = np.zeros(1, dtype=np.int32)
+    down = np.array([0.0, 0.0, -1.0])
+    heights = []
+    for x, y in points:
+        start = np.array([x, y, top + 0.05])
+        dist = mujoco.mj_ray(m, d, start, down, groups, 0, held_body, hit)
+        if dist >= 0 and m.geom_bodyid[hit[0]] == target_body:
+            heights.append(start[2] - dist)
+    return float(max(heights)) if heights else top
+
+
 def footprint(env, body: int) -> np.ndarray:
     """World (x, y) points whose convex hull is the body's collision geometry seen from above."""
     m, d = env.model, env.data
