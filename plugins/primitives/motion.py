@@ -35,6 +35,7 @@ CARRY_TURNS = tuple(np.radians([0, 45, -45, 90, -90, 135, -135, 180]))  # rad tr
 LONG_SWING = 2.0  # rad any arm joint travels to a pre-grasp pose beyond which other grasps are looked for first
 SWING_ALTERNATIVES = 6  # candidates tried for a nearer grasp once one with a long swing was found
 HOVER_TURNS = tuple(np.radians([0, 90, -90, 45, -45]))  # rad the empty hand may turn to hover over an object
+THIN_HOLD = 0.025  # m between the pads holding an object, below which it is let go with the hand part open
 RESTING_SPEED = 0.01  # m/s below which a put-down object counts as resting
 REST_WAIT = 1.5  # s a put-down object may take to come to rest after the hand let go
 LIFT_SIDESTEPS = ((0.0, 0.0), *((r * np.cos(a), r * np.sin(a)) for r in (0.04, 0.08)
@@ -468,7 +469,9 @@ class Lower(PrimitiveAction):
         world.allow_contact([support_body])
         second = ctx.execute(env, down.__class__(np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names),
                              world, allowed={support_body})
-        env.open_gripper()
+        # A thin part held (a rim, a handle, a stem) is let go with the hand opened only part way: opened fully,
+        # the finger inside a rim would reach across to the far side and catch it on the way up.
+        env.set_gripper(PRESHAPE_COMMANDS[0] if ctx.pad_gap(env) < THIN_HOLD else -1.0)
         env.hold(0.5)
         world = ctx.collision_world(env)
         # The opened fingers may now brush a neighbour: rising straight up can only leave it, so the plan may
