@@ -77,3 +77,26 @@ def test_planning_move_hovers_over_a_glass_beside_a_tall_thermos():
         assert np.linalg.norm(env.object_pose(2).pos[:2] - np.asarray(scene.object(2).position[:2])) < 0.03
     finally:
         env.close()
+
+
+def test_planning_a_can_held_by_its_rim_is_let_go_into_a_bowl_stacked_on_a_bowl():
+    """The soda can is held by its top rim, one finger inside it. Let go with the hand fully open, that finger
+    reaches across the can and catches the far side of the rim on the way up, tipping the upper bowl off; opened
+    only part way, the hand leaves the three-object stack standing."""
+    from muble_plugins.tasks.geometry import rests_on
+    from muble.core.scene_io import load_scene
+
+    steps = []
+    for top, base in ((2, 0), (4, 2)):
+        steps += [("move", {"target": top}), ("approach", {"target": top}), ("close_gripper", {"target": top}),
+                  ("lift", {}), ("move", {"target": base}), ("lower", {"target": base})]
+    scene, env, _ = _run("can_into_a_bowl_on_a_bowl.json", steps)
+    try:
+        env.hold(1.0)
+        final = load_scene(DATA / "can_into_a_bowl_on_a_bowl.json")
+        for obj in final.objects:
+            pose = env.object_pose(obj.id)
+            obj.position, obj.orientation = pose.pos, pose.quat
+        assert rests_on(final.object(4), final.object(2)) and rests_on(final.object(2), final.object(0))
+    finally:
+        env.close()
