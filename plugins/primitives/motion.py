@@ -163,6 +163,7 @@ class Approach(PrimitiveAction):
         snap = env.snapshot()
         model = env.object_models[obj_id]
         grip = ctx.grip_geometry(env)
+        table = ctx.table(env)
         reasons, tried = [], 0
         # Fully open first; in clutter (or next to the object's own handle) a hand opened only part way, still
         # wide enough for a rim or a handle, may fit where the open one touches something.
@@ -176,9 +177,9 @@ class Approach(PrimitiveAction):
                 max_width = ctx.pad_gap(env) - 2 * PAD_MARGIN - PRESHAPE_SLACK
             world = ctx.collision_world(env)
             # Ranked by how far the hand stays from the neighbours, with more directions around round objects.
-            candidates = grasp_candidates(env.object_pose(obj_id), model, ctx.table(env).top_z, max_width=max_width,
+            candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z, max_width=max_width,
                                           rest_quat=ctx.world_rest_quat(env), grip=grip,
-                                          clearance=hand_clearance(world, body, ignore=[ctx.table(env).body]))
+                                          clearance=hand_clearance(world, body, ignore=[table.body]))
             if not candidates and command == -1.0:
                 env.restore(snap)
                 raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
@@ -190,19 +191,18 @@ class Approach(PrimitiveAction):
             # candidates are tried for a nearer one first.
             swing, after_swing = None, 0
             for grasp in candidates:
-                if swing is not None and after_swing == SWING_ALTERNATIVES:
-                    break
                 try:
                     to_pre, down = self._plan(env, world, body, grasp, grip)
                 except PlanningError as e:
                     reasons.append(str(e))
-                    after_swing += swing is not None
-                    continue
-                if np.max(np.abs(to_pre.q[-1] - to_pre.q[0])) <= LONG_SWING:
-                    return self._go(env, snap, obj_id, body, to_pre, down, grasp, len(reasons) + 1)
-                if swing is None:
-                    swing = (to_pre, down, grasp)
-                after_swing += swing is not None
+                else:
+                    if np.max(np.abs(to_pre.q[-1] - to_pre.q[0])) <= LONG_SWING:
+                        return self._go(env, snap, obj_id, body, to_pre, down, grasp, len(reasons) + 1)
+                    swing = swing or (to_pre, down, grasp)
+                if swing is not None:
+                    after_swing += 1
+                    if after_swing == SWING_ALTERNATIVES:
+                        break
             if swing is not None:
                 return self._go(env, snap, obj_id, body, *swing, len(reasons) + 1)
         env.restore(snap)
@@ -211,22 +211,26 @@ class Approach(PrimitiveAction):
 
     @staticmethod
     def _go(env, snap, obj_id: int, body: str, to_pre, down, grasp: Pose, tried: int) -> ActionResult:
+        def lag() -> float:  # how far the arm is from the pre-grasp configuration (rad, worst joint)
+            return float(np.max(np.abs(env.arm_q() - to_pre.q[-1])))
+
         world = ctx.collision_world(env)
         first = ctx.execute(env, to_pre, world)
         env.hold(0.3)
         for _ in range(2):
             # A long swing can leave a weak wrist joint far behind its set-point (the other joints' motion
             # drags it); descending from there would meet the object with the hand turned, so move again.
-            if not np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
+            if lag() <= PRE_GRASP_TRACKING:
                 break
             world.allow_contact([])
             first = ctx.execute(env, ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(to_pre.q[-1]), world),
                                 world)
             env.hold(0.3)
-        if np.max(np.abs(env.arm_q() - to_pre.q[-1])) > PRE_GRASP_TRACKING:
+        if lag() > PRE_GRASP_TRACKING:
+            error = lag()
             env.restore(snap)
             raise PlanningError(f"the arm did not reach the pre-grasp pose over object {obj_id} "
-                                f"(joint error {np.max(np.abs(env.arm_q() - to_pre.q[-1])):.2f} rad)")
+                                f"(joint error {error:.2f} rad)")
         env.tare()  # the empty hand, still: the zero for weighing
         world = ctx.collision_world(env)
         second = ctx.execute(env, down.__class__(
