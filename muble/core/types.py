@@ -92,7 +92,13 @@ class Trajectory:
 
 
 class Outcome(str, enum.Enum):
-    """Episode outcomes; everything but SUCCESS is a failure class of the taxonomy."""
+    """Episode outcomes; everything but SUCCESS is a failure class of the taxonomy.
+
+    Whose fault a failure is: ``INVALID_ACTION`` is the agent's (a call no primitive accepts: unknown name,
+    unknown/missing parameter, wrong type, a target not in the scene); ``INVALID_DATA`` and ``BROKEN_SCENE`` are the
+    data's (a file that cannot be read or built; a scene that does not rest or breaks the physics); the others are
+    the agent's course of action.
+    """
 
     SUCCESS = "success"
     PROGRAM_FAILURE = "program_failure"
@@ -102,6 +108,8 @@ class Outcome(str, enum.Enum):
     LOOP_DETECTED = "loop_detected"
     TIMEOUT = "timeout"
     BROKEN_SCENE = "broken_scene"
+    INVALID_ACTION = "invalid_action"
+    INVALID_DATA = "invalid_data"
 
 
 @dataclass
