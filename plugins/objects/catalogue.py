@@ -60,6 +60,16 @@ STIFFNESS_RANGE = {
     "ceramic": (70_000.0, 110_000.0),
 }
 
+
+def default_stiffness(material: str) -> float | None:
+    """The stiffness (N/m) of an object of ``material`` whose scene gives none: the centre (geometric mean) of the
+    material's sampling range, where a log-uniform sample falls in the middle; ``None`` for an unknown material."""
+    if material not in STIFFNESS_RANGE:
+        return None
+    low, high = STIFFNESS_RANGE[material]
+    return round(math.sqrt(low * high), 1)
+
+
 # Coulomb friction against the table (typical dry sliding coefficients of the surface materials).
 FRICTION = {"rubber": 1.1, "plastic": 0.6, "metal": 0.5, "wooden": 0.6, "glass": 0.6, "ceramic": 0.6}
 
@@ -222,6 +232,10 @@ class CatalogueObjectSet(ObjectSet):
                           material=finish.material, size=size, shape=cat.variants[model][0], scale=scale,
                           weight_g=round(weight, 1), stiffness=round(stiffness, 1),
                           friction=FRICTION[finish.material])
+
+    def default_stiffness(self, material: str) -> float | None:
+        """Contact stiffness (N/m) for a scene object of ``material`` that has none (``default_stiffness``)."""
+        return default_stiffness(material)
 
     def geometry(self, spec: ObjectSpec) -> Geometry:
         """The (cached) geometry of ``spec``'s model at its scale."""
