@@ -1,6 +1,7 @@
 """MuBlE: a simulation environment and benchmark for task planning in robot manipulation."""
 from muble.core.errors import (
     ConfigError,
+    InitialStateError,
     MubleError,
     PhysicsError,
     PlanningError,
@@ -44,5 +45,5 @@ __all__ = [
     "ConfigError", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
     "Outcome", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
     "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
-    "Sensor", "Task", "Trajectory", "__version__", "get_registry", "hookimpl",
+    "Sensor", "Task", "Trajectory", "__version__", "get_registry", "hookimpl", "InitialStateError",
 ]

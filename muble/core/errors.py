@@ -36,6 +36,24 @@ class PhysicsError(MubleError):
     """The simulation reached a state it cannot continue from (NaN, blow-up, object off the table)."""
 
 
+class InitialStateError(PhysicsError):
+    """The scene does not start at rest, so no agent may act in it (the data's fault: ``broken_scene``).
+
+    ``obj`` is the scene id of the object that failed, ``check`` what failed (``"mass"``, ``"off_table"``,
+    ``"penetration"``, ``"floating"``, ``"unstable"``, ``"moved"``, ``"unsupported"``; see
+    ``muble.sim.initial_state``) and ``other`` what it conflicts with (``"table"``, ``"robot"``, another object's
+    id) where there is one.
+    """
+
+    def __init__(self, message: str, *, obj: int | None = None, check: str | None = None,
+                 other: int | str | None = None):
+        prefix = f"initial state: object {obj} " if obj is not None else "initial state: "
+        super().__init__(prefix + message)
+        self.obj = obj
+        self.check = check
+        self.other = other
+
+
 class PlanningError(MubleError):
     """No motion satisfies the request (unreachable pose, no collision-free path, time-out)."""
 

@@ -1,0 +1,265 @@
+"""The initial-state check: before an agent acts, the scene is settled and every object must be found at rest.
+
+``settle_and_check(env)`` runs on a freshly reset ``TabletopEnv``:
+
+1. before any physics, each object must have a plausible mass (``MASS_RANGE_G``), its centre of mass over the
+   table top, no contact deeper than ``MAX_PENETRATION`` with the table, the robot or another object, and a support
+   (the table or another object) within ``SUPPORT_GAP``;
+2. the physics then runs for ``SETTLE_TIME`` with the arm holding its rest pose and the gripper open;
+3. afterwards no object may have moved more than ``MAX_DISPLACEMENT`` (its origin or its centre of mass) or turned
+   more than ``MAX_ROTATION``, sunk deeper than ``MAX_PENETRATION`` into anything, or be touching no support.
+
+The first failure raises ``InitialStateError`` naming the object and the check; the episode is then a broken scene
+(the data's fault) and the agent never acts. On success the environment is left settled, its step counter where
+it was, and a ``InitialStateReport`` says how far each object moved. Tolerances and the figures they were measured
+against are in docs/environment.md ("Initial state").
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from muble.core.errors import InitialStateError, PhysicsError
+
+SETTLE_TIME = 0.5  # s of physics before the check: a 5 cm drop lands in 0.1 s, a tipping object is well under way
+MAX_DISPLACEMENT = 0.005  # m an object's origin or centre of mass may move while settling (generator: same figure)
+MAX_ROTATION = 3.0  # degrees an object may turn while settling
+MAX_PENETRATION = 0.003  # m of contact depth (before and after settling); resting contacts are ~0.2 mm deep
+SUPPORT_GAP = 0.002  # m between an object and its support that still counts as resting on it
+FLOATING_SEARCH = 0.2  # m: how far below an unsupported object its support is looked for, to say how high it floats
+MASS_RANGE_G = (1.0, 10_000.0)  # g: a tabletop household object the arm works with weighs between these
+
+TABLE_GEOM = "table_collision"
+
+
+@dataclass
+class ObjectRest:
+    """How one object settled: displacement of origin or centre of mass (m), rotation (degrees), the deepest
+    contact after settling (m) and what it rests on (``"table"`` or an object id)."""
+
+    id: int
+    displacement: float
+    rotation: float
+    penetration: float
+    support: int | str | None
+
+
+@dataclass
+class InitialStateReport:
+    """The outcome of a passed check: the settle time (s) and how each object settled."""
+
+    settle_time: float
+    objects: dict[int, ObjectRest] = field(default_factory=dict)
+
+    @property
+    def max_displacement(self) -> float:
+        return max((o.displacement for o in self.objects.values()), default=0.0)
+
+    @property
+    def max_rotation(self) -> float:
+        return max((o.rotation for o in self.objects.values()), default=0.0)
+
+    @property
+    def max_penetration(self) -> float:
+        return max((o.penetration for o in self.objects.values()), default=0.0)
+
+
+class _Parties:
+    """What each geom of the world is, in the words of an error message: an object id, "table" or "robot"."""
+
+    def __init__(self, env):
+        m = env.model
+        self.model = m
+        self.geom_object = env.grasp.geom_object  # geom -> scene id, -1 for anything else
+        self.table = m.geom(TABLE_GEOM).id
+        prefixes = tuple(env.names.robot_geom_prefixes)
+        self.robot = np.array([bool(prefixes) and (m.geom(g).name or "").startswith(prefixes)
+                               for g in range(m.ngeom)])
+        # Collision geoms of each object (its visual geom collides with nothing).
+        self.collision = {i: [g for g in np.flatnonzero(self.geom_object == i) if m.geom_contype[g] or
+                              m.geom_conaffinity[g]] for i in env.grasp.body_of}
+
+    def name(self, geom: int) -> int | str:
+        obj = int(self.geom_object[geom])
+        if obj >= 0:
+            return obj
+        if geom == self.table:
+            return "table"
+        if self.robot[geom]:
+            return "robot"
+        body = self.model.geom_bodyid[geom]
+        return self.model.geom(geom).name or self.model.body(body).name or f"geom {geom}"
+
+    def is_support(self, geom: int, obj: int) -> bool:
+        other = int(self.geom_object[geom])
+        return geom == self.table or (other >= 0 and other != obj)
+
+
+def _describe(party: int | str) -> str:
+    return f"object {party}" if isinstance(party, int) else f"the {party}"
+
+
+def check_masses(env) -> None:
+    """Raise ``InitialStateError`` for an object whose simulated mass is outside ``MASS_RANGE_G``."""
+    low, high = MASS_RANGE_G
+    for obj, body in env.grasp.body_of.items():
+        grams = float(env.model.body_mass[body]) * 1000.0
+        if not (low <= grams <= high):
+            raise InitialStateError(
+                f"weighs {grams:.6g} g, outside the plausible range for a tabletop object ({low:g}-{high:g} g); "
+                "fix its weight_gt in the scene", obj=obj, check="mass")
+
+
+def check_over_table(env) -> None:
+    """Raise ``InitialStateError`` for an object whose centre of mass is not over the table top."""
+    m, d = env.model, env.data
+    table = m.geom(TABLE_GEOM).id
+    centre, half = d.geom_xpos[table], m.geom_size[table]
+    for obj, body in env.grasp.body_of.items():
+        x, y = d.xipos[body][:2]
+        if abs(x - centre[0]) > half[0] or abs(y - centre[1]) > half[1]:
+            raise InitialStateError(
+                f"is off the table: its centre of mass ({x:.3f}, {y:.3f}) m lies outside the table top "
+                f"(x {centre[0] - half[0]:.2f}..{centre[0] + half[0]:.2f}, "
+                f"y {centre[1] - half[1]:.2f}..{centre[1] + half[1]:.2f} m)", obj=obj, check="off_table")
+
+
+def deepest_contacts(env, parties: _Parties) -> dict[int, tuple[float, int | str | None]]:
+    """Per object: the depth (m, >= 0) of its deepest contact in the current state and what it touches there."""
+    d = env.data
+    deepest: dict[int, tuple[float, int | str | None]] = {i: (0.0, None) for i in env.grasp.body_of}
+    for k in range(d.ncon):
+        contact = d.contact[k]
+        depth = -float(contact.dist)
+        g1, g2 = int(contact.geom[0]), int(contact.geom[1])
+        for a, b in ((g1, g2), (g2, g1)):
+            obj = int(parties.geom_object[a])
+            if obj >= 0 and depth > deepest[obj][0]:
+                deepest[obj] = (depth, parties.name(b))
+    return deepest
+
+
+def check_penetration(env, parties: _Parties, when: str) -> dict[int, float]:
+    """Raise ``InitialStateError`` if an object is deeper than ``MAX_PENETRATION`` in anything; returns the depths."""
+    deepest = deepest_contacts(env, parties)
+    for obj, (depth, other) in sorted(deepest.items()):
+        if depth > MAX_PENETRATION:
+            where = "inside the table" if other == "table" else f"inside {_describe(other)}"
+            raise InitialStateError(
+                f"is {where} {when}: they interpenetrate by {depth * 1000:.1f} mm (more than "
+                f"{MAX_PENETRATION * 1000:.0f} mm); move it apart in the scene", obj=obj, check="penetration",
+                other=other)
+    return {obj: depth for obj, (depth, _) in deepest.items()}
+
+
+def support_gap(env, parties: _Parties, obj: int, distmax: float, objects: bool = True) -> tuple[float, int | str | None]:
+    """The smallest distance (m, up to ``distmax``) from the object's collision geoms to the table (and, with
+    ``objects``, to any other object), and which of them is that close."""
+    m, d = env.model, env.data
+    best, which = distmax, None
+    candidates = [parties.table]
+    if objects:
+        candidates += [g for i, geoms in parties.collision.items() if i != obj for g in geoms]
+    for g1 in parties.collision[obj]:
+        for g2 in candidates:
+            # Bounding spheres first: most pairs are far apart (the table's plane-like box is always checked).
+            reach = m.geom_rbound[g1] + m.geom_rbound[g2] + best
+            if g2 != parties.table and np.sum((d.geom_xpos[g1] - d.geom_xpos[g2]) ** 2) > reach * reach:
+                continue
+            dist = mujoco.mj_geomDistance(m, d, int(g1), int(g2), best, None)
+            if dist < best:
+                best, which = dist, parties.name(g2)
+    return best, which
+
+
+def check_supported(env, parties: _Parties) -> None:
+    """Raise ``InitialStateError`` for an object with no support (table or object) within ``SUPPORT_GAP``."""
+    for obj in sorted(env.grasp.body_of):
+        gap, _ = support_gap(env, parties, obj, SUPPORT_GAP)
+        if gap < SUPPORT_GAP:
+            continue
+        table, near = support_gap(env, parties, obj, FLOATING_SEARCH, objects=False)
+        height = (f"{table * 1000:.0f} mm above the table" if near is not None
+                  else f"more than {FLOATING_SEARCH * 1000:.0f} mm from the table")
+        raise InitialStateError(f"is floating: it is {height} and no object supports it within "
+                                f"{SUPPORT_GAP * 1000:.0f} mm; put it on its support in the scene",
+                                obj=obj, check="floating", other="table")
+
+
+def _rotation_degrees(q0: np.ndarray, q1: np.ndarray) -> float:
+    dot = min(1.0, abs(float(np.dot(q0, q1))))
+    return math.degrees(2.0 * math.acos(dot))
+
+
+def _resting_on(env, parties: _Parties, obj: int) -> int | str | None:
+    """The table or object this object touches now (contacts within ``SUPPORT_GAP``), or None."""
+    d = env.data
+    touching = None
+    for k in range(d.ncon):
+        contact = d.contact[k]
+        if contact.dist > SUPPORT_GAP:
+            continue
+        g1, g2 = int(contact.geom[0]), int(contact.geom[1])
+        for a, b in ((g1, g2), (g2, g1)):
+            if int(parties.geom_object[a]) == obj and parties.is_support(b, obj):
+                if b == parties.table:
+                    return "table"
+                touching = parties.name(b)
+    return touching
+
+
+def settle(env, duration: float = SETTLE_TIME) -> None:
+    """Run ``duration`` s of physics with the arm holding its rest pose and the gripper open."""
+    env.servos.command(env.data, env.names.init_qpos)
+    env.open_gripper()
+    env.advance(duration)
+
+
+def settle_and_check(env, settle_time: float = SETTLE_TIME) -> InitialStateReport:
+    """Check the environment's current state, settle it in place for ``settle_time`` s and check it again.
+
+    Raises ``InitialStateError`` (naming the object and the failed check) if the scene does not start at rest.
+    """
+    m, d = env.model, env.data
+    parties = _Parties(env)
+    mujoco.mj_forward(m, d)
+    check_masses(env)
+    check_over_table(env)
+    check_penetration(env, parties, "at the start")
+    check_supported(env, parties)
+
+    ids = sorted(env.grasp.body_of)
+    bodies = np.array([env.grasp.body_of[i] for i in ids], dtype=int)
+    origin0, com0, quat0 = d.xpos[bodies].copy(), d.xipos[bodies].copy(), d.xquat[bodies].copy()
+    before = env.snapshot()
+    try:
+        settle(env, settle_time)
+    except PhysicsError as e:
+        below = [i for i, b in zip(ids, bodies) if not np.all(np.isfinite(d.xpos[b])) or d.xpos[b][2] < 0.0]
+        env.restore(before)
+        raise InitialStateError(f"did not settle: {e}", obj=below[0] if below else None, check="unstable") from e
+    env.steps = before.steps  # settling is not part of the episode
+
+    report = InitialStateReport(settle_time)
+    moved = np.maximum(np.linalg.norm(d.xpos[bodies] - origin0, axis=1), np.linalg.norm(d.xipos[bodies] - com0, axis=1))
+    for k, obj in enumerate(ids):
+        turned = _rotation_degrees(quat0[k], d.xquat[bodies[k]])
+        if moved[k] > MAX_DISPLACEMENT or turned > MAX_ROTATION:
+            drop = origin0[k][2] - d.xpos[bodies[k]][2]
+            raise InitialStateError(
+                f"does not rest: in {settle_time:g} s of settling it moved {moved[k] * 1000:.1f} mm (dropped "
+                f"{drop * 1000:.1f} mm) and turned {turned:.1f} degrees (at most {MAX_DISPLACEMENT * 1000:.0f} mm "
+                f"and {MAX_ROTATION:g} degrees); place it stably in the scene", obj=obj, check="moved")
+        report.objects[obj] = ObjectRest(obj, float(moved[k]), turned, 0.0, None)
+    depths = check_penetration(env, parties, f"after {settle_time:g} s of settling")
+    for obj in ids:
+        support = _resting_on(env, parties, obj)
+        if support is None:
+            raise InitialStateError(f"touches neither the table nor another object after {settle_time:g} s of "
+                                    "settling", obj=obj, check="unsupported")
+        report.objects[obj].penetration = depths[obj]
+        report.objects[obj].support = support
+    return report
