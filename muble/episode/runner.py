@@ -137,14 +137,24 @@ class EpisodeRunner:
         self.max_steps = max_steps
 
     def execute(self, scene: SceneGraph, instruction: Instruction, task: Task) -> EpisodeOutput:
+        from muble.core.errors import InitialStateError
+        from muble.core.types import Outcome
         from muble.sim.build import object_models
         from muble.sim.env import TabletopEnv
+        from muble.sim.initial_state import settle_and_check
 
         timing = Timing()
         start = time.perf_counter()
         env = TabletopEnv(scene, object_models(scene, self.object_set, self.object_set_name), self.robot,
                           self.sensors)
         try:
+            try:  # the scene must start at rest; if it does not, it is broken and the agent never acts
+                settle_and_check(env)
+            except InitialStateError as e:
+                log.warning("broken scene: %s", e)
+                initial = PhysicalWorld(env, self.registry, None, self.cameras).observe(None, 0)
+                result = EpisodeResult(Outcome.BROKEN_SCENE, [], None, env.scene, initial=initial, error=str(e))
+                return EpisodeOutput(scene, instruction, result, timing=timing)
             env.planner = _TimedPlanner(self.planner, timing)
             renderer = _TimedRenderer(self.renderer, timing) if self.renderer is not None else None
             if renderer is not None:
