@@ -20,6 +20,7 @@ from muble.core.interfaces import (
     Sensor,
     Task,
 )
+from muble.core.params import Param
 from muble.core.scene import RLE, SceneGraph, SceneObject
 from muble.core.types import (
     SEG_BACKGROUND,
@@ -43,7 +44,7 @@ __version__ = "0.1.0"
 __all__ = [
     "SEG_BACKGROUND", "SEG_ROBOT", "SEG_TABLE", "ActionCall", "ActionResult", "Agent", "Answer", "CollisionWorld",
     "ConfigError", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
-    "Outcome", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
+    "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
     "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
     "Sensor", "Task", "Trajectory", "__version__", "get_registry", "hookimpl", "InitialStateError",
 ]

@@ -26,6 +26,7 @@ from muble.core.types import (
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
 
+    from muble.core.params import Param
     from muble.core.scene import SceneGraph
 
 
@@ -78,21 +79,27 @@ class MotionPlanner(ABC):
 class PrimitiveAction(ABC):
     """A named, parameterised action (``approach(target=3)``, ``move_vel(velocity, duration)``).
 
-    Subclasses declare ``params``: the parameter names they accept. ``execute`` plans through the environment's
-    planner, drives the physics loop until done or failed and returns an ``ActionResult``. A primitive renders
-    nothing: the action loop renders the keyframe afterwards.
+    Subclasses declare ``params``: the parameters they accept, as names (any value) or typed
+    ``muble.core.params.Param`` records (object id, table part, bounded number …); the action loop checks every
+    agent's call against them before it runs (``Outcome.INVALID_ACTION`` otherwise). ``execute`` plans through the
+    environment's planner, drives the physics loop until done or failed and returns an ``ActionResult`` whose
+    ``success`` says whether the primitive's end state was reached (it checks it: tracking error, lost grasp …);
+    a ``PlanningError`` is a failed action that left the environment as it was. A primitive renders nothing: the
+    action loop renders the keyframe afterwards.
     """
 
-    params: ClassVar[tuple[str, ...]] = ()
+    params: ClassVar[tuple["str | Param", ...]] = ()
 
     def __init__(self, **params: Any) -> None:
-        unknown = sorted(set(params) - set(self.params))
+        from muble.core.params import specs
+
+        unknown = sorted(set(params) - {p.name for p in specs(self.params)})
         if unknown:
             from muble.core.errors import ConfigError
 
             raise ConfigError(
                 f"primitive '{type(self).__name__}' got unknown parameter(s) {unknown}; "
-                f"it accepts: {', '.join(self.params) or '(none)'}"
+                f"it accepts: {', '.join(p.name for p in specs(self.params)) or '(none)'}"
             )
         self.arguments = dict(params)
 
@@ -146,7 +153,13 @@ class Task(ABC):
 
 
 class ObjectSet(ABC):
-    """A catalogue of object models with physical properties."""
+    """A catalogue of object models with physical properties.
+
+    ``hidden_properties`` names object properties (scene-object fields or ``extra`` keys) that agents must not
+    see beyond the ones always withheld (ground-truth weight and stiffness, see ``muble.core.observation``).
+    """
+
+    hidden_properties: ClassVar[tuple[str, ...]] = ()
 
     @abstractmethod
     def categories(self) -> list[str]: ...

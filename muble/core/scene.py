@@ -41,7 +41,7 @@ class SceneObject:
     colour: str
     position: np.ndarray  # "3d_coords", metres
     orientation: np.ndarray  # unit quaternion w, x, y, z
-    weight_gt: float  # grams
+    weight_gt: float | None  # grams; None in an agent's view (muble.core.observation)
     stackable: bool
     stack_base: bool
     pickupable: bool

@@ -149,7 +149,8 @@ def object_to_dict(o: SceneObject) -> dict[str, Any]:
     if o.pixel_coords is not None:
         d["pixel_coords"] = list(o.pixel_coords)
     d["colour"] = o.colour
-    d["weight_gt"] = o.weight_gt
+    if o.weight_gt is not None:  # None in an agent's view of the scene
+        d["weight_gt"] = o.weight_gt
     d["weight"] = o.weight
     for key in ("movability", "bbox", "scale_factor"):
         if getattr(o, key) is not None:

@@ -95,9 +95,9 @@ class Outcome(str, enum.Enum):
     """Episode outcomes; everything but SUCCESS is a failure class of the taxonomy.
 
     Whose fault a failure is: ``INVALID_ACTION`` is the agent's (a call no primitive accepts: unknown name,
-    unknown/missing parameter, wrong type, a target not in the scene); ``INVALID_DATA`` and ``BROKEN_SCENE`` are the
-    data's (a file that cannot be read or built; a scene that does not rest or breaks the physics); the others are
-    the agent's course of action.
+    unknown/missing parameter, wrong type, a target not in the scene), and so is ``AGENT_ERROR`` (the agent
+    raised); ``INVALID_DATA`` and ``BROKEN_SCENE`` are the data's (a file that cannot be read or built; a scene that
+    does not rest or breaks the physics); the others are the agent's course of action.
     """
 
     SUCCESS = "success"
@@ -110,6 +110,7 @@ class Outcome(str, enum.Enum):
     BROKEN_SCENE = "broken_scene"
     INVALID_ACTION = "invalid_action"
     INVALID_DATA = "invalid_data"
+    AGENT_ERROR = "agent_error"
 
 
 @dataclass

@@ -2,18 +2,28 @@
 
 A ``World`` executes primitive actions and tells what can be observed afterwards. The symbolic world of the task
 plugins and the physical world (MuJoCo + renderer, ``muble.episode.physical``) both run through ``run_episode``,
-so loop and timeout detection and the failure taxonomy are the same for both.
+so call checking, loop and timeout detection and the failure taxonomy are the same for both.
+
+The loop is closed: a primitive that fails is reported to the agent (``Observation.last_result`` with its reason)
+and the episode goes on, so the agent may recover; it ends when the agent answers and stops, says it is done
+(``None``), repeats itself (``loop_detected``), runs out of steps (``timeout``) or of failures
+(``execution_error`` after ``max_failures`` failed primitives). A call that no primitive accepts (unknown name or
+parameter, a missing or mistyped one, a target not in the scene) ends it at once as ``invalid_action``; an agent
+that raises ends it as ``agent_error``. Agents see ``World.observe``'s scene (what they may know, see
+``muble.core.observation``); the judge and the records get ``World.ground_truth()``.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 from muble.core.errors import PhysicsError, PlanningError
 from muble.core.interfaces import Agent, Instruction
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome
 
+log = logging.getLogger(__name__)
 
 class World(Protocol):
     """What the action loop needs of a world."""
@@ -24,10 +34,13 @@ class World(Protocol):
     def apply(self, action: ActionCall) -> ActionResult:
         """Execute one primitive; raise ``PhysicsError`` if the simulation breaks."""
 
+    def ground_truth(self) -> SceneGraph:
+        """The scene as it really is now (ground truth included), for the judge and the records."""
+
 
 @dataclass
 class EpisodeMonitor:
-    """Turns the course of an episode into the failure taxonomy: loops, time-outs, failed actions."""
+    """Turns the course of an episode into the failure taxonomy: loops and time-outs."""
 
     max_steps: int = 100
     max_repeats: int = 3  # the same action from the same observed state this often is a loop
@@ -51,23 +64,22 @@ class EpisodeMonitor:
             return Outcome.TIMEOUT
         return None
 
-    @staticmethod
-    def after(result: ActionResult) -> Outcome | None:
-        """Call with the primitive's result."""
-        return None if result.success else Outcome.EXECUTION_ERROR
-
 
 @dataclass
 class StepRecord:
-    """One executed primitive and what was observed after it."""
+    """One executed primitive, what the agent observed after it and the ground truth at that moment."""
 
     action: ActionCall
     result: ActionResult
     observation: Observation
+    scene_gt: SceneGraph | None = None
 
 
 @dataclass
 class EpisodeResult:
+    """How an episode went. ``final_scene`` and ``initial_gt`` are ground truth; ``initial`` and the steps'
+    ``observation`` are what the agent saw."""
+
     outcome: Outcome
     actions: list[ActionCall]
     answer: Answer | None
@@ -75,35 +87,78 @@ class EpisodeResult:
     steps: list[StepRecord] = field(default_factory=list)
     initial: Observation | None = None
     error: str | None = None
+    initial_gt: SceneGraph | None = None
+    failures: int = 0  # primitives that failed (reported to the agent)
 
 
 Judge = Callable[[Instruction, SceneGraph, Answer | None], Outcome]
+# Why an action call is invalid in a scene (None: valid); see ``registry_call_check``.
+CallCheck = Callable[[ActionCall, SceneGraph], "str | None"]
+
+
+def registry_call_check(registry: Any = None) -> CallCheck:
+    """Checks calls against the registered primitives' declared parameters (``muble.core.params``)."""
+    from muble.core.params import check_call
+
+    if registry is None:
+        from muble.plugins.registry import get_registry
+
+        registry = get_registry()
+    names = registry.names("primitive")
+
+    def check(action: ActionCall, scene: SceneGraph) -> str | None:
+        if not isinstance(action.name, str) or action.name not in names:
+            return f"unknown primitive {action.name!r:.60}; registered primitives: {', '.join(names)}"
+        declared = registry.get("primitive", action.name).record.factory.params
+        return check_call(action.name, declared, action.params, scene.ids)
+
+    return check
 
 
 def run_episode(instruction: Instruction, world: World, agent: Agent, judge: Judge, max_steps: int = 100,
-                max_repeats: int = 3, on_step: Callable[[StepRecord], None] | None = None) -> EpisodeResult:
-    """Let ``agent`` act in ``world`` until it stops; the final state is judged by ``judge`` (a task's check)."""
+                max_repeats: int = 3, on_step: Callable[[StepRecord], None] | None = None,
+                max_failures: int = 8, check_call: CallCheck | None = None) -> EpisodeResult:
+    """Let ``agent`` act in ``world`` until it stops; the final ground-truth state is judged by ``judge``."""
+    check_call = check_call or registry_call_check()
     monitor = EpisodeMonitor(max_steps=max_steps, max_repeats=max_repeats)
     observation = world.observe(None, 0)
-    initial = observation
-    agent.reset(instruction, observation)
+    initial, initial_gt = observation, world.ground_truth()
     actions: list[ActionCall] = []
     steps: list[StepRecord] = []
     answer: Answer | None = None
+    failures = 0
+    last_failure: str | None = None
 
     def finish(outcome: Outcome, error: str | None = None) -> EpisodeResult:
-        return EpisodeResult(outcome, actions, answer, observation.scene, steps, initial, error)
+        if outcome is not Outcome.SUCCESS and error is None:
+            error = last_failure
+        return EpisodeResult(outcome, actions, answer, world.ground_truth(), steps, initial, error, initial_gt,
+                             failures)
 
+    try:
+        agent.reset(instruction, observation)
+    except Exception as e:  # noqa: BLE001 - whatever an agent raises ends its episode, never the evaluation
+        return finish(Outcome.AGENT_ERROR, f"agent.reset raised {type(e).__name__}: {e}")
     while True:
         try:
             decision = agent.act(instruction, observation)
         except PlanningError as e:  # the agent's program cannot be carried out in this scene
             return finish(Outcome.PROGRAM_FAILURE, str(e))
+        except Exception as e:  # noqa: BLE001 - see above
+            log.info("agent raised %s: %s", type(e).__name__, e)
+            return finish(Outcome.AGENT_ERROR, f"agent.act raised {type(e).__name__}: {e}")
         if decision is None:
             break
         if isinstance(decision, Answer):
             answer = decision
             continue
+        if not isinstance(decision, ActionCall):
+            return finish(Outcome.INVALID_ACTION, f"the agent returned {type(decision).__name__} {decision!r:.80}; "
+                                                  "return an ActionCall, an Answer or None")
+        problem = check_call(decision, observation.scene)
+        if problem is not None:
+            log.info("invalid action %s: %s", decision, problem)
+            return finish(Outcome.INVALID_ACTION, problem)
         failure = monitor.before(observation.scene, decision)
         if failure is not None:
             return finish(failure)
@@ -113,10 +168,12 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: Jud
             return finish(Outcome.BROKEN_SCENE, str(e))
         actions.append(decision)
         observation = world.observe(result, len(actions))
-        steps.append(StepRecord(decision, result, observation))
+        steps.append(StepRecord(decision, result, observation, world.ground_truth()))
         if on_step is not None:
             on_step(steps[-1])
-        failure = monitor.after(result)
-        if failure is not None:
-            return finish(failure, result.failure_reason)
-    return finish(judge(instruction, observation.scene, answer))
+        if not result.success:
+            failures += 1
+            last_failure = f"{decision}: {result.failure_reason}"
+            if failures >= max_failures:
+                return finish(Outcome.EXECUTION_ERROR, f"{failures} primitives failed, the last {last_failure}")
+    return finish(judge(instruction, world.ground_truth(), answer))

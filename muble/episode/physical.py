@@ -13,6 +13,7 @@ from typing import Any, Sequence
 
 from muble.core.errors import PlanningError
 from muble.core.interfaces import Renderer
+from muble.core.observation import agent_view
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Frame, Observation
 from muble.sim.sync import is_lifted
@@ -27,15 +28,19 @@ class PhysicalWorld:
     """Executes primitive actions (by registry name) in a ``TabletopEnv`` and renders a keyframe after each.
 
     A ``PlanningError`` from a primitive is a failed action (the environment is unchanged); a ``PhysicsError``
-    propagates and ends the episode as a broken scene.
+    propagates and ends the episode as a broken scene. Agents observe the scene through ``agent_view`` (the
+    weights and stiffnesses measured in this episode, no ground truth); ``hidden`` names further properties the
+    object set withholds.
     """
 
     def __init__(self, env: Any, registry: Any, renderer: Renderer | None = None,
-                 cameras: Sequence[str] = ("front",)):
+                 cameras: Sequence[str] = ("front",), hidden: Sequence[str] = ()):
         self.env = env
         self.registry = registry
         self.renderer = renderer
         self.cameras = tuple(cameras)
+        self.hidden = tuple(hidden)
+        self.scene_gt: SceneGraph | None = None
         self.approached: int | None = None  # object the open hand is in the grasp pose of
         self.over: int | None = None  # object the hand hovers over
 
@@ -48,8 +53,15 @@ class PhysicalWorld:
     def observe(self, result: ActionResult | None, step: int) -> Observation:
         scene = self.env.sync_scene_graph()
         self._flag(scene)
-        return Observation(scene=scene, images=self.render(), measurements=self.env.observation(),
-                           last_result=result, step=step)
+        self.scene_gt = scene
+        return Observation(scene=agent_view(scene, self.env.measurements, self.hidden), images=self.render(),
+                           measurements=self.env.observation(), last_result=result, step=step)
+
+    def ground_truth(self) -> SceneGraph:
+        if self.scene_gt is None:
+            self.scene_gt = self.env.sync_scene_graph()
+            self._flag(self.scene_gt)
+        return self.scene_gt
 
     def apply(self, action: ActionCall) -> ActionResult:
         primitive = self.registry.create("primitive", action.name, action.params)

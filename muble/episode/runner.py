@@ -159,7 +159,8 @@ class EpisodeRunner:
             renderer = _TimedRenderer(self.renderer, timing) if self.renderer is not None else None
             if renderer is not None:
                 renderer.setup(env.sync_scene_graph(), env.model)
-            world = PhysicalWorld(env, self.registry, renderer, self.cameras)
+            world = PhysicalWorld(env, self.registry, renderer, self.cameras,
+                                  hidden=getattr(self.object_set, "hidden_properties", ()))
             keyframes: list[np.ndarray] = []
 
             def keep(step: StepRecord) -> None:

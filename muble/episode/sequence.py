@@ -60,19 +60,22 @@ def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths:
     """The sequence file: ``observations`` as the agent saw them, ``observations_gt`` with ground truth too."""
     observations, observations_gt = [], []
     weight = None
-    steps = [(None, episode.initial)] + [(s.action, s.observation) for s in episode.steps]
-    for i, (action, observation) in enumerate(steps):
+    steps = [(None, episode.initial, episode.initial_gt)] + [(s.action, s.observation, s.scene_gt)
+                                                              for s in episode.steps]
+    for i, (action, observation, scene_gt) in enumerate(steps):
         if i and episode.steps[i - 1].result.measurement is not None and action.name == "weigh":
             weight = episode.steps[i - 1].result.measurement
         robot = _robot(observation, action, weight)
+        # What the agent saw (its measurements only) and, apart, the ground truth at the same moment.
         observations.append({"robot": robot, "objects": _objects(observation.scene, observation, camera)})
         gt = dict(robot)
-        gt["grasped_obj_idx"] = next((o.id for o in observation.scene.objects if o.extra.get("in_hand")), None)
+        truth = scene_gt if scene_gt is not None else observation.scene
+        gt["grasped_obj_idx"] = next((o.id for o in truth.objects if o.extra.get("in_hand")), None)
         frame = observation.images.get(camera)
         if frame is not None and frame.segmentation is not None:
             gt["robot_mask"] = encode_rle(frame.segmentation == SEG_ROBOT)
             gt["table_mask"] = encode_rle(frame.segmentation == SEG_TABLE)
-        observations_gt.append({"robot": gt, "objects": observations[-1]["objects"]})
+        observations_gt.append({"robot": gt, "objects": _objects(truth, observation, camera)})
     spec = instruction.extra.get("task") or {}
     return {
         "info": {

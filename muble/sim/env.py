@@ -114,6 +114,8 @@ class TabletopEnv:
         self.faults = FaultDetector(self.model, n)
         self.eq_data0 = self.model.eq_data.copy()
         self.sensors: dict[str, Sensor] = dict(sensors or {})
+        # Only sensors that override on_step are called per control step (the physics loop stays cheap).
+        self._stepping_sensors = [x for x in self.sensors.values() if type(x).on_step is not Sensor.on_step]
 
         self.action_space = Box(-np.ones(7), np.ones(7))
         self.gripper_command = -1.0
@@ -190,10 +192,12 @@ class TabletopEnv:
             self._after_control_step()
 
     def _after_control_step(self) -> None:
+        """Bookkeeping after every control step (``advance``, ``follow`` and ``step`` alike): faults, the grasp,
+        and ``Sensor.on_step`` of the sensors that implement it."""
         self.steps += 1
         self.faults.check(self.data)
         self.grasp.update(self.data, closing=self.gripper_command > 0.0)
-        for sensor in self.sensors.values():
+        for sensor in self._stepping_sensors:
             sensor.on_step(self)
 
     def follow(self, trajectory: Trajectory, rate: float | None = None, settle: float = 0.0,
@@ -225,15 +229,11 @@ class TabletopEnv:
                 break
             self.servos.command(self.data, q_ref[i], qd_ref[i])
             mujoco.mj_step(self.model, self.data, nstep=nstep)
-            self.steps += 1
-            self.faults.check(self.data)
-            self.grasp.update(self.data, closing=self.gripper_command > 0.0)
+            self._after_control_step()
         if not stopped:
             self.servos.command(self.data, q_ref[-1])
             if settle > 0:
                 self.advance(settle)
-        for sensor in self.sensors.values():
-            sensor.on_step(self)
         err = float(np.max(np.abs(self.servos.q(self.data) - q_ref[-1]))) if not stopped else float("nan")
         return FollowResult(err, float(self.data.time - start), stopped)
 

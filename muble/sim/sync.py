@@ -48,9 +48,42 @@ def is_lifted(env, obj_id: int) -> bool:
     return grasped_at is None or env.object_pose(obj_id).pos[2] > grasped_at + LIFT_CLEARANCE
 
 
+TOUCH_DISTANCE = 0.001  # m between two geoms that counts as touching
+TABLE = "table"
+
+
+def touching(env) -> dict[int, set]:
+    """What each object touches now, from the live contacts: other objects' scene ids and ``"table"``."""
+    m, d = env.model, env.data
+    body_to_id = {int(b): i for i, b in env.grasp.body_of.items()}
+    table = int(m.geom_bodyid[m.geom("table_collision").id])
+    out: dict[int, set] = {i: set() for i in env.grasp.body_of}
+    for c in d.contact[: d.ncon]:
+        if c.dist > TOUCH_DISTANCE:
+            continue
+        b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
+        for a, b in ((b1, b2), (b2, b1)):
+            if a in body_to_id:
+                if b in body_to_id and b != a:
+                    out[body_to_id[a]].add(body_to_id[b])
+                elif b == table:
+                    out[body_to_id[a]].add(TABLE)
+    return out
+
+
+def tilt_deg(quat: np.ndarray) -> float:
+    """Angle (degrees) between the object's z axis and the world's vertical, from a quaternion (w, x, y, z)."""
+    w, x, y, z = (float(v) for v in quat)
+    cos = 1.0 - 2.0 * (x * x + y * y)
+    return float(np.degrees(np.arccos(min(1.0, max(-1.0, cos)))))
+
+
 def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
-    """A copy of ``previous`` with every object's pose, bbox and flags taken from the simulation now."""
+    """A copy of ``previous`` with every object's pose, bbox, flags and physical state taken from the simulation
+    now: ``extra["touching"]`` (sorted object ids, then ``"table"``), ``extra["tilt_deg"]`` and
+    ``extra["speed"]`` (m/s)."""
     scene = copy.deepcopy(previous)
+    contacts = touching(env)
     for obj in scene.objects:
         pose = env.object_pose(obj.id)
         rest_z = float(env.model.body_pos[env.grasp.body_of[obj.id]][2])
@@ -61,6 +94,10 @@ def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
         in_hand = env.held_object == obj.id
         obj.extra["in_hand"] = in_hand
         obj.extra["raised"] = bool(pose.pos[2] > rest_z + RAISED_HEIGHT)
+        touched = contacts.get(obj.id, set())
+        obj.extra["touching"] = sorted(t for t in touched if t != TABLE) + ([TABLE] if TABLE in touched else [])
+        obj.extra["tilt_deg"] = round(tilt_deg(pose.quat), 2)
+        obj.extra["speed"] = round(float(np.linalg.norm(env.data.cvel[env.grasp.body_of[obj.id]][3:])), 4)
         measured = env.measurements.get(obj.id, {}) if hasattr(env, "measurements") else {}
         if "weight" in measured:
             obj.weight = measured["weight"]

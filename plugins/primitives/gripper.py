@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import logging
 
-from muble import ActionResult, PrimitiveAction
+from muble import ActionResult, Param, PrimitiveAction
 
 logger = logging.getLogger(__name__)
 
@@ -17,7 +17,7 @@ class CloseGripper(PrimitiveAction):
     With ``target`` (a scene id) it succeeds only if that object is the one held.
     """
 
-    params = ("target",)
+    params = (Param("target", "object", doc="the object expected between the fingers"),)
 
     def execute(self, env) -> ActionResult:
         env.close_gripper()

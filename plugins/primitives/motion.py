@@ -10,7 +10,7 @@ import logging
 
 import numpy as np
 
-from muble import ActionResult, JointGoal, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction
 from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
@@ -41,10 +41,33 @@ REST_WAIT = 1.5  # s a put-down object may take to come to rest after the hand l
 LIFT_SIDESTEPS = ((0.0, 0.0), *((r * np.cos(a), r * np.sin(a)) for r in (0.04, 0.08)
                                 for a in np.linspace(0.0, 2 * np.pi, 8, endpoint=False)))
 PUT_BACK_RADIUS = 0.05  # m a put-down without a target may shift the object to find a free place
+END_TRACKING = 0.05  # rad any arm joint may end from the planned final configuration for the motion to count
+MOVE_VEL_TOLERANCE = 0.01  # m between the hand's travel and velocity x duration
+MAX_ATTEMPT = 16  # ``attempt`` values a retrying agent may pass
+
+# Typed parameters: the action loop rejects other calls as invalid actions before anything runs.
+TARGET_PLACE = Param("target", "place", required=True, doc="object id or table part")
+ATTEMPT = Param("attempt", "int", low=0, high=MAX_ATTEMPT,
+                doc="retry number: start from the attempt-th best option (grasp, place, hover pose)")
 
 
-def _result(report: ctx.MotionReport, **info) -> ActionResult:
-    info.update(unintended_contacts=sorted(report.unintended_contacts), duration=report.duration)
+def rotated(options: list, attempt: int) -> list:
+    """``options`` with the ``attempt``-th first: a retry tries the alternatives before the option that failed."""
+    if not options:
+        return options
+    k = int(attempt) % len(options)
+    return list(options[k:]) + list(options[:k])
+
+
+def _result(report: ctx.MotionReport, env=None, held: int | None = None, **info) -> ActionResult:
+    """The motion's result, checked: the arm ended where it was sent, and it still holds what it held."""
+    info.update(unintended_contacts=sorted(report.unintended_contacts), duration=report.duration,
+                final_error=report.final_error)
+    if np.isfinite(report.final_error) and report.final_error > END_TRACKING:
+        return ActionResult(False, info=info, failure_reason=f"the arm ended {report.final_error:.3f} rad from the "
+                                                            f"planned configuration (blocked or overloaded)")
+    if env is not None and held is not None and env.held_object != held:
+        return ActionResult(False, info=info, failure_reason=f"object {held} slipped out of the hand while moving")
     return ActionResult(True, info=info)
 
 
@@ -61,10 +84,12 @@ class Move(PrimitiveAction):
     (nearest the part's centre) that the arm reaches and can descend to straight without touching anything.
     """
 
-    params = ("target",)
+    params = (TARGET_PLACE, ATTEMPT)
 
     def execute(self, env) -> ActionResult:
         target = self.arguments.get("target")
+        attempt = int(self.arguments.get("attempt", 0))
+        held = env.held_object
         if isinstance(target, str):
             ctx.table(env).part_region(target)  # an unknown part name fails before anything moves
         else:
@@ -74,7 +99,7 @@ class Move(PrimitiveAction):
             rise = placement.clear_start(env, ctx.collision_world(env))
             world = ctx.collision_world(env)
             if isinstance(target, str) and env.held_object is not None:
-                goals = [JointGoal(self._over_free_place(env, world, target))]
+                goals = [JointGoal(self._over_free_place(env, world, target, attempt))]
             else:
                 # Over an object near the edge of the workspace the hand may have to turn about the vertical
                 # (a carried object turning with it) to reach, and beside a tall neighbour rise above it or turn
@@ -86,6 +111,7 @@ class Move(PrimitiveAction):
                     if not any(np.allclose(goal.pose.pos, g.pose.pos) and np.allclose(goal.pose.quat, g.pose.quat)
                                for g in goals):
                         goals.append(goal)
+                goals = rotated(goals, attempt)
             reasons = []
             for goal in goals:
                 world.allow_contact([])
@@ -100,7 +126,7 @@ class Move(PrimitiveAction):
             env.restore(snap)
             raise
         report = ctx.execute(env, trajectory, world)
-        return _result(placement.merge(rise, report), target=target)
+        return _result(placement.merge(rise, report), env, held, target=target)
 
     @staticmethod
     def _hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
@@ -124,14 +150,14 @@ class Move(PrimitiveAction):
         return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat)
 
     @staticmethod
-    def _over_free_place(env, world, part: str) -> np.ndarray:
+    def _over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
         table = ctx.table(env)
         places = _part_places(env, part, env.held_object)
         if not places:
             raise PlanningError(f"no free space on the {part} part of the table for object {env.held_object}; "
                                 "choose another part")
         reasons = []
-        for xy in placement.spread(places):
+        for xy in rotated(placement.spread(places), attempt):
             place = placement.place_pose(env, xy, table.top_z, RELEASE_GAPS[0])
             top = placement.clear_top(env, xy, table.top_z, env.held_object)
             above = np.array([place.pos[0], place.pos[1], top + placement.held_depth(env) + ctx.HOVER])
@@ -153,10 +179,11 @@ class Approach(PrimitiveAction):
     within ``TARGET_TOUCH`` (the pads brushing it), never pierced, so that closing really pinches it.
     """
 
-    params = ("target",)
+    params = (Param("target", "object", required=True), ATTEMPT)
 
     def execute(self, env) -> ActionResult:
         obj_id = int(self.arguments["target"])
+        attempt = int(self.arguments.get("attempt", 0))
         body = ctx.body_name(env, obj_id)
         if env.held_object is not None:
             raise PlanningError(f"the hand already holds object {env.held_object}; lower it before approaching")
@@ -186,6 +213,7 @@ class Approach(PrimitiveAction):
                                     f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "
                                     "choose another robot.gripper or object")
             tried += len(candidates)
+            candidates = rotated(candidates, attempt)
             # A grasp whose arm configuration lies on another branch (wrist turned most of a turn) is kept back:
             # on such a long swing the wrist lags and the hand sweeps where the plan did not go. A few more
             # candidates are tried for a nearer one first.
@@ -327,10 +355,11 @@ def _touches_lightly(world, qs) -> bool:
 class Lift(PrimitiveAction):
     """Raise the hand (and what it holds) straight up by ``height`` metres (default 0.15)."""
 
-    params = ("height",)
+    params = (Param("height", "number", low=0.01, high=0.4, doc="metres"),)
 
     def execute(self, env) -> ActionResult:
         height = float(self.arguments.get("height", 0.15))
+        held = env.held_object
         world = ctx.collision_world(env)
         own = set(world.robot_bodies)
         if env.held_object is not None:
@@ -359,7 +388,7 @@ class Lift(PrimitiveAction):
                 # sideways first where needed, touching only the support.
                 q_goal = self._raised(env, world, goal)
                 trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
-                return _result(ctx.execute(env, trajectory, world, allowed=support), height=height)
+                return self._checked(env, ctx.execute(env, trajectory, world, allowed=support), held, height)
             report = ctx.execute(env, first, world, allowed=support)
             world = ctx.collision_world(env)
             q_goal = self._raised(env, world, goal)
@@ -367,9 +396,20 @@ class Lift(PrimitiveAction):
             second = ctx.execute(env, trajectory, world)
             report = ctx.MotionReport(report.duration + second.duration, second.final_error,
                                       report.unintended_contacts | second.unintended_contacts)
-            return _result(report, height=height)
+            return self._checked(env, report, held, height)
         report = ctx.execute(env, trajectory, world, allowed=support)
-        return _result(report, height=height)
+        return self._checked(env, report, held, height)
+
+    @staticmethod
+    def _checked(env, report: ctx.MotionReport, held: int | None, height: float) -> ActionResult:
+        """Lifting an object succeeds only when it ends held and clear of every support."""
+        from muble.sim.sync import is_lifted
+
+        result = _result(report, env, held, height=height)
+        if result.success and held is not None and not is_lifted(env, held):
+            result.success = False
+            result.failure_reason = f"object {held} is still supported after lifting (caught on something)"
+        return result
 
 
     @staticmethod
@@ -395,12 +435,13 @@ class Lower(PrimitiveAction):
     within ``PUT_BACK_RADIUS`` in the same table parts. The object is released and left resting.
     """
 
-    params = ("target",)
+    params = (Param("target", "place", doc="object id or table part; none: where it is"), ATTEMPT)
 
     def execute(self, env) -> ActionResult:
         if env.held_object is None:
             raise PlanningError("lower needs an object in the hand; approach and close the gripper first")
         target = self.arguments.get("target")
+        attempt = int(self.arguments.get("attempt", 0))
         held = env.held_object
         held_body = env.model.body(env.names.objects[held]).id
         table = ctx.table(env)
@@ -409,6 +450,7 @@ class Lower(PrimitiveAction):
             rise = placement.clear_start(env, ctx.collision_world(env))
             world = ctx.collision_world(env)
             support_body, support_top, places = self._places(env, target, held, table)
+            places = rotated(places, attempt)
             to_above, down = self._plan(env, world, target, places, support_body, support_top)
         except PlanningError:
             env.restore(snap)
@@ -516,7 +558,8 @@ class MoveVel(PrimitiveAction):
     the measurement is the displacement actually travelled.
     """
 
-    params = ("velocity", "duration")
+    params = (Param("velocity", "vector", required=True, low=-0.5, high=0.5, length=3, doc="m/s, world frame"),
+              Param("duration", "number", low=0.0, high=10.0, doc="s"))
 
     def execute(self, env) -> ActionResult:
         from muble import get_registry
@@ -533,5 +576,10 @@ class MoveVel(PrimitiveAction):
         goal = PoseGoal(Pose(start.pos + velocity * duration, start.quat), 0.003, 0.05)
         report = ctx.execute(env, line.plan(env.arm_q(), goal, world), world, settle=0.1)
         moved = env.ee_pose().pos - start.pos
-        return ActionResult(True, measurement=moved.tolist(),
-                            info={"duration": report.duration, "unintended_contacts": sorted(report.unintended_contacts)})
+        off = float(np.linalg.norm(moved - velocity * duration))
+        info = {"duration": report.duration, "unintended_contacts": sorted(report.unintended_contacts)}
+        if off > MOVE_VEL_TOLERANCE:
+            return ActionResult(False, measurement=moved.tolist(), info=info,
+                                failure_reason=f"the hand ended {off * 1000:.0f} mm from where the motion should "
+                                               "have taken it (blocked)")
+        return ActionResult(True, measurement=moved.tolist(), info=info)

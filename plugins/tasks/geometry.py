@@ -20,6 +20,10 @@ DEFAULT_HEIGHT = 0.06
 # stands level with it.
 RAISED_BY_BASE = 0.002
 BROKEN_BELOW_Z = -0.05  # an object this far below the table top has fallen off
+# Judging the end state (docs/tasks.md): a put-down object counts only when it rests upright.
+UPRIGHT_DEG = 20.0  # degrees an object's axis may lean from the vertical and still stand upright
+RESTING_SPEED = 0.05  # m/s below which an object counts as resting
+TABLE = "table"  # what ``extra["touching"]`` names the table
 # Room on a table part for an object to be put there: the placing primitives keep 15 mm between real footprints
 # on a 1 cm grid; here bboxes (centred on the object's origin, so a mug's handle side may reach a little past
 # them) stand in for footprints, with a wider gap.
@@ -134,16 +138,41 @@ def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: f
     return True
 
 
+def tilt(obj: SceneObject) -> float:
+    """Degrees between the object's z axis and the vertical (the world's record, else from its quaternion)."""
+    if "tilt_deg" in obj.extra:
+        return float(obj.extra["tilt_deg"])
+    w, x, y, z = (float(v) for v in obj.orientation)
+    return math.degrees(math.acos(min(1.0, max(-1.0, 1.0 - 2.0 * (x * x + y * y)))))
+
+
+def upright(obj: SceneObject) -> bool:
+    return tilt(obj) <= UPRIGHT_DEG
+
+
+def resting(obj: SceneObject) -> bool:
+    """Not held and not moving (a world that records no speed counts as still)."""
+    return not obj.extra.get("in_hand") and float(obj.extra.get("speed", 0.0)) < RESTING_SPEED
+
+
+def touches(obj: SceneObject, support: int | str) -> bool:
+    """``obj`` is in contact with ``support`` (an object id or ``"table"``); a world that records no contacts
+    (a symbolic one, before the object was moved) is taken at its positions."""
+    return "touching" not in obj.extra or support in obj.extra["touching"]
+
+
 def rests_on(top: SceneObject, base: SceneObject) -> bool:
-    """``top`` stands on (or in) ``base``: centred over its footprint and higher, not held."""
-    if top.extra.get("in_hand"):
+    """``top`` stands on (or in) ``base``: resting, in contact with it, upright (both within ``UPRIGHT_DEG``),
+    centred over its footprint and higher."""
+    if not (resting(top) and touches(top, base.id) and upright(top) and upright(base)):
         return False
     dxy = math.hypot(top.position[0] - base.position[0], top.position[1] - base.position[1])
     return dxy <= max(0.6 * footprint_radius(base), 0.03) and top.position[2] > base.position[2] + RAISED_BY_BASE
 
 
 def on_table_part(obj: SceneObject, part: str, scene: SceneGraph) -> bool:
-    return not obj.extra.get("in_hand") and part in table_parts_of(obj, scene)
+    """``obj`` rests upright on the table top itself, in ``part``."""
+    return resting(obj) and touches(obj, TABLE) and upright(obj) and part in table_parts_of(obj, scene)
 
 
 def broken(scene: SceneGraph) -> list[int]:

@@ -6,6 +6,7 @@ Targets come from the program outputs recorded at generation time (the initial s
 from __future__ import annotations
 
 import logging
+import math
 from typing import Any
 
 from muble import Answer, ConfigError, Instruction, Outcome, PlanningError, SceneGraph
@@ -28,17 +29,52 @@ def recorded_final(instruction: Instruction, scene: SceneGraph) -> Any:
     return execute(instruction.program, scene, weights="ground_truth").final
 
 
-def weights_match(answer: Any, expected: list[float]) -> bool:
+def _grams(value: Any) -> float | None:
+    if isinstance(value, bool):
+        return None
+    try:
+        grams = float(value)
+    except (TypeError, ValueError):
+        return None
+    return grams if math.isfinite(grams) else None
+
+
+def weights_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
+    """The answer gives each queried object its weight: a list in the program's object order, or a mapping of
+    object id to grams (``ids`` are the queried objects). A weight set against the wrong object fails."""
     values = answer.value if isinstance(answer, Answer) else answer
     if isinstance(values, dict):
-        values = list(values.values())
+        if ids is None:
+            return False
+        by_id: dict[int, Any] = {}
+        for key, value in values.items():
+            try:
+                by_id[int(key)] = value
+            except (TypeError, ValueError):
+                return False
+        if sorted(by_id) != sorted(ids):
+            return False
+        values = [by_id[i] for i in ids]
+    if isinstance(values, (int, float)) and not isinstance(values, bool) and len(expected) == 1:
+        values = [values]
     if not isinstance(values, (list, tuple)) or len(values) != len(expected):
         return False
-    try:
-        got = sorted(float(v) for v in values)
-    except (TypeError, ValueError):
-        return False
-    return all(abs(g - e) <= max(WEIGHT_TOLERANCE_G, WEIGHT_TOLERANCE_REL * e) for g, e in zip(got, sorted(expected)))
+    got = [_grams(v) for v in values]
+    return all(g is not None and abs(g - e) <= max(WEIGHT_TOLERANCE_G, WEIGHT_TOLERANCE_REL * e)
+               for g, e in zip(got, expected))
+
+
+def queried_ids(instruction: Instruction, scene: SceneGraph) -> list[int] | None:
+    """The objects a ``query_weight`` program weighs, in its order: the recorded output of the step before, or
+    the program run on ``scene``."""
+    if len(instruction.program) < 2:
+        return None
+    before = instruction.program[-2].get("output")
+    if before is None:
+        before = execute(instruction.program, scene, weights="ground_truth").outputs[-2]
+    if isinstance(before, list) and all(isinstance(i, int) and not isinstance(i, bool) for i in before):
+        return list(before)
+    return None
 
 
 def check(instruction: Instruction, scene: SceneGraph, answer: Answer | None) -> Outcome:
@@ -54,7 +90,8 @@ def check(instruction: Instruction, scene: SceneGraph, answer: Answer | None) ->
     kind = instruction.program[-1]["type"]
     try:
         if kind == "query_weight":
-            return Outcome.SUCCESS if answer is not None and weights_match(answer, target) else Outcome.INCORRECT_ANSWER
+            ok = answer is not None and weights_match(answer, target, queried_ids(instruction, scene))
+            return Outcome.SUCCESS if ok else Outcome.INCORRECT_ANSWER
         if kind == "pick_up":
             obj = scene.object(target[0])
             ok = bool(obj.extra.get("in_hand")) and bool(obj.extra.get("raised"))

@@ -12,8 +12,9 @@ import copy
 from dataclasses import dataclass
 
 from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject
+from muble.core.observation import agent_view
 
-from muble_plugins.tasks.geometry import free_spot, height
+from muble_plugins.tasks.geometry import TABLE, free_spot, height
 
 # The primitive plugins' registry names (plugins/primitives): grasping and releasing are the gripper primitives.
 MOVE, APPROACH, LIFT, WEIGH, LOWER = "move", "approach", "lift", "weigh", "lower"
@@ -47,7 +48,11 @@ class ArmState:
 
 
 class SymbolicWorld:
-    """Applies primitive calls to a private copy of a scene graph; failed preconditions fail the action."""
+    """Applies primitive calls to a private copy of a scene graph; failed preconditions fail the action.
+
+    Agents observe ``agent_view`` of it: weights only once they weighed them, no ground truth. Objects put down
+    record what they stand on in ``extra["touching"]``, as the physical world reports contacts.
+    """
 
     def __init__(self, scene: SceneGraph):
         self.scene = copy.deepcopy(scene)
@@ -55,6 +60,7 @@ class SymbolicWorld:
             o.weight = None
             for flag in FLAGS:
                 o.extra[flag] = False
+        self.measured: dict[int, dict[str, float]] = {}  # what the agent measured this episode
         self.destination: list[float] | None = None  # a table point the held object was moved over
         self.steps = 0
 
@@ -66,7 +72,10 @@ class SymbolicWorld:
         return self.scene.object(int(call.params["target"]))
 
     def observe(self, result: ActionResult | None, step: int) -> Observation:
-        return Observation(scene=self.scene, last_result=result, step=step)
+        return Observation(scene=agent_view(self.scene, self.measured), last_result=result, step=step)
+
+    def ground_truth(self) -> SceneGraph:
+        return self.scene
 
     def apply(self, call: ActionCall) -> ActionResult:
         self.steps += 1
@@ -117,12 +126,14 @@ class SymbolicWorld:
             if held is None or state.raised:
                 return fail("lifting needs a grasped object resting on its support")
             held.extra["raised"] = True
+            held.extra["touching"] = []
             held.position = held.position + [0.0, 0.0, LIFT_HEIGHT]
             return ActionResult(True)
         if call.name == WEIGH:
             if held is None or not state.raised:
                 return fail("weighing needs a lifted object")
             held.weight = held.weight_gt
+            self.measured.setdefault(held.id, {})["weight"] = held.weight_gt
             return ActionResult(True, measurement=held.weight_gt)
         if call.name == LOWER:
             if held is None or not state.raised:
@@ -150,10 +161,13 @@ class SymbolicWorld:
         if state.over is not None and state.over != held.id:
             base = self.scene.object(state.over)
             held.position = base.position + [0.0, 0.0, height(base)]
+            held.extra["touching"] = [base.id]
         elif self.destination is not None:
             held.position = held.position.copy()
             held.position[:2] = self.destination[:2]
             held.position[2] = self.destination[2]
+            held.extra["touching"] = [TABLE]
         else:
             held.position = held.position - [0.0, 0.0, LIFT_HEIGHT]
+            held.extra.pop("touching", None)  # back where it stood, on what it stood on
         self.destination = None

@@ -1,0 +1,93 @@
+"""What an agent may know: the scene graph as a robot perceives it, plus what it measured itself.
+
+Every world (symbolic or physical) builds the scene an agent observes with ``agent_view``; ground truth stays
+with the world, the success checks and the ``observations_gt`` of sequence files.
+
+The view is an allow-list, so a property nobody thought of stays hidden by default:
+- visible: identity and visible attributes (model, category, shape, size, material, colour), pose, bbox,
+  mask, affordances (stackable, stack base, pickupable), the gripper flags and the contact state (what an
+  object stands on or touches, which a camera sees);
+- hidden until measured in this episode: ``weight`` (grams, from ``weigh``) and stiffness (N/m, from
+  ``squeeze``, reported as ``extra["stiffness_measured"]``);
+- never shown: ``weight_gt``, the ground-truth ``stiffness``, a scene file's pre-filled ``weight``, and every
+  other key a scene file or an object set carries (friction, geometry parameters, …). An object set may hide
+  visible fields as well (``ObjectSet.hidden_properties``).
+"""
+from __future__ import annotations
+
+import copy
+from typing import Iterable, Mapping
+
+from muble.core.scene import SceneGraph, SceneObject
+
+# Keys of ``SceneObject.extra`` an agent may see: the gripper's flags and the physical contact state.
+VISIBLE_EXTRA = ("in_hand", "raised", "approached", "gripper_over", "touching", "tilt_deg", "speed")
+# Fields of ``SceneObject`` that carry ground truth and never reach an agent.
+GROUND_TRUTH_FIELDS = ("weight_gt", "stiffness")
+MEASURED_STIFFNESS = "stiffness_measured"
+# Scene-level fields an agent may see (everything else of the scene file, ``extra`` included, stays hidden).
+_SCENE_VISIBLE = ("split", "image_index", "image_filename", "directions", "camera_params", "lamp_params", "table",
+                  "robot", "relationships")
+
+
+def agent_object(obj: SceneObject, measured: Mapping[str, float] | None = None,
+                 hidden: Iterable[str] = ()) -> SceneObject:
+    """``obj`` as an agent may know it; ``measured`` holds what this agent measured of it ({"weight": g, …})."""
+    measured = measured or {}
+    extra = {k: copy.deepcopy(obj.extra[k]) for k in VISIBLE_EXTRA if k in obj.extra}
+    if "stiffness" in measured:
+        extra[MEASURED_STIFFNESS] = float(measured["stiffness"])
+    view = SceneObject(
+        id=obj.id, model=obj.model, name=obj.name, shape=obj.shape, size=obj.size, material=obj.material,
+        colour=obj.colour, position=obj.position.copy(), orientation=obj.orientation.copy(), weight_gt=None,
+        stackable=obj.stackable, stack_base=obj.stack_base, pickupable=obj.pickupable,
+        weight=float(measured["weight"]) if "weight" in measured else None, rotation=obj.rotation,
+        pixel_coords=copy.deepcopy(obj.pixel_coords), movability=obj.movability, bbox=copy.deepcopy(obj.bbox),
+        scale_factor=obj.scale_factor, mask=obj.mask, stiffness=None, extra=extra, explicit_id=obj.explicit_id)
+    for name in hidden:
+        if name in GROUND_TRUTH_FIELDS or name == "weight":
+            continue  # hidden already (or shown only as measured)
+        if hasattr(view, name) and name not in ("id", "position", "orientation"):
+            setattr(view, name, None)
+        view.extra.pop(name, None)
+    return view
+
+
+def agent_view(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | None = None,
+               hidden: Iterable[str] = ()) -> SceneGraph:
+    """A copy of ``scene`` that carries only what an agent may know (see the module doc).
+
+    ``measured`` maps object id to the values this agent measured in this episode ({"weight": g,
+    "stiffness": N/m}); ``hidden`` names further properties to withhold (an object set's hidden properties).
+    """
+    measured = measured or {}
+    hidden = tuple(hidden)
+    view = SceneGraph(objects=[agent_object(o, measured.get(o.id), hidden) for o in scene.objects])
+    for name in _SCENE_VISIBLE:
+        setattr(view, name, copy.deepcopy(getattr(scene, name)))
+    return view
+
+
+def leaks(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | None = None) -> list[str]:
+    """What in ``scene`` an agent should not know: ground truth, or a measured value it did not measure.
+
+    Empty for a scene built by ``agent_view``; the benchmark's tests (and third-party worlds) check with it.
+    """
+    measured = measured or {}
+    found = []
+    for o in scene.objects:
+        mine = measured.get(o.id, {})
+        if o.weight_gt is not None:
+            found.append(f"object {o.id}: weight_gt")
+        if o.stiffness is not None:
+            found.append(f"object {o.id}: stiffness")
+        if o.weight is not None and o.weight != mine.get("weight"):
+            found.append(f"object {o.id}: weight {o.weight} not measured by the agent")
+        if MEASURED_STIFFNESS in o.extra and o.extra[MEASURED_STIFFNESS] != mine.get("stiffness"):
+            found.append(f"object {o.id}: stiffness not measured by the agent")
+        for key in o.extra:
+            if key not in VISIBLE_EXTRA and key != MEASURED_STIFFNESS:
+                found.append(f"object {o.id}: extra['{key}']")
+    if scene.extra:
+        found.append(f"scene extra keys {sorted(scene.extra)}")
+    return found

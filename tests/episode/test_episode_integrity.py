@@ -1,0 +1,130 @@
+"""The benchmark's contracts in the action loop: what an agent may see, invalid calls, the closed loop.
+
+Symbolic episodes here; the same checks run with physics in ``test_episode_integrity_physics.py`` and
+``tests/tasks/test_tasks_oracle_physics.py``.
+"""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from muble import ActionCall, Agent, Answer, Outcome, get_registry
+from muble.core.observation import agent_view, leaks
+from muble.episode import run_episode
+from muble_plugins.tasks.agents import OracleAgent
+from muble_plugins.tasks.success import check
+from muble_plugins.tasks.symbolic import SymbolicWorld
+from muble_plugins.tasks.synthetic import sample_scene
+
+from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted, Snoop
+
+TEMPLATES = ("measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
+             "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order")
+
+
+def instruction_for(template: str, seed: int = 0, tries: int = 200):
+    task = get_registry().create("task", template, {})
+    for index in range(tries):
+        scene = sample_scene(np.random.default_rng([seed, index]), index)
+        found = task.generate(scene, np.random.default_rng([seed, index, 1]))
+        if found:
+            return task, found[0], scene
+    raise AssertionError(f"no {template} instruction in {tries} synthetic scenes")
+
+
+@pytest.fixture(scope="module")
+def episodes():
+    return {t: instruction_for(t) for t in TEMPLATES}
+
+
+@pytest.mark.parametrize("template", TEMPLATES)
+def test_agent_sees_no_ground_truth_and_only_its_own_measurements(episodes, template):
+    task, ins, scene = episodes[template]
+    # A scene file whose weights and stiffness are filled in: none of it may reach the agent.
+    scene = copy.deepcopy(scene)
+    for o in scene.objects:
+        o.weight, o.stiffness = o.weight_gt + 1.0, 1234.0
+        o.extra["friction"] = 0.7
+    snoop = Snoop(OracleAgent())
+    result = run_episode(ins, SymbolicWorld(scene), snoop, check)
+    assert result.outcome is Outcome.SUCCESS, result.error
+    assert snoop.seen >= 2 and snoop.found == [], snoop.found
+    # The ground truth stays with the record: the judge's scene still has every true weight.
+    assert all(o.weight_gt is not None for o in result.final_scene.objects)
+    if template.startswith("measure_weight"):
+        assert snoop.weights_seen, "a weight measured by the agent is shown to it afterwards"
+
+
+def test_leaks_finds_what_agent_view_removes(episodes):
+    _, _, scene = episodes["stack_simple"]
+    assert leaks(scene)  # the ground-truth scene is not an agent's view
+    measured = {scene.objects[0].id: {"weight": 123.0, "stiffness": 900.0}}
+    view = agent_view(scene, measured, hidden=("material",))
+    assert leaks(view, measured) == []
+    assert view.objects[0].weight == 123.0 and view.objects[0].extra["stiffness_measured"] == 900.0
+    assert view.objects[1].weight is None and view.objects[1].weight_gt is None
+    assert all(o.material is None for o in view.objects)  # an object set's hidden property
+    assert leaks(view, {}) != []  # a weight the agent did not measure is a leak
+
+
+@pytest.mark.parametrize("call", INVALID_CALLS, ids=[repr(c)[:40] for c in INVALID_CALLS])
+def test_invalid_actions_are_the_agents_fault_in_the_symbolic_world(episodes, call):
+    task, ins, scene = episodes["stack_simple"]
+    result = run_episode(ins, SymbolicWorld(scene), Scripted([call]), check)
+    assert result.outcome is Outcome.INVALID_ACTION, (result.outcome, result.error)
+    assert result.error and result.actions == []
+
+
+def test_at_least_twenty_kinds_of_invalid_calls():
+    assert len(INVALID_CALLS) >= 20
+
+
+def test_an_agent_that_raises_ends_its_episode_not_the_run(episodes):
+    class Raising(Agent):
+        def act(self, instruction, observation):
+            raise ZeroDivisionError("bug in the agent")
+
+    task, ins, scene = episodes["move_single"]
+    result = run_episode(ins, SymbolicWorld(scene), Raising(), check)
+    assert result.outcome is Outcome.AGENT_ERROR and "ZeroDivisionError" in result.error
+
+
+@pytest.mark.parametrize("template,primitive", [("stack_simple", "approach"), ("move_single", "lower"),
+                                                ("measure_weight_single", "close_gripper"),
+                                                ("stack_weight", "move")])
+def test_the_oracle_recovers_from_a_failed_primitive(episodes, template, primitive):
+    task, ins, scene = episodes[template]
+    world = FailingWorld(SymbolicWorld(scene), primitive, fail=2)
+    result = run_episode(ins, world, OracleAgent(), check)
+    assert result.outcome is Outcome.SUCCESS, (result.outcome, result.error)
+    assert result.failures == 2
+    retries = [c for c in world.calls if c.params.get("attempt")]
+    assert retries, "the oracle retried differently (with another attempt)"
+
+
+def test_failures_are_reported_and_the_episode_goes_on_until_the_budget(episodes):
+    task, ins, scene = episodes["stack_simple"]
+    # weigh with an empty hand fails every time; each call differs so it is no loop
+    calls = [ActionCall("lift", {"height": 0.05 + 0.01 * k}) for k in range(20)]
+    agent = Scripted(calls)
+    result = run_episode(ins, SymbolicWorld(scene), agent, check, max_failures=5)
+    assert result.outcome is Outcome.EXECUTION_ERROR and result.failures == 5
+    assert all(not r.success for r in agent.results[1:])  # the agent was told about each failure
+    assert "lift" in result.error
+
+
+def test_final_state_is_judged_on_ground_truth_not_on_what_the_agent_saw(episodes):
+    task, ins, scene = episodes["measure_weight_single"]
+    truth = ins.program[-1]["output"]
+
+    class Guess(Agent):
+        def act(self, instruction, observation):
+            if getattr(self, "done", False):
+                return None
+            self.done = True
+            return Answer([o.weight for o in observation.scene.objects][:len(truth)])
+
+    result = run_episode(ins, SymbolicWorld(scene), Guess(), check)
+    assert result.outcome is Outcome.INCORRECT_ANSWER  # it saw no weight, so it could not copy one
