@@ -33,12 +33,13 @@ class Snoop(Agent):
                         self.found.append(f"sensor {key} reports object {obj_id} unmeasured")
 
     def reset(self, instruction, observation):
-        self.measured, self.last = {}, None
+        self.measured, self.last, self.step = {}, None, 0
         self._inspect(observation)
         self.inner.reset(instruction, observation)
 
     def act(self, instruction, observation):
-        if observation.step:
+        if observation.step and observation.step != self.step:  # a new observation (not the one answered on)
+            self.step = observation.step
             self._inspect(observation)
         decision = self.inner.act(instruction, observation)
         self.last = decision if isinstance(decision, ActionCall) else self.last

@@ -12,6 +12,9 @@ from omegaconf import OmegaConf
 
 from muble import Outcome, get_registry
 from muble.app.config import SHOPVRB2_TEMPLATES
+from muble.episode.sequence import sequence_dict
+
+from tests.episode.probes import Snoop
 
 pytestmark = pytest.mark.slow
 
@@ -58,10 +61,26 @@ def test_oracle_succeeds_with_physics_and_follows_the_ground_truth(setup, templa
     else:
         pytest.fail(f"none of the first {MAX_SCENES} generated scenes has a {template} instruction")
     instruction = candidates[0]
-    output = runner.execute(scene, instruction, task)
+    oracle = runner.agent
+    runner.agent = snoop = Snoop(oracle)  # checks every observation the agent gets
+    try:
+        output = runner.execute(scene, instruction, task)
+    finally:
+        runner.agent = oracle
     result = output.result
     executed = [str(a) for a in result.actions]
     assert result.outcome is Outcome.SUCCESS, (instruction.instruction, executed, result.error)
+    assert snoop.seen == len(result.actions) + 1 and snoop.found == [], snoop.found
+    # The sequence file's agent-side observations hold no ground truth and only weights weighed before them.
+    sequence = sequence_dict(instruction, result, [])
+    weighed: set[int] = set()
+    for step, observed in zip([None, *result.steps], sequence["observations"]):
+        if step is not None and step.action.name == "weigh":
+            weighed.add(next(o.id for o in step.observation.scene.objects if o.extra.get("in_hand")))
+        for scene_obj, obj in zip(scene.objects, observed["objects"]):
+            assert "weight_gt" not in obj and "stiffness" not in obj and "friction" not in obj, obj.keys()
+            assert obj["weight"] is None or scene_obj.id in weighed
+    assert all("weight_gt" in obj for obj in sequence["observations_gt"][-1]["objects"])
     planned = [str(a) for a in task.ground_truth(instruction, scene)]
     assert executed == planned
     if instruction.program[-1]["type"] == "query_weight":

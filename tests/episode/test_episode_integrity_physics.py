@@ -1,0 +1,94 @@
+"""The action loop's contracts with MuJoCo physics: invalid calls, recovery from a failed primitive, and an end
+state judged on contacts and uprightness rather than positions."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from muble import Instruction, Outcome, get_registry
+from muble.episode import run_episode
+from muble.episode.physical import PhysicalWorld
+from muble.sim.env import TabletopEnv
+from muble.sim.fixtures import simple_object_model, simple_scene
+from muble_plugins.tasks.agents import OracleAgent
+from muble_plugins.tasks.success import check
+
+from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted
+
+pytestmark = pytest.mark.slow
+
+
+def stack_instruction(top: int, base: int) -> Instruction:
+    return Instruction(f"Put object {top} on object {base}.",
+                       [{"type": "scene", "input": None, "input_value": None, "output": [top, base]},
+                        {"type": "stack", "input": [0], "input_value": None, "output": [[top], [base]]}],
+                       "stack_simple", "stack")
+
+
+def platform_and_can(toppled: bool):
+    """A wide low box (a stack base) with a can standing on it, or lying on its side on it."""
+    base = simple_object_model("box", (0.25, 0.25, 0.02), 500.0)
+    can = simple_object_model("cylinder", (0.05, 0.05, 0.10), 150.0)
+    scene = simple_scene([(0.5, -0.05), (0.5, -0.05)], [base, can])
+    scene.objects[1].position = np.array([0.5, -0.05, 0.02])
+    if toppled:  # about x by 90 degrees: the axis lies along y, the body over the base's middle
+        half = np.sqrt(0.5)
+        scene.objects[1].orientation = np.array([half, half, 0.0, 0.0])
+        scene.objects[1].position = np.array([0.5, -0.05, 0.02 + 0.025])
+    return scene, {0: base, 1: can}
+
+
+@pytest.mark.parametrize("toppled", [False, True])
+def test_a_toppled_top_object_is_not_stacked(toppled):
+    scene, models = platform_and_can(toppled)
+    env = TabletopEnv(scene, models)
+    try:
+        env.hold(1.0)
+        final = env.sync_scene_graph()
+    finally:
+        env.close()
+    can = final.object(1)
+    assert 0 in can.extra["touching"]  # it lies on the base either way: contact alone is not stacking
+    # Positions alone would call both stacked: the can's origin is over the base's middle and above it.
+    assert np.hypot(*(can.position[:2] - final.object(0).position[:2])) < 0.03
+    outcome = check(stack_instruction(1, 0), final, None)
+    assert outcome is (Outcome.SCENE_INCONSISTENCY if toppled else Outcome.SUCCESS), can.extra
+
+
+@pytest.fixture(scope="module")
+def physical_world():
+    scene, models = platform_and_can(False)
+    env = TabletopEnv(scene, models)
+    world = PhysicalWorld(env, get_registry())
+    yield world, stack_instruction(1, 0)
+    env.close()
+
+
+@pytest.mark.parametrize("call", INVALID_CALLS, ids=[repr(c)[:40] for c in INVALID_CALLS])
+def test_invalid_actions_are_the_agents_fault_with_physics(physical_world, call):
+    world, instruction = physical_world
+    before = world.env.data.time
+    result = run_episode(instruction, world, Scripted([call]), check)
+    assert result.outcome is Outcome.INVALID_ACTION, (result.outcome, result.error)
+    assert world.env.data.time == before  # rejected before anything ran
+
+
+def test_the_oracle_recovers_from_a_forced_approach_failure_with_physics():
+    from muble.sim.build import env_from_object_set
+    from muble.core.scene_io import load_scene
+    from pathlib import Path
+
+    scene = load_scene(Path(__file__).parents[1] / "planning" / "data" / "can_into_a_bowl_on_a_bowl.json")
+    task = get_registry().create("task", "stack_simple", {})
+    instruction = next(i for k in range(20)
+                       for i in task.generate(scene, np.random.default_rng([0, k, 1])))
+    env = env_from_object_set(scene, "shopvrb2")
+    try:
+        world = FailingWorld(PhysicalWorld(env, get_registry()), "approach", fail=1)
+        result = run_episode(instruction, world, OracleAgent(), task.check)
+    finally:
+        env.close()
+    assert result.outcome is Outcome.SUCCESS, (result.outcome, result.error, [str(a) for a in result.actions])
+    assert result.failures == 1
+    approaches = [c for c in world.calls if c.name == "approach"]
+    assert len(approaches) >= 2 and approaches[1].params.get("attempt") == 1
