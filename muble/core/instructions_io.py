@@ -7,13 +7,12 @@ are kept in ``Instruction.extra``.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 from muble.core.errors import SceneValidationError
 from muble.core.interfaces import Instruction
-from muble.core.scene_io import write_json_atomic
+from muble.core.scene_io import in_file, read_json, write_json_atomic
 
 _REQUIRED = ("instruction", "program", "template_id", "task_id")
 _KNOWN = {*_REQUIRED, "image_filename", "image_index", "split"}
@@ -76,13 +75,30 @@ def instruction_to_dict(ins: Instruction) -> dict[str, Any]:
     return d
 
 
+def load_instruction(path: str | Path, index: int | None = None) -> tuple[dict[str, Any], Instruction | None]:
+    """One per-index instruction file as ``muble generate`` writes it: the record as stored, and its instruction, or
+    None where the record says no template applied to the scene (``"instruction": null``).
+
+    A file that cannot be read or breaks the schema raises ``SceneValidationError`` naming the file and the field.
+    """
+    record = read_json(path)
+    try:
+        if not isinstance(record, dict):
+            raise SceneValidationError(f"expected a JSON object, got {type(record).__name__}")
+        actions = record.get("ground_truth_actions", [])
+        if not isinstance(actions, list):
+            raise SceneValidationError(f"expected a list of [name, params], got {type(actions).__name__}",
+                                       field="ground_truth_actions")
+        if "instruction" in record and record["instruction"] is None:
+            return record, None
+        return record, instruction_from_dict(record, index)
+    except SceneValidationError as e:
+        raise in_file(e, path) from e
+
+
 def load_instructions(path: str | Path) -> tuple[dict[str, Any], list[Instruction]]:
     """Load an ``{info, instructions}`` file; returns the info block and the instructions."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            data = json.load(f)
-    except json.JSONDecodeError as e:
-        raise SceneValidationError(f"{path} is not valid JSON: {e}") from e
+    data = read_json(path)
     if not isinstance(data, dict) or not isinstance(data.get("instructions"), list):
         raise SceneValidationError(f"{path}: an instruction file needs an 'instructions' list",
                                    field="instructions")

@@ -1,6 +1,7 @@
 """SHOP-VRB2 scene files: parse and validate dictionaries into ``SceneGraph`` and back, losslessly."""
 from __future__ import annotations
 
+import codecs
 import json
 import math
 from pathlib import Path
@@ -252,22 +253,91 @@ def scene_to_dict(s: SceneGraph) -> dict[str, Any]:
     return d
 
 
-def _read_json(path: str | Path) -> Any:
+class _NonFiniteConstant(ValueError):
+    pass
+
+
+def _reject_constant(name: str) -> Any:
+    raise _NonFiniteConstant(name)
+
+
+def _looks_utf16(raw: bytes) -> bool:
+    """A UTF-16 byte-order mark, or ASCII text with every other byte zero (UTF-16 without a mark)."""
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        return True
+    head = raw[:16]
+    return len(head) >= 4 and (set(head[1::2]) == {0} or set(head[0::2]) == {0})
+
+
+def _ends_early(text: str) -> bool:
+    """Whether the text stops inside a string or with brackets still open (a file cut short)."""
+    depth, in_string, escaped = 0, False, False
+    for ch in text:
+        if escaped:
+            escaped = False
+        elif in_string:
+            escaped, in_string = ch == "\\", ch != '"'
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+    return in_string or depth > 0 or not text.strip()
+
+
+def read_json(path: str | Path) -> Any:
+    """The value in a JSON file, strictly: UTF-8 text (a UTF-8 byte-order mark is allowed) holding one JSON value,
+    without ``NaN`` or ``Infinity`` (not JSON, though Python's json module writes them).
+
+    Anything else raises ``SceneValidationError`` naming the file and what is wrong with it: missing or unreadable,
+    UTF-16 or binary, truncated or malformed.
+    """
     try:
-        with open(path, encoding="utf-8") as f:
-            return json.load(f)
+        raw = Path(path).read_bytes()
+    except OSError as e:
+        what = "does not exist" if isinstance(e, FileNotFoundError) else f"cannot be read ({e.strerror or e})"
+        raise SceneValidationError(f"{path} {what}") from e
+    if _looks_utf16(raw):
+        raise SceneValidationError(f"{path} is UTF-16 text; JSON files must be UTF-8: save it again as UTF-8")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise SceneValidationError(f"{path} is not UTF-8 text (byte 0x{raw[e.start]:02x} at offset {e.start}); "
+                                   "it is binary or in another encoding: write it again as UTF-8 JSON") from e
+    try:
+        return json.loads(text, parse_constant=_reject_constant)
+    except _NonFiniteConstant as e:
+        raise SceneValidationError(f"{path} contains {e}, which is not a JSON number: write a finite number "
+                                   "(or null where a value may be missing)") from e
     except json.JSONDecodeError as e:
+        truncated = " (the file ends early: truncated?)" if _ends_early(text) else ""
+        raise SceneValidationError(f"{path} is not valid JSON{truncated}: {e}") from e
+    except ValueError as e:  # e.g. an integer literal longer than Python converts
         raise SceneValidationError(f"{path} is not valid JSON: {e}") from e
+    except RecursionError as e:
+        raise SceneValidationError(f"{path} nests JSON values too deeply to be a SHOP-VRB2 file") from e
+
+
+def in_file(error: SceneValidationError, path: str | Path) -> SceneValidationError:
+    """The same error with the file it comes from named first (object and field kept)."""
+    named = SceneValidationError(f"{path}: {error}")
+    named.obj, named.field = error.obj, error.field
+    return named
 
 
 def load_scene(path: str | Path) -> SceneGraph:
-    """Load a single-scene file."""
-    return scene_from_dict(_read_json(path))
+    """Load a single-scene file; a ``SceneValidationError`` names the file, and the object and field at fault."""
+    data = read_json(path)
+    try:
+        return scene_from_dict(data)
+    except SceneValidationError as e:
+        raise in_file(e, path) from e
 
 
 def load_scenes(path: str | Path) -> tuple[dict[str, Any], list[SceneGraph]]:
     """Load a combined ``{info, scenes}`` file; returns the info block and the scenes."""
-    data = _read_json(path)
+    data = read_json(path)
     if not isinstance(data, dict) or not isinstance(data.get("scenes"), list):
         raise SceneValidationError(f"{path}: a combined scene file needs a 'scenes' list", field="scenes")
     info = data.get("info", {})
