@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from muble.core.errors import ConfigError
+from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.interfaces import Instruction, MotionPlanner, Renderer, Task
 from muble.core.scene import SceneGraph
 from muble.core.scene_io import scene_to_dict
@@ -145,8 +145,21 @@ class EpisodeRunner:
 
         timing = Timing()
         start = time.perf_counter()
-        env = TabletopEnv(scene, object_models(scene, self.object_set, self.object_set_name), self.robot,
-                          self.sensors)
+        # A scene the object set or MuJoCo's compiler refuses is the data's fault, whatever the builder raised.
+        try:
+            models = object_models(scene, self.object_set, self.object_set_name)
+        except SceneValidationError:
+            raise
+        except (ConfigError, KeyError, TypeError, ValueError) as e:
+            raise SceneValidationError(f"object set '{self.object_set_name}' cannot build the scene's objects: "
+                                       f"{type(e).__name__}: {e}") from e
+        try:
+            env = TabletopEnv(scene, models, self.robot, self.sensors)
+        except SceneValidationError:
+            raise
+        except ValueError as e:
+            raise SceneValidationError(f"MuJoCo cannot compile the scene (element objN is the object with id N: check "
+                                       f"its weight_gt, size and scale_factor): {e}") from e
         try:
             try:  # the scene must start at rest; if it does not, it is broken and the agent never acts
                 settle_and_check(env)
