@@ -107,6 +107,14 @@ class PrimitiveAction(ABC):
     def execute(self, env: "Environment") -> ActionResult: ...  # noqa: F821
 
 
+    def symbolic_effect(self, scene: "SceneGraph") -> ActionResult:
+        """What the primitive does in the symbolic world (no physics): change ``scene`` (ground truth; flags in
+        ``SceneObject.extra``) and return the result. Ground-truth plans of tasks that use the primitive are rolled
+        out through it. Optional; by default the primitive fails there as not modelled."""
+        return ActionResult(False, failure_reason=f"primitive '{type(self).__name__}' has no symbolic model "
+                                                  "(PrimitiveAction.symbolic_effect)")
+
+
 class Sensor(ABC):
     """Reads the simulation. ``read`` is called on demand; ``on_step`` after every control step."""
 
@@ -135,7 +143,12 @@ class Instruction:
 
 
 class Task(ABC):
-    """A task template family: generates instructions, plans ground truth and judges success."""
+    """A task template family: generates instructions, plans towards its goal and judges success.
+
+    ``next_actions`` is the task's closed-loop planner: the built-in oracle agent asks the instruction's task for
+    the next primitives from what it observes, so any task plugin that implements it is solvable by the oracle.
+    ``judge`` receives the whole episode record; its default judges the final scene and answer with ``check``.
+    """
 
     task_id: ClassVar[str] = ""
 
@@ -149,7 +162,21 @@ class Task(ABC):
 
     @abstractmethod
     def check(self, instruction: Instruction, scene: "SceneGraph", answer: Answer | None) -> Outcome:
-        """Judge the final scene graph (and answer, for queries)."""
+        """Judge the final ground-truth scene graph (and answer, for queries)."""
+
+    def next_actions(self, instruction: Instruction, observation: Observation) -> list[ActionCall] | Answer:
+        """The primitives that lead from the observed state towards the goal (empty when it holds), or the
+        answer once a query can be answered. Called again after every primitive (closed loop) with what an agent
+        may know (``muble.core.observation``): plan from the observation only. Optional, but without it the
+        built-in oracle cannot solve the task; raise ``PlanningError`` when the goal cannot be reached."""
+        raise NotImplementedError(f"task '{type(self).__name__}' does not plan towards its goal "
+                                  "(Task.next_actions); the oracle agent cannot solve it")
+
+    def judge(self, instruction: Instruction, episode: Any) -> Outcome:
+        """The outcome of a finished episode from its record (``muble.episode.EpisodeResult``: ``actions``,
+        ``steps`` with each action's ``result`` and ``scene_gt``, ``answer``, ``final_scene``, ``initial_gt``; all
+        ground truth). Optional; by default ``check`` on the final scene and answer."""
+        return self.check(instruction, episode.final_scene, episode.answer)
 
 
 class ObjectSet(ABC):
@@ -171,6 +198,12 @@ class ObjectSet(ABC):
     @abstractmethod
     def build(self, spec: Any) -> Any:
         """The model for ``spec``: visual mesh, convex collision parts, mass, inertia, friction, grasp frames."""
+
+    def default_stiffness(self, material: str) -> float | None:
+        """The contact stiffness (N/m) of a scene object of ``material`` whose scene gives none (the original
+        SHOP-VRB2 files have none), used when the environment is built. Optional; the default, ``None``, makes such
+        an object a ``SceneValidationError``."""
+        return None
 
 
 class Agent(ABC):

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
 from muble.core.errors import PhysicsError, PlanningError
-from muble.core.interfaces import Agent, Instruction
+from muble.core.interfaces import Agent, Instruction, Task
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome
 
@@ -115,10 +115,11 @@ def registry_call_check(registry: Any = None) -> CallCheck:
     return check
 
 
-def run_episode(instruction: Instruction, world: World, agent: Agent, judge: Judge, max_steps: int = 100,
+def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Task | Judge", max_steps: int = 100,
                 max_repeats: int = 3, on_step: Callable[[StepRecord], None] | None = None,
                 max_failures: int = 8, check_call: CallCheck | None = None) -> EpisodeResult:
-    """Let ``agent`` act in ``world`` until it stops; the final ground-truth state is judged by ``judge``."""
+    """Let ``agent`` act in ``world`` until it stops; the episode is judged by ``judge``: a ``Task`` (its ``judge``
+    gets the whole record) or a function of (instruction, final ground-truth scene, answer)."""
     check_call = check_call or registry_call_check()
     monitor = EpisodeMonitor(max_steps=max_steps, max_repeats=max_repeats)
     observation = world.observe(None, 0)
@@ -176,4 +177,8 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: Jud
             last_failure = f"{decision}: {result.failure_reason}"
             if failures >= max_failures:
                 return finish(Outcome.EXECUTION_ERROR, f"{failures} primitives failed, the last {last_failure}")
-    return finish(judge(instruction, world.ground_truth(), answer))
+    result = finish(Outcome.SUCCESS)  # the record as the judge sees it; its outcome is the judge's
+    result.outcome = judge.judge(instruction, result) if isinstance(judge, Task) else \
+        judge(instruction, result.final_scene, answer)
+    result.error = None if result.outcome is Outcome.SUCCESS else last_failure
+    return result

@@ -183,7 +183,7 @@ class EpisodeRunner:
                 log.info("step %d: %s -> %s", len(keyframes), step.action,
                          "ok" if step.result.success else step.result.failure_reason)
 
-            result = run_episode(instruction, world, self.agent, task.check, max_steps=self.max_steps, on_step=keep)
+            result = run_episode(instruction, world, self.agent, task, max_steps=self.max_steps, on_step=keep)
             first = result.initial.images.get(self.cameras[0]) if result.initial is not None else None
             if first is not None:
                 keyframes.insert(0, first.rgb)

@@ -1,16 +1,16 @@
-"""Built-in agents: the oracle (ground-truth program, replanned after every primitive) and a random baseline."""
+"""Built-in agents: the oracle (the task's plan, replanned after every primitive) and a random baseline."""
 from __future__ import annotations
 
-import zlib
-
+import copy
+import dataclasses
 import logging
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
 
-from muble import ActionCall, Agent, Answer, Instruction, Observation, get_registry
+from muble import ActionCall, Agent, Answer, Instruction, Observation, Task, get_registry
 
-from muble_plugins.tasks.planner import plan_next
 from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, WEIGH, ArmState
 
 log = logging.getLogger(__name__)
@@ -22,20 +22,23 @@ class OracleConfig:
 
 
 class OracleAgent(Agent):
-    """Executes the instruction's program with closed-loop replanning.
+    """Solves any task that plans towards its goal (``Task.next_actions``), closed loop.
 
-    After every primitive it reruns the program on the observed scene graph with the weights measured so far
-    (from the scene's ``weight`` fields, which hold only what it measured, and from ``weigh`` results) and takes
-    the first primitive of the new plan; so a slipped grasp or a displaced object is simply planned around. The
-    gripper's state comes from the scene's flags (``in_hand``, ``raised``, ``approached``, ``gripper_over``),
-    which the symbolic and the physical world both report.
+    After every primitive it asks the instruction's task (the registered task named by its ``template_id``, or
+    the one it was built for) for the next primitives from the observed scene, with the weights it measured so
+    far (the scene's ``weight`` fields, which hold only what this agent measured, and ``weigh`` results), and
+    takes the first; so a slipped grasp or a displaced object is simply planned around. The gripper's state comes
+    from the scene's flags (``in_hand``, ``raised``, ``approached``, ``gripper_over``), which the symbolic and the
+    physical world both report; a world without the hover flags has them filled in from the last primitive.
 
-    After a failed primitive it starts that object's part of the plan over (move, approach …, the hover and
-    grasp-pose flags forgotten) and retries differently: primitives that take an ``attempt`` get the number of
-    failures so far on that target, so they start from their next-best grasp, place or hover pose.
+    After a failed primitive it starts that object's part of the plan over (the hover and grasp-pose flags
+    forgotten) and retries differently: primitives that take an ``attempt`` get the number of failures so far on
+    that target, so they start from their next-best grasp, place or hover pose.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, task: Task | None = None) -> None:
+        self.task = task
+        self.tasks: dict[str, Task] = {}
         self.measured: dict[int, float] = {}
         self.answered = False
         self.last: ActionCall | None = None
@@ -47,44 +50,51 @@ class OracleAgent(Agent):
         self.last = None
         self.failures = {}
 
-    def _arm(self, observation: Observation) -> ArmState:
-        """The gripper state from the scene's flags; a world that reports no hover flags (``approached``,
-        ``gripper_over``) has them filled in from what the last successful primitive did."""
-        arm = ArmState.of(observation.scene)
-        reported = any("gripper_over" in o.extra or "approached" in o.extra for o in observation.scene.objects)
+    def _task(self, instruction: Instruction) -> Task:
+        if self.task is not None:
+            return self.task
+        if instruction.template_id not in self.tasks:
+            self.tasks[instruction.template_id] = get_registry().create("task", instruction.template_id, {})
+        return self.tasks[instruction.template_id]
+
+    def _known(self, observation: Observation) -> Observation:
+        """The observation with this agent's measurements and the gripper's hover state filled in."""
+        scene = copy.deepcopy(observation.scene)
+        for o in scene.objects:
+            if o.weight is None and o.id in self.measured:
+                o.weight = self.measured[o.id]
         result, last = observation.last_result, self.last
+        reported = any("gripper_over" in o.extra or "approached" in o.extra for o in scene.objects)
         if last is not None and result is not None and not result.success:
             # Start over from hovering: a failed grasp or put-down leaves the hand where it should not stay.
-            arm.approached = arm.over = None
-            return arm
-        if reported or last is None or result is None:
-            return arm
-        target = last.params.get("target")
-        if last.name == MOVE and isinstance(target, int):
-            arm.over = int(target)
-        elif last.name == APPROACH and arm.held is None:
-            arm.approached = int(target)
-        return arm
+            for o in scene.objects:
+                o.extra["approached"] = o.extra["gripper_over"] = False
+        elif not reported and last is not None and result is not None:
+            target = last.params.get("target")
+            held = ArmState.of(scene).held
+            for o in scene.objects:
+                o.extra["gripper_over"] = last.name == MOVE and o.id == target
+                o.extra["approached"] = last.name == APPROACH and held is None and o.id == target
+        return dataclasses.replace(observation, scene=scene)
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
-        scene = observation.scene
         result = observation.last_result
-        weighed = self.last is not None and self.last.name == WEIGH
-        if weighed and result is not None and result.success and isinstance(result.measurement, (int, float)):
-            held = ArmState.of(scene).held
-            if held is not None:
-                self.measured[held] = float(result.measurement)
-        if self.last is not None and result is not None and not result.success:
-            key = self._target(self.last)
-            self.failures[key] = self.failures.get(key, 0) + 1
-            log.info("%s failed (%s); retrying differently", self.last, result.failure_reason)
-        plan = plan_next(instruction.program, scene, self.measured, self._arm(observation))
-        if plan.answer is not None:
+        if self.last is not None and result is not None:
+            if not result.success:
+                key = self._target(self.last)
+                self.failures[key] = self.failures.get(key, 0) + 1
+                log.info("%s failed (%s); retrying differently", self.last, result.failure_reason)
+            elif self.last.name == WEIGH and isinstance(result.measurement, (int, float)):
+                held = ArmState.of(observation.scene).held
+                if held is not None:
+                    self.measured[held] = float(result.measurement)
+        step = self._task(instruction).next_actions(instruction, self._known(observation))
+        if isinstance(step, Answer):
             if self.answered:
                 return None
             self.answered = True
-            return plan.answer
-        self.last = self._retry(plan.actions[0]) if plan.actions else None
+            return step
+        self.last = self._retry(step[0]) if step else None
         return self.last
 
     @staticmethod

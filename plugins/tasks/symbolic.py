@@ -11,7 +11,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 
-from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject
+from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject, get_registry
 from muble.core.observation import agent_view
 
 from muble_plugins.tasks.geometry import TABLE, free_spot, height
@@ -51,7 +51,8 @@ class SymbolicWorld:
     """Applies primitive calls to a private copy of a scene graph; failed preconditions fail the action.
 
     Agents observe ``agent_view`` of it: weights only once they weighed them, no ground truth. Objects put down
-    record what they stand on in ``extra["touching"]``, as the physical world reports contacts.
+    record what they stand on in ``extra["touching"]``, as the physical world reports contacts. Primitives other
+    than the built-in ones act through their ``PrimitiveAction.symbolic_effect``.
     """
 
     def __init__(self, scene: SceneGraph):
@@ -155,7 +156,8 @@ class SymbolicWorld:
             self._set("in_hand", None)
             self._set("gripper_over", held)
             return ActionResult(True)
-        return fail(f"unknown primitive; known: {', '.join(PRIMITIVES)}")
+        # Any other registered primitive acts through its own symbolic model (PrimitiveAction.symbolic_effect).
+        return get_registry().create("primitive", call.name, call.params).symbolic_effect(self.scene)
 
     def _lower(self, held: SceneObject, state: ArmState) -> None:
         if state.over is not None and state.over != held.id:

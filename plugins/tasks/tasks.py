@@ -6,11 +6,12 @@ from typing import ClassVar
 
 import numpy as np
 
-from muble import ActionCall, Answer, Instruction, Outcome, PlanningError, SceneGraph, Task
+from muble import ActionCall, Answer, Instruction, Observation, Outcome, PlanningError, SceneGraph, Task
 
 from muble_plugins.tasks.agents import OracleAgent
 from muble_plugins.tasks.episodes import run_symbolic_episode
 from muble_plugins.tasks.generator import generate_for_template
+from muble_plugins.tasks.planner import plan_next
 from muble_plugins.tasks.descriptions import SceneIndex
 from muble_plugins.tasks.success import check
 from muble_plugins.tasks.templates import TEMPLATES, Template
@@ -41,7 +42,7 @@ class ShopVrb2Task(Task):
 
     def ground_truth(self, instruction: Instruction, scene: SceneGraph) -> list[ActionCall]:
         """The oracle's primitives, rolled out in the symbolic world from ``scene`` (weights unknown at start)."""
-        episode = run_symbolic_episode(instruction, scene, OracleAgent(), max_steps=MAX_PLAN_STEPS)
+        episode = run_symbolic_episode(instruction, scene, OracleAgent(task=self), max_steps=MAX_PLAN_STEPS)
         if episode.outcome is not Outcome.SUCCESS:
             raise PlanningError(f"no ground-truth plan for '{instruction.instruction}': the oracle's roll-out "
                                 f"ended in {episode.outcome.value} after {len(episode.actions)} primitives")
@@ -49,6 +50,12 @@ class ShopVrb2Task(Task):
 
     def check(self, instruction: Instruction, scene: SceneGraph, answer: Answer | None) -> Outcome:
         return check(instruction, scene, answer)
+
+    def next_actions(self, instruction: Instruction, observation: Observation) -> list[ActionCall] | Answer:
+        """Backward chaining from the program's goal on the observed scene (its ``weight`` fields hold what the
+        agent measured; the gripper's state comes from the scene's flags)."""
+        plan = plan_next(instruction.program, observation.scene)
+        return plan.answer if plan.answer is not None else plan.actions
 
 
 def _task_class(template_id: str, class_name: str) -> type[ShopVrb2Task]:

@@ -51,3 +51,26 @@ def test_example_is_invisible_without_installation(tmp_path):
     result = subprocess.run([sys.executable, "-m", "muble.app.cli", "plugins", "--json"], capture_output=True,
                             text=True, timeout=300)
     assert "contact_count" not in {r["name"] for r in json.loads(result.stdout)}
+
+
+def test_example_primitive_and_task_are_registered(example_site):
+    rows = json.loads(run(["plugins", "--json"], example_site).stdout)
+    found = {(r["kind"], r["name"]) for r in rows if r["distribution"] == "muble-example-plugin"}
+    assert {("primitive", "tap"), ("task", "touch")} <= found
+
+
+@pytest.mark.slow
+def test_example_task_is_solved_by_the_builtin_oracle_with_physics(example_site, tmp_path):
+    """A third-party primitive and task, written against the public API only: the built-in oracle plans through
+    the task's next_actions, the action loop checks tap's typed parameters, the task judges the episode record."""
+    result = run(["task=touch", "renderer=mujoco", f"hydra.run.dir={tmp_path}"], example_site, MUJOCO_GL="egl")
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "actions: tap(target=" in result.stdout and "outcome: success" in result.stdout, result.stdout
+    config = json.loads((tmp_path / "manifest.json").read_text())["config"]
+    assert config["agent"]["name"] == "oracle" and config["task"]["name"] == "touch"
+
+
+def test_example_uses_only_the_public_api():
+    source = (EXAMPLE / "muble_example_plugin" / "touch.py").read_text()
+    imports = [line.split()[1] for line in source.splitlines() if line.startswith(("import ", "from "))]
+    assert all(name in ("__future__", "dataclasses", "numpy", "muble") for name in imports), imports

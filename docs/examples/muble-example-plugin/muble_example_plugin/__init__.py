@@ -1,7 +1,8 @@
 """An example third-party MuBlE plugin.
 
-It registers one sensor, ``contact_count`` (how many contacts MuJoCo reports at the current step), and ships
-``conf/sensors/with_contacts.yaml`` so that ``muble sensors=with_contacts`` selects it from the command line.
+It registers a sensor, ``contact_count`` (how many contacts MuJoCo reports at the current step), with
+``conf/sensors/with_contacts.yaml`` so that ``muble sensors=with_contacts`` selects it from the command line; and a
+primitive, ``tap``, with a task, ``touch``, that the built-in oracle solves (``muble task=touch``; see touch.py).
 """
 from __future__ import annotations
 
@@ -41,3 +42,17 @@ def muble_register_sensors():
 @muble.hookimpl
 def muble_config_searchpath():
     return ["pkg://muble_example_plugin.conf"]
+
+
+@muble.hookimpl
+def muble_register_primitives():
+    from muble_example_plugin.touch import Tap
+
+    return [muble.PluginRecord("tap", Tap, "touch an object with the open hand and rise again")]
+
+
+@muble.hookimpl
+def muble_register_tasks():
+    from muble_example_plugin.touch import Touch, TouchConfig
+
+    return [muble.PluginRecord("touch", Touch, "touch the object the instruction names", TouchConfig)]
