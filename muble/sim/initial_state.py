@@ -155,7 +155,8 @@ def check_penetration(env, parties: _Parties, when: str) -> dict[int, float]:
     return {obj: depth for obj, (depth, _) in deepest.items()}
 
 
-def support_gap(env, parties: _Parties, obj: int, distmax: float, objects: bool = True) -> tuple[float, int | str | None]:
+def support_gap(env, parties: _Parties, obj: int, distmax: float,
+                objects: bool = True) -> tuple[float, int | str | None]:
     """The smallest distance (m, up to ``distmax``) from the object's collision geoms to the table (and, with
     ``objects``, to any other object), and which of them is that close."""
     m, d = env.model, env.data
