@@ -21,6 +21,7 @@ from muble.core.interfaces import (
     Task,
 )
 from muble.core.params import Param
+from muble.core.ranges import bounded
 from muble.core.scene import RLE, SceneGraph, SceneObject
 from muble.core.types import (
     SEG_BACKGROUND,
@@ -46,5 +47,5 @@ __all__ = [
     "ConfigError", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
     "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
     "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
-    "Sensor", "Task", "Trajectory", "__version__", "get_registry", "hookimpl", "InitialStateError",
+    "Sensor", "Task", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
 ]

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import logging
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
@@ -13,10 +13,19 @@ log = logging.getLogger(__name__)
 
 
 class SweepSummary(Callback):
-    """After a multirun, one line per configuration (its overrides and outcome) and ``summary.json``."""
+    """After a multirun, one line per configuration (its overrides and outcome) and ``summary.json``.
+
+    ``current`` is the sweep folder of the multirun in progress (None outside one), so that a multirun that
+    fails on a usage error before its first job can remove the folder Hydra made for it."""
+
+    current: ClassVar[Path | None] = None
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        SweepSummary.current = Path(config.hydra.sweep.dir)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
+        SweepSummary.current = None
         rows = []
         for manifest_path in sorted(sweep_dir.glob("*/manifest.json"), key=lambda p: int(p.parent.name)
                                     if p.parent.name.isdigit() else 0):

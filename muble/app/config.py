@@ -13,6 +13,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
+from muble.core.ranges import bounded
 from muble.plugins.registry import Registry
 
 HYDRA_VERSION_BASE = "1.3"
@@ -35,8 +36,8 @@ class RobotConfig:
     name: str = MISSING  # robosuite robot name: Panda, Sawyer, UR5e, Kinova3, IIWA
     gripper: str | None = None  # robosuite gripper name; None = the robot's default
     controller: str = "OSC_POSE"
-    control_freq: float = 20.0  # Hz
-    timestep: float = 0.002  # s, MuJoCo physics step
+    control_freq: float = bounded(20.0, gt=0)  # Hz
+    timestep: float = bounded(0.002, gt=0)  # s, MuJoCo physics step
     grasp: str = "weld"  # "weld" (attach on contact of all pads) or "friction"
 
 
@@ -57,7 +58,7 @@ class OutputConfig:
 class EpisodeConfig:
     """The action loop's limits and what is rendered after every primitive."""
 
-    max_steps: int = 100
+    max_steps: int = bounded(100, ge=1)
     cameras: list[str] = field(default_factory=lambda: ["front"])
 
 
@@ -77,16 +78,16 @@ class DatasetConfig:
 
     root: str = "${hydra:runtime.output_dir}/dataset"
     splits: list[str] = field(default_factory=lambda: ["train", "val", "test"])
-    sizes: list[int] = field(default_factory=lambda: [10000, 1000, 1000])  # the paper's split sizes
-    start: int = 0
-    shard: int = 0
-    num_shards: int = 1
+    sizes: list[int] = bounded(default_factory=lambda: [10000, 1000, 1000], ge=0, each=True)  # the paper's
+    start: int = bounded(0, ge=0)
+    shard: int = bounded(0, ge=0)
+    num_shards: int = bounded(1, ge=1)
     templates: list[str] = field(default_factory=lambda: list(SHOPVRB2_TEMPLATES))
-    template_weights: list[float] = field(default_factory=list)  # empty = uniform
+    template_weights: list[float] = bounded(default_factory=list, ge=0, each=True)  # empty = uniform
     sequences: bool = True  # run the oracle with physics for ground-truth sequences and keyframes
     gif: bool = False
     executor: str = "processes"  # serial | processes | ray (RAY_ADDRESS selects an existing cluster)
-    workers: int = 2
+    workers: int = bounded(2, ge=1)
 
 
 @dataclass
@@ -95,7 +96,7 @@ class EvaluationConfig:
 
     render: bool = False  # render a keyframe after every primitive with the configured renderer (slower)
     keyframes: bool = False  # with render: also write the keyframes of every episode as PNGs
-    limit: int = 0  # evaluate at most this many indices per split (the first ones); 0 = all
+    limit: int = bounded(0, ge=0)  # evaluate at most this many indices per split (the first ones); 0 = all
     plot: bool = True  # write the success bar chart per split
 
 
@@ -114,8 +115,8 @@ class MubleConfig:
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
-    seed: int = 0
-    scene_index: int = 0
+    seed: int = bounded(0, ge=0)  # numpy seeds are non-negative
+    scene_index: int = bounded(0, ge=0)
     dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing
     output: OutputConfig = field(default_factory=OutputConfig)
 

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from muble import CollisionWorld, ConfigError, JointGoal, MotionPlanner, PlanningError, PoseGoal, Trajectory
+from muble import (CollisionWorld, ConfigError, JointGoal, MotionPlanner, PlanningError, PoseGoal, Trajectory,
+                   bounded)
 from muble.core.errors import unknown_name
 from muble_plugins.planners.timing import time_parameterise
 
@@ -23,14 +24,15 @@ class OmplPlannerConfig:
     """Options of the OMPL joint-space planner."""
 
     planner: str = "RRTConnect"  # any name in OMPL_PLANNERS
-    time_limit: float = 2.0  # s of planning before PlanningError
+    time_limit: float = bounded(2.0, gt=0)  # s of planning before PlanningError
     simplify: bool = True  # shorten the raw path (vertex reduction and shortcuts)
-    check_step: float = 0.02  # rad: largest joint step between two collision checks along a motion
-    max_velocity: float = 1.0  # rad/s per joint
-    max_acceleration: float = 2.0  # rad/s^2 per joint
-    sample_period: float = 0.02  # s between trajectory samples
+    check_step: float = bounded(0.02, gt=0)  # rad: largest joint step between two collision checks along a motion
+    max_velocity: float = bounded(1.0, gt=0)  # rad/s per joint
+    max_acceleration: float = bounded(2.0, gt=0)  # rad/s^2 per joint
+    sample_period: float = bounded(0.02, gt=0)  # s between trajectory samples
     try_direct: bool = True  # first check the straight joint-space segment; plan only if it is blocked
-    seed: int = 1  # OMPL's random seed, reset before every query so that a query always gives the same path
+    # OMPL's random seed, reset before every query so that a query always gives the same path
+    seed: int = bounded(1, ge=0)
 
 
 class OmplPlanner(MotionPlanner):

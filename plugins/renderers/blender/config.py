@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from muble import bounded
+
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("CPU", "GPU", "auto")
 DENOISER_QUALITIES = ("FAST", "BALANCED", "HIGH")
@@ -18,11 +20,11 @@ class BlenderRendererConfig:
     Cycles' fast GI approximation for indirect light.
     """
 
-    width: int = 640
-    height: int = 480
+    width: int = bounded(640, ge=1)
+    height: int = bounded(480, ge=1)
     engine: str = "CYCLES"  # CYCLES or BLENDER_EEVEE (EEVEE wants a GPU or a display)
     device: str = "CPU"  # CPU, GPU (CUDA/OptiX/HIP/oneAPI/Metal, first found) or auto (GPU if any)
-    samples: int = 4
+    samples: int = bounded(4, ge=1)
     adaptive_sampling: bool = True
     adaptive_threshold: float = 0.05
     denoise: bool = True
@@ -30,7 +32,7 @@ class BlenderRendererConfig:
     max_bounces: int = 2
     transmission_bounces: int = 4  # glass needs more than the other bounce kinds
     fast_gi: bool = True  # approximate indirect light past the first bounce (ambient-occlusion style)
-    threads: int = 0  # 0 = all cores
+    threads: int = bounded(0, ge=0)  # 0 = all cores
     # Ground-truth passes, read from the same render as the RGB.
     depth: bool = True
     segmentation: bool = True

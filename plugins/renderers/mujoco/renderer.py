@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from muble import Frame, RenderError, Renderer, SceneGraph
+from muble import Frame, RenderError, Renderer, SceneGraph, bounded
 from muble.core.errors import unknown_name
 
 from muble_plugins.renderers.mujoco.atlas import MeshAtlas, atlas_compatible
@@ -19,8 +19,8 @@ log = logging.getLogger(__name__)
 class MujocoRendererConfig:
     """Image size and which outputs to draw (RGB is one pass; segmentation and depth share a second one)."""
 
-    width: int = 848
-    height: int = 480
+    width: int = bounded(848, ge=1)
+    height: int = bounded(480, ge=1)
     rgb: bool = True
     depth: bool = True
     segmentation: bool = True
