@@ -205,12 +205,6 @@ class ObjectSet(ABC):
         an object a ``SceneValidationError``."""
         return None
 
-    def default_stiffness(self, material: str) -> float | None:
-        """The contact stiffness (N/m) of a scene object of ``material`` whose scene gives none (the original
-        SHOP-VRB2 files have none), used when the environment is built. Optional; the default, ``None``, makes such
-        an object a ``SceneValidationError``."""
-        return None
-
 
 class Agent(ABC):
     """Maps an instruction and observation to the next primitive action or a final answer."""
