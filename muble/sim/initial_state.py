@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from muble.core.errors import InitialStateError, PhysicsError
+from muble.sim.faults import BELOW_TABLE
 
 SETTLE_TIME = 0.5  # s of physics before the check: a 5 cm drop lands in 0.1 s, a tipping object is well under way
 MAX_DISPLACEMENT = 0.005  # m an object's origin or centre of mass may move while settling (generator: same figure)
@@ -239,7 +240,7 @@ def settle_and_check(env, settle_time: float = SETTLE_TIME) -> InitialStateRepor
     try:
         settle(env, settle_time)
     except PhysicsError as e:
-        below = [i for i, b in zip(ids, bodies) if not np.all(np.isfinite(d.xpos[b])) or d.xpos[b][2] < 0.0]
+        below = [i for i, b in zip(ids, bodies) if not np.all(np.isfinite(d.xpos[b])) or d.xpos[b][2] < -BELOW_TABLE]
         env.restore(before)
         raise InitialStateError(f"did not settle: {e}", obj=below[0] if below else None, check="unstable") from e
     env.steps = before.steps  # settling is not part of the episode

@@ -137,6 +137,28 @@ def test_broken_initial_state_names_the_object_and_ends_as_broken_scene(case, ba
     assert str(error) == result.error
 
 
+def test_a_fault_while_settling_names_the_fallen_object_and_restores_the_state(base_scene, object_set,
+                                                                                  monkeypatch):
+    import mujoco
+
+    from muble.sim import initial_state
+
+    env = env_from_object_set(copy.deepcopy(base_scene), object_set)
+    start = env.object_pose(THERMOS).pos.copy()
+
+    def fall_through(env, duration):
+        adr = env.model.jnt_qposadr[env.model.body_jntadr[env.grasp.body_of[THERMOS]]]
+        env.data.qpos[adr + 2] = -1.0
+        mujoco.mj_forward(env.model, env.data)
+        raise PhysicsError(f"object(s) [{THERMOS}] left the table")
+
+    monkeypatch.setattr(initial_state, "settle", fall_through)
+    with pytest.raises(InitialStateError) as raised:
+        settle_and_check(env)
+    assert raised.value.check == "unstable" and raised.value.obj == THERMOS
+    assert np.array_equal(env.object_pose(THERMOS).pos, start)
+
+
 @pytest.mark.parametrize("name", SCENES)
 def test_stored_generated_scene_settles_within_tolerance(name, object_set):
     scene = load_scene(DATA / name)
