@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("muble.app.generate", "generate the SHOP-VRB2 dataset (sharded, resumable)"),
     "eval": ("muble.app.evaluate", "evaluate an agent over a dataset split"),
     "export": ("muble.app.export", "export a split's sequences as a LeRobot-style dataset (parquet + images)"),
+    "serve": ("muble.app.serve", "serve episodes to an agent in another process (JSON protocol over ZeroMQ)"),
 }
 
 USAGE = """usage: muble [COMMAND] [ARGS…]

@@ -18,7 +18,7 @@ from muble.core.types import Outcome, Pose, Trajectory
 from muble.sim.control import OSC_OUTPUT_MAX, ArmServos, OperationalSpace, gripper_endpoints
 from muble.sim.faults import FaultDetector
 from muble.sim.grasp import GRASP_MODES, GraspModel
-from muble.sim.spaces import Box
+from muble.sim.spaces import control_space
 from muble.sim.world import build_world
 
 logger = logging.getLogger(__name__)
@@ -117,7 +117,7 @@ class TabletopEnv:
         # Only sensors that override on_step are called per control step (the physics loop stays cheap).
         self._stepping_sensors = [x for x in self.sensors.values() if type(x).on_step is not Sensor.on_step]
 
-        self.action_space = Box(-np.ones(7), np.ones(7))
+        self.action_space = control_space()
         self.gripper_command = -1.0
         self.tare_force: np.ndarray | None = None
         # Measured values per scene id ({"weight": g, "stiffness": N/m}), filled by muble.sim.measure.

@@ -1,0 +1,156 @@
+"""Where an episode's scene and instruction come from, and the runner that executes it, from one composed config.
+
+Three sources, the same for the Gymnasium environments and the remote agent server:
+- **generated**: scene ``scene_index`` of the generator seeded with ``seed`` and an instruction of a template (or
+  of a template mix), exactly as ``muble run`` and ``muble generate`` choose them;
+- **dataset**: the stored scene and instruction of ``split``/``index`` under ``dataset.root``, as ``muble eval``
+  reads them;
+- **data**: a scene and an instruction given as SHOP-VRB2 JSON data.
+"""
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from muble.core.errors import ConfigError, SceneValidationError, unknown_name
+from muble.core.interfaces import Instruction, Task
+from muble.core.scene import SceneGraph
+
+log = logging.getLogger(__name__)
+
+_SPLIT_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+# Keys of an instruction record that are ground truth for the judge and the records, not for the agent.
+GROUND_TRUTH_KEYS = ("ground_truth_actions",)
+
+
+@dataclass
+class EpisodeSpec:
+    """A scene, an instruction of it and the task (template) that judges the episode."""
+
+    scene: SceneGraph
+    instruction: Instruction
+    task: Task
+    source: dict[str, Any]
+
+
+def agent_instruction(instruction: Instruction) -> Instruction:
+    """The instruction as an agent receives it: the stored ground-truth action list left out."""
+    extra = {k: v for k, v in instruction.extra.items() if k not in GROUND_TRUTH_KEYS}
+    return Instruction(instruction.instruction, list(instruction.program), instruction.template_id,
+                       instruction.task_id, instruction.image_filename, instruction.image_index, instruction.split,
+                       extra)
+
+
+class EpisodeFactory:
+    """Builds the configured plugins once; makes episodes from any source and a runner per episode.
+
+    ``cfg`` is a composed MuBlE config (``muble.app.config.compose("run", overrides)``). ``render`` renders a
+    keyframe with the configured renderer after every primitive (a fresh renderer per episode).
+    """
+
+    def __init__(self, cfg: Any, render: bool = True):
+        from omegaconf import OmegaConf
+
+        from muble.app.run import build_components
+        from muble.plugins.registry import get_registry
+
+        self.cfg = cfg
+        self.render = render
+        self.registry = get_registry()
+        self.components = build_components(cfg, renderer=False, task=False)
+        self.renderer_options = OmegaConf.to_container(cfg.renderer, resolve=True)
+        self._generator = None
+
+    @property
+    def templates(self) -> list[str]:
+        return list(self.registry.names("task"))
+
+    def runner(self):
+        """A runner of its own (its own renderer): one per episode, so episodes never share a GL context."""
+        from muble.app.run import episode_runner
+
+        components = dict(self.components)
+        if self.render:
+            components["renderer"] = self.registry.create("renderer", self.renderer_options["name"],
+                                                          self.renderer_options)
+        return episode_runner(self.cfg, components)
+
+    def task(self, template: str) -> Task:
+        if template not in self.templates:
+            raise ConfigError(unknown_name("template", template, self.templates))
+        return self.registry.create("task", template, {})
+
+    # ----------------------------------------------------------------------------------------------- sources
+    def generated(self, scene_index: int, templates: Sequence[str] | None = None,
+                  weights: Sequence[float] | None = None) -> EpisodeSpec | None:
+        """Scene ``scene_index`` of the configured generator and seed with an instruction of ``templates``: the
+        one template's first instruction (as ``muble run``), or one drawn from the mix (as ``muble generate``).
+        None when no template applies to the scene."""
+        from muble.dataset.production import choose_instruction as choose_from_mix
+        from muble.episode.runner import choose_instruction, instruction_rng
+
+        seed = int(self.cfg.seed)
+        templates = list(templates or self.templates)
+        tasks = [self.task(t) for t in templates]
+        scene = self.generator().generate(int(scene_index))
+        source = {"kind": "generated", "seed": seed, "scene_index": int(scene_index)}
+        if len(tasks) == 1:
+            try:
+                instruction = choose_instruction(tasks[0], scene, seed, int(scene_index))
+            except ConfigError:
+                return None
+            return EpisodeSpec(scene, instruction, tasks[0], {**source, "template": templates[0]})
+        w = np.asarray(weights if weights else [1.0] * len(tasks), dtype=float)
+        if len(w) != len(tasks) or np.any(w < 0) or w.sum() <= 0:
+            raise ConfigError("template weights need one non-negative weight per template, not all zero")
+        task, instruction = choose_from_mix(tasks, w / w.sum(), scene, instruction_rng(seed, int(scene_index)))
+        if instruction is None:
+            return None
+        return EpisodeSpec(scene, instruction, task, {**source, "template": instruction.template_id})
+
+    def stored(self, split: str, index: int, root: str | Path | None = None) -> EpisodeSpec:
+        """The stored scene and instruction of ``split``/``index`` under ``root`` (default ``dataset.root``)."""
+        from muble.core.instructions_io import load_instruction
+        from muble.core.scene_io import load_scene
+        from muble.dataset.layout import DatasetLayout
+
+        if not isinstance(split, str) or not _SPLIT_NAME.match(split):
+            raise ConfigError(f"split must be a plain name (letters, digits, '_', '-'), got {split!r:.40}")
+        if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+            raise ConfigError(f"index must be a non-negative integer, got {index!r:.40}")
+        layout = DatasetLayout(Path(root or self.cfg.dataset.root), split)
+        instruction_file = layout.split_dir / layout.instruction(index)
+        scene_file = layout.split_dir / layout.scene(index)
+        if not instruction_file.is_file() or not scene_file.is_file():
+            raise ConfigError(f"the dataset has no episode {split}/{index} (looked in {layout.split_dir})")
+        _, instruction = load_instruction(instruction_file)
+        if instruction is None:
+            raise SceneValidationError(f"{instruction_file} has no instruction (no template applied to the scene)")
+        return EpisodeSpec(load_scene(scene_file), instruction, self.task(instruction.template_id),
+                           {"kind": "dataset", "split": split, "index": index})
+
+    def from_data(self, scene: Any, instruction: Any) -> EpisodeSpec:
+        """A scene and an instruction given as SHOP-VRB2 JSON data (dicts); ``SceneValidationError`` if malformed."""
+        from muble.core.instructions_io import instruction_from_dict
+        from muble.core.scene_io import scene_from_dict
+
+        parsed = instruction_from_dict(instruction)
+        return EpisodeSpec(scene_from_dict(scene), parsed, self.task(parsed.template_id), {"kind": "data"})
+
+    # --------------------------------------------------------------------------------------------- resources
+    def generator(self):
+        if self._generator is None:
+            from muble.app.run import scene_generator
+
+            self._generator = scene_generator(self.cfg, self.components["object_set"])
+        return self._generator
+
+    def close(self) -> None:
+        if self._generator is not None:
+            self._generator.close()
+            self._generator = None

@@ -1,0 +1,164 @@
+"""``MuBlE/Tabletop-v0``: continuous end-effector control of the arm with its gripper on a SHOP-VRB2 tabletop.
+
+Action: ``Box(-1, 1, (7,))`` = (dx, dy, dz, rx, ry, rz, gripper) of the ``OSC_POSE`` controller, one control step
+(``robot.control_freq``) per ``step``; the pose part is scaled to at most 5 cm / 0.5 rad, gripper -1 opens and 1
+closes (``TabletopEnv.step``). Observation: a camera image (``image``, the configured renderer at the configured
+size) and the proprioception (end-effector pose, joint positions and velocities, gripper command and opening, a
+held flag). The environment has no reward of its own (0): wrap it with the reward of the skill being learned. A
+physics fault ends the episode (``terminated``, ``info["outcome"] == "broken_scene"``); the registered id truncates
+after 400 steps.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any, Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from muble.core.errors import ConfigError, InitialStateError, SceneValidationError
+from muble.gym.config import environment_config
+from muble.gym.spaces import image_space
+from muble.sim.spaces import control_space, proprioception, proprioception_space
+
+log = logging.getLogger(__name__)
+
+SCENE_TRIES = 20
+DEFAULT_OVERRIDES = ("renderer.width=128", "renderer.height=128", "renderer.depth=false",
+                     "renderer.segmentation=false")
+
+
+def arm_dof(robot: str) -> int:
+    """Joints of a robosuite arm, read from its model (no world is built)."""
+    from robosuite.models.robots import create_robot
+
+    return len(create_robot(robot, idn=0).joints)
+
+
+class TabletopGymEnv(gym.Env):
+    """A generated SHOP-VRB2 scene per reset under end-effector control.
+
+    Configure with ``config`` (a Hydra-composed MuBlE config) and/or ``overrides`` (``["robot=UR5e",
+    "renderer.width=224", "renderer.height=224"]``); ``camera`` picks the view. ``reset(seed=s)`` draws the scene
+    index from the seeded generator (same seed, same scene); ``reset(options={"scene_index": i})`` or
+    ``{"scene": {...}}`` (SHOP-VRB2 JSON data) chooses it.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+
+    def __init__(self, config: Any = None, overrides: Sequence[str] = (), camera: str = "front",
+                 render_mode: str | None = None):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError(f"unknown render_mode {render_mode!r}; valid: {self.metadata['render_modes']}")
+        from omegaconf import OmegaConf
+
+        from muble.app.run import build_components, scene_generator
+        from muble.plugins.registry import get_registry
+
+        self.cfg = environment_config(config, overrides, DEFAULT_OVERRIDES)
+        self.render_mode = render_mode
+        self.camera = camera
+        self.robot = OmegaConf.to_container(self.cfg.robot, resolve=True)
+        self.components = build_components(self.cfg, renderer=True, task=False)
+        self.registry = get_registry()
+        self.generator = scene_generator(self.cfg, self.components["object_set"])
+        self.metadata = {**self.metadata, "render_fps": float(self.cfg.robot.control_freq)}
+        size = (int(self.cfg.renderer.height), int(self.cfg.renderer.width))
+        self.observation_space = spaces.Dict({"image": image_space(*size),
+                                              **proprioception_space(arm_dof(self.robot["name"])).spaces})
+        self.action_space = control_space()
+        self.env = None
+        self._image: np.ndarray | None = None
+        self._scenes: dict[int, Any] = {}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        self._close_env()
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"scene_index", "scene"})
+        if unknown:
+            raise ConfigError(f"unknown reset option(s) {unknown}; valid: scene_index, scene")
+        if "scene" in options:
+            from muble.core.scene_io import scene_from_dict
+
+            scene = scene_from_dict(options["scene"])
+            self._build(scene)
+            index = None
+        else:
+            fixed = options.get("scene_index")
+            for _ in range(1 if fixed is not None else SCENE_TRIES):
+                index = int(fixed) if fixed is not None else int(self.np_random.integers(0, 2**31 - 1))
+                try:
+                    self._build(self._scene(index))
+                    break
+                except InitialStateError as e:
+                    if fixed is not None:
+                        raise
+                    log.info("scene %d does not start at rest (%s); drawing another", index, e)
+            else:
+                raise ConfigError(f"none of {SCENE_TRIES} drawn scenes starts at rest")
+        return self._observation(), {"scene_index": index, "objects": len(self.env.scene.objects)}
+
+    def step(self, action):
+        if self.env is None:
+            raise ConfigError("call reset() before step()")
+        action = np.asarray(action, dtype=np.float64).reshape(-1)
+        _, _, terminated, truncated, info = self.env.step(action)
+        info = {"outcome": None if info.get("outcome") is None else info["outcome"].value,
+                **({"error": info["error"]} if "error" in info else {})}
+        return self._observation(), 0.0, bool(terminated), bool(truncated), info
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self._image is None:
+            return None
+        return self._image.copy()
+
+    def close(self) -> None:
+        self._close_env()
+        renderer = self.components.get("renderer")
+        if renderer is not None:
+            renderer.close()
+        if self.generator is not None:
+            self.generator.close()
+            self.generator = None
+
+    # -------------------------------------------------------------------------------------------- internals
+    def _scene(self, index: int):
+        import copy
+
+        if index not in self._scenes:
+            if len(self._scenes) >= 8:
+                self._scenes.pop(next(iter(self._scenes)))
+            self._scenes[index] = self.generator.generate(index)
+        return copy.deepcopy(self._scenes[index])
+
+    def _build(self, scene) -> None:
+        from muble.sim.build import object_models
+        from muble.sim.env import TabletopEnv
+        from muble.sim.initial_state import settle_and_check
+
+        try:
+            models = object_models(scene, self.components["object_set"], self.cfg.objects.name)
+            env = TabletopEnv(scene, models, self.robot, self.components["sensors"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise SceneValidationError(f"the scene cannot be built: {type(e).__name__}: {e}") from e
+        try:
+            settle_and_check(env)
+        except InitialStateError:
+            env.close()
+            raise
+        self.env = env
+        self.components["renderer"].setup(env.sync_scene_graph(), env.model)
+
+    def _observation(self) -> dict[str, Any]:
+        env = self.env
+        camera = env.names.cameras.get(self.camera, self.camera)
+        self._image = self.components["renderer"].render(env.data, camera).rgb
+        return {"image": self._image.copy(), **proprioception(env)}
+
+    def _close_env(self) -> None:
+        if self.env is not None:
+            self.env.close()
+            self.env = None
+        self._image = None
