@@ -145,6 +145,7 @@ class EpisodeRunner:
 
         timing = Timing()
         start = time.perf_counter()
+        hidden = getattr(self.object_set, "hidden_properties", ())
         # A scene the object set or MuJoCo's compiler refuses is the data's fault, whatever the builder raised.
         try:
             models = object_models(scene, self.object_set, self.object_set_name)
@@ -165,15 +166,16 @@ class EpisodeRunner:
                 settle_and_check(env)
             except InitialStateError as e:
                 log.warning("broken scene: %s", e)
-                initial = PhysicalWorld(env, self.registry, None, self.cameras).observe(None, 0)
-                result = EpisodeResult(Outcome.BROKEN_SCENE, [], None, env.scene, initial=initial, error=str(e))
+                world = PhysicalWorld(env, self.registry, None, self.cameras, hidden=hidden)
+                initial = world.observe(None, 0)
+                result = EpisodeResult(Outcome.BROKEN_SCENE, [], None, world.ground_truth(), initial=initial,
+                                       error=str(e), initial_gt=world.ground_truth())
                 return EpisodeOutput(scene, instruction, result, timing=timing)
             env.planner = _TimedPlanner(self.planner, timing)
             renderer = _TimedRenderer(self.renderer, timing) if self.renderer is not None else None
             if renderer is not None:
                 renderer.setup(env.sync_scene_graph(), env.model)
-            world = PhysicalWorld(env, self.registry, renderer, self.cameras,
-                                  hidden=getattr(self.object_set, "hidden_properties", ()))
+            world = PhysicalWorld(env, self.registry, renderer, self.cameras, hidden=hidden)
             keyframes: list[np.ndarray] = []
 
             def keep(step: StepRecord) -> None:
