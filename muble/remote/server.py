@@ -141,6 +141,7 @@ class EpisodeServer:
 
     # --------------------------------------------------------------------------------------------- requests
     def _hello(self, header: dict[str, Any]) -> tuple[dict[str, Any], list[bytes]]:
+        _only(header, set())
         registry = self.factory.registry
         primitives = [{"name": name, "params": [p.describe() for p in specs(
             registry.get("primitive", name).record.factory.params)]} for name in registry.names("primitive")]

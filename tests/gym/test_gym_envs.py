@@ -1,0 +1,78 @@
+"""The Gymnasium environments: registered ids, the env checker, seeded resets, the action text's shapes."""
+from __future__ import annotations
+
+import json
+import warnings
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import muble.gym  # noqa: F401 - registers the ids
+from muble.core.types import ActionCall, Answer
+from muble.gym.shopvrb2 import MalformedAction, parse_action
+
+SMALL = ["renderer.width=32", "renderer.height=24"]
+
+
+def test_ids_are_registered():
+    assert {"MuBlE/ShopVRB2-v0", "MuBlE/Tabletop-v0"} <= set(gymnasium.envs.registry)
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('{"name": "approach", "params": {"target": 3}}', (ActionCall("approach", {"target": 3}), True)),
+    ('{"name": "lift"}', (ActionCall("lift", {}), True)),
+    ('{"answer": [12.5]}', (Answer([12.5]), True)),
+    ('{"answer": 1, "stop": false}', (Answer(1), False)),
+    ('{"stop": true}', (None, True)),
+])
+def test_action_text_shapes(text, expected):
+    assert parse_action(text) == expected
+
+
+@pytest.mark.parametrize("text", ["", "approach(3)", "[1, 2]", '{"name": 3}', '{"name": "lift", "params": []}',
+                                  '{"stop": 1}', '{"answer": 1, "name": "x"}', '{"go": true}'])
+def test_malformed_action_text_is_handed_to_the_loop_as_invalid(text):
+    decision, _ = parse_action(text)
+    assert isinstance(decision, MalformedAction)
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_shopvrb2_passes_the_env_checker_and_seeds_deterministically():
+    env = gymnasium.make("MuBlE/ShopVRB2-v0", overrides=SMALL, templates=["measure_weight_single"])
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check_env(env.unwrapped, skip_render_check=True)
+        first, info = env.reset(seed=7)
+        again, info_again = env.reset(seed=7)
+        assert first["scene"] == again["scene"] and first["instruction"] == again["instruction"]
+        assert info["instruction"] == info_again["instruction"] and "ground_truth_actions" not in info["instruction"]
+        assert np.array_equal(first["images"]["front"], again["images"]["front"])
+        assert env.observation_space.contains(first)
+        assert "weight_gt" not in first["scene"]
+        # A call no primitive accepts ends the episode as the agent's fault, as in run_episode.
+        _, reward, terminated, truncated, step_info = env.step(json.dumps({"name": "fly", "params": {}}))
+        assert (reward, terminated, truncated, step_info["outcome"]) == (0.0, True, False, "invalid_action")
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_tabletop_passes_the_env_checker_and_seeds_deterministically():
+    env = gymnasium.make("MuBlE/Tabletop-v0", overrides=SMALL)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check_env(env.unwrapped, skip_render_check=True)
+        first, _ = env.reset(seed=3)
+        again, _ = env.reset(seed=3)
+        assert all(np.array_equal(first[k], again[k]) for k in first)
+        obs, reward, terminated, truncated, _ = env.step(np.array([0, 0, 1, 0, 0, 0, 1], dtype=np.float32))
+        assert env.observation_space.contains(obs) and not terminated
+        assert obs["ee_pos"][2] > first["ee_pos"][2]  # moved up
+    finally:
+        env.close()
