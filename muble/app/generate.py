@@ -102,5 +102,12 @@ def job(cfg: DictConfig) -> dict:
     return produced
 
 
+def check_root(cfg: DictConfig) -> None:
+    """Refuse a ``dataset.root`` that is a file or cannot be written, before anything is created."""
+    from muble.dataset.atomic import check_output_folder
+
+    check_output_folder(cfg.dataset.root, "dataset.root")
+
+
 def main(argv: list[str]) -> int:
-    return run_hydra_job("generate", argv, job, prog="muble generate")
+    return run_hydra_job("generate", argv, job, prog="muble generate", checks=check_root)

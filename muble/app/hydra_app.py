@@ -14,6 +14,7 @@ from muble.app.config import CONFIG_MODULE, HYDRA_VERSION_BASE, register_configs
 from muble.app.usage import USAGE_EXIT_CODE, explain_config_error, hydra_usage_errors, report
 from muble.core.errors import MubleError
 from muble.core.ranges import check_ranges
+from muble.dataset.layout import check_split_name
 from muble.plugins.registry import get_registry
 
 log = logging.getLogger(__name__)
@@ -22,8 +23,12 @@ log = logging.getLogger(__name__)
 _HYDRA_BOOKKEEPING = (".hydra",)
 
 
-def run_hydra_job(config_name: str, argv: list[str], job: Callable[[DictConfig], Any], prog: str) -> int:
+def run_hydra_job(config_name: str, argv: list[str], job: Callable[[DictConfig], Any], prog: str,
+                  checks: Callable[[DictConfig], None] | None = None) -> int:
     """Run ``job`` under ``@hydra.main`` with ``argv`` as its command line; returns the exit code.
+
+    ``checks(cfg)`` runs after the schema checks and before the job, for what only this job requires (a
+    writable output folder …); it raises ``MubleError`` to refuse the configuration.
 
     Every usage error exits with code 2 and one paragraph on stderr: Hydra's config errors (an unknown option or
     key lists the valid ones), values outside their schema's range, and any ``MubleError`` the job raises. A job
@@ -45,6 +50,10 @@ def run_hydra_job(config_name: str, argv: list[str], job: Callable[[DictConfig],
                     raise
                 raise _Usage(message) from e
             check_ranges(cfg)
+            for split in cfg.dataset.splits:
+                check_split_name(split)
+            if checks is not None:
+                checks(cfg)
             state["in_job"] = True
             try:
                 return job(cfg)
