@@ -1,12 +1,17 @@
 """``muble render``: render a scene file, or an episode's keyframes, to PNGs plus a GIF and a contact sheet.
 
-    muble render SCENE.json [--keyframes EPISODE.npz] [--renderer blender] [--camera front]
+    muble render SCENE.json [--keyframes EPISODE_states.npz] [--renderer blender] [--camera front]
                  [--object-set shopvrb2] [--out DIR] [--set samples=16 --set width=320 …] [--passes]
 
-``EPISODE.npz`` holds ``qpos``, an array (keyframes, nq) of MuJoCo joint positions of the scene's world, one
-row per keyframe. Without it the scene's initial state is rendered once. With ``--passes`` each keyframe's
-depth (16-bit PNG, millimetres) and segmentation (16-bit PNG, label + 3: 0 background, 1 table, 2 robot,
-3 + i object i) are written next to its RGB.
+``EPISODE_states.npz`` is the keyframe state file ``muble run`` writes beside an episode's keyframes
+(``keyframes/<episode>_states.npz``, see ``muble.core.keyframe_states``): ``qpos``, an array (keyframes, nq) of
+MuJoCo joint positions of the scene's world, one row per keyframe, and the robot, object set and camera the
+episode used (the defaults of ``--robot``, ``--object-set`` and ``--camera``). Without it the scene's initial
+state is rendered once. With ``--passes`` each keyframe's depth (16-bit PNG, millimetres) and segmentation
+(16-bit PNG, label + 3: 0 background, 1 table, 2 robot, 3 + i object i) are written next to its RGB.
+
+Every input is checked before anything is written; the outputs reach ``--out`` only when all keyframes are
+rendered, so a failed command leaves no folder or partial files behind.
 """
 from __future__ import annotations
 
@@ -100,11 +105,13 @@ def write_episode_media(images: list[np.ndarray], out: Path) -> list[Path]:
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="muble render", description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", help="SHOP-VRB2 scene JSON file")
-    parser.add_argument("--keyframes", help=".npz with 'qpos' (keyframes, nq): the episode's states")
+    parser.add_argument("--keyframes", help="keyframe state file (.npz with 'qpos') that `muble run` writes")
     parser.add_argument("--renderer", default="blender", help="renderer plugin name (default: blender)")
-    parser.add_argument("--camera", default="front", help="MuJoCo camera name (default: front)")
-    parser.add_argument("--object-set", default="shopvrb2", help="object set the scene's objects come from")
-    parser.add_argument("--robot", default=None, help="robosuite robot (default: the environment's)")
+    parser.add_argument("--camera", default=None, help="MuJoCo camera name (default: the episode's, else front)")
+    parser.add_argument("--object-set", default=None,
+                        help="object set the scene's objects come from (default: the episode's, else shopvrb2)")
+    parser.add_argument("--robot", default=None, help="robosuite robot (default: the episode's, else the "
+                        "environment's)")
     parser.add_argument("--out", default="render_out", help="output folder (created)")
     parser.add_argument("--set", dest="options", action="append", default=[], metavar="KEY=VALUE",
                         help="renderer option, repeatable (e.g. --set samples=16 --set width=320)")
@@ -112,45 +119,84 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str]) -> int:
-    import mujoco
+def _check_name(registry: Any, kind: str, name: str, flag: str) -> None:
+    from muble.app.usage import suggest
+    from muble.core.errors import unknown_name
 
+    names = registry.names(kind)
+    if name not in names:
+        raise ConfigError(f"{flag}: " + unknown_name(kind, name, names) + suggest(name, list(names)))
+
+
+def main(argv: list[str]) -> int:
+    from muble.core.keyframe_states import read_keyframe_states
     from muble.core.scene_io import load_scene
+    from muble.dataset.atomic import check_output_folder, staged_folder
+    from muble.plugins.registry import get_registry, validate_params
+
+    args = _parser().parse_args(argv)
+    # Everything the command line names is checked before the first file is written.
+    check_output_folder(args.out, "--out")
+    scene = load_scene(args.scene)
+    states = read_keyframe_states(args.keyframes) if args.keyframes else None
+    camera = args.camera or (states.camera if states else None) or "front"
+    object_set = args.object_set or (states.object_set if states else None) or "shopvrb2"
+    robot_name = args.robot or (states.robot if states else None)
+    registry = get_registry()
+    _check_name(registry, "renderer", args.renderer, "--renderer")
+    _check_name(registry, "object_set", object_set, "--object-set")
+    options = renderer_options(args.options)
+    validate_params("renderer", registry.get("renderer", args.renderer).record, options)
+    with staged_folder(args.out, "--out") as stage:
+        images = _render(scene, states, args, camera, object_set, robot_name, options, stage)
+    print(f"rendered {len(images)} keyframe(s) of {args.scene} to {args.out}")
+    return 0
+
+
+def _render(scene: Any, states: Any, args: argparse.Namespace, camera: str, object_set: str,
+            robot_name: str | None, options: dict[str, Any], out: Path) -> list[np.ndarray]:
+    import mujoco
+    from tqdm import tqdm
+
     from muble.plugins.registry import get_registry
     from muble.sim.build import env_from_object_set
 
-    args = _parser().parse_args(argv)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    scene = load_scene(args.scene)
-    robot = {"name": args.robot} if args.robot else None
-    env = env_from_object_set(scene, args.object_set, robot=robot)
+    env = env_from_object_set(scene, object_set, robot={"name": robot_name} if robot_name else None)
+    images: list[np.ndarray] = []
     try:
         env.reset()
         model, data = env.model, env.data
-        if args.keyframes:
-            states = np.load(args.keyframes)["qpos"]
-            if states.ndim != 2 or states.shape[1] != model.nq:
-                raise ConfigError(f"{args.keyframes}: 'qpos' has shape {states.shape}; this scene's world needs "
-                                  f"(keyframes, {model.nq})")
+        if states is not None:
+            qpos = states.qpos
+            if qpos.shape[1] != model.nq:
+                raise ConfigError(f"--keyframes {args.keyframes}: 'qpos' has {qpos.shape[1]} columns; the world "
+                                  f"of {args.scene} with robot {env.names.robot} and object set {object_set} has "
+                                  f"nq={model.nq}: pass the scene and --robot of the episode that wrote the file")
         else:
-            states = np.asarray(data.qpos, dtype=float)[None]
-        renderer = get_registry().create("renderer", args.renderer, renderer_options(args.options))
-        images = []
+            qpos = np.asarray(data.qpos, dtype=float)[None]
+        mj_camera = env.names.cameras.get(camera, camera)
+        cameras = [model.camera(i).name for i in range(model.ncam)]
+        if mj_camera not in cameras:
+            from muble.app.usage import suggest
+            from muble.core.errors import unknown_name
+
+            valid = sorted(set(env.names.cameras) | set(cameras))
+            raise ConfigError("--camera: " + unknown_name("camera", camera, valid) + suggest(camera, valid))
+        renderer = get_registry().create("renderer", args.renderer, options)
         try:
             renderer.setup(scene, model)
-            for k, qpos in enumerate(states):
-                data.qpos[:] = qpos
+            bar = tqdm(qpos, desc="render", unit="keyframe", disable=None)
+            for k, state in enumerate(bar):
+                data.qpos[:] = state
                 mujoco.mj_forward(model, data)
-                frame = renderer.render(data, args.camera)
+                frame = renderer.render(data, mj_camera)
                 write_frame(frame, out, f"keyframe_{k:04d}", args.passes)
                 images.append(frame.rgb)
-                log.info("keyframe %d/%d rendered", k + 1, len(states))
+                log.info("keyframe %d/%d rendered", k + 1, len(qpos))
         finally:
             renderer.close()
         for path in write_episode_media(images, out):
-            log.info("wrote %s", path)
+            log.info("wrote %s", path.name)
     finally:
         env.close()
-    print(f"rendered {len(images)} keyframe(s) of {args.scene} to {out}")
-    return 0
+    return images

@@ -15,7 +15,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from muble.core.errors import ConfigError
+from muble.core.errors import ConfigError, SceneValidationError
 from muble.dataset.atomic import write_bytes_atomic
 from muble.dataset.layout import DatasetLayout
 
@@ -32,6 +32,36 @@ def _jsonl(rows: list[dict[str, Any]]) -> bytes:
     return "".join(json.dumps(r) + "\n" for r in rows).encode()
 
 
+def read_sequence(path: Path, split_dir: Path) -> dict[str, Any]:
+    """A sequence file, checked for what the export reads: a ``SceneValidationError`` names the file and the
+    missing or malformed field (a truncated or hand-edited file), a ``ConfigError`` a missing keyframe image."""
+    from muble.core.scene_io import read_json
+
+    sequence = read_json(path)
+    try:
+        observations = sequence["observations"]
+        task = sequence["info"]["instruction"]
+        images = sequence["image_paths"]
+        if not isinstance(observations, list) or not observations:
+            raise TypeError("'observations' must be a non-empty list")
+        if not isinstance(images, list) or len(images) != len(observations):
+            raise TypeError(f"'image_paths' must list one image per observation ({len(observations)})")
+        for i, o in enumerate(observations):
+            robot = o["robot"]
+            _state(robot), float(robot["weight_measurement"]), robot["action"][0]
+    except (KeyError, IndexError, TypeError, ValueError) as e:
+        what = f"missing field {e}" if isinstance(e, KeyError) else str(e)
+        raise SceneValidationError(f"{path}: not a complete sequence file ({what}); generate the split again "
+                                   "or remove the file") from e
+    if not isinstance(task, str):
+        raise SceneValidationError(f"{path}: 'info.instruction' must be text", field="instruction")
+    missing = [p for p in images if not (split_dir / p).is_file()]
+    if missing:
+        raise ConfigError(f"{path}: {len(missing)} keyframe image(s) missing, first {split_dir / missing[0]}; "
+                          "generate the split again")
+    return sequence
+
+
 def export_lerobot(dataset_root: str | Path, split: str, out: str | Path, robot_type: str = "") -> dict[str, int]:
     """Write the split's sequences under ``out``; returns episode and frame counts."""
     import pyarrow as pa
@@ -42,11 +72,11 @@ def export_lerobot(dataset_root: str | Path, split: str, out: str | Path, robot_
     if not sequences:
         raise ConfigError(f"no sequence files under {layout.split_dir / 'sequences'}; generate the split with "
                           "dataset.sequences=true first")
+    loaded = [read_sequence(path, layout.split_dir) for path in sequences]  # all checked before writing
     out = Path(out)
     tasks: dict[str, int] = {}
     episodes, total = [], 0
-    for episode_index, path in enumerate(sequences):
-        sequence = json.loads(path.read_text())
+    for episode_index, (path, sequence) in enumerate(zip(sequences, loaded)):
         observations = sequence["observations"]
         task = sequence["info"]["instruction"]
         task_index = tasks.setdefault(task, len(tasks))

@@ -9,6 +9,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from muble.core.errors import ConfigError, PluginError, unknown_name
+from muble.core.ranges import range_violations
 from muble.plugins.manager import MublePluginManager, get_plugin_manager
 from muble.plugins.records import KINDS, PluginRecord, Provided
 
@@ -83,7 +84,12 @@ def validate_params(kind: str, record: PluginRecord, params: dict[str, Any] | Di
     try:
         merged = OmegaConf.merge(OmegaConf.structured(record.config), params)
     except OmegaConfBaseException as e:
-        raise ConfigError(f"{kind} '{record.name}': {e}") from e
+        key = getattr(e, "full_key", None)
+        what = str(getattr(e, "msg", e)).strip().splitlines()[0]
+        raise ConfigError(f"{kind} '{record.name}': " + (f"option {key}: " if key else "") + what) from e
+    problems = range_violations(merged)
+    if problems:
+        raise ConfigError(f"{kind} '{record.name}': value out of range: {'; '.join(problems)}")
     return OmegaConf.to_container(merged, resolve=True)
 
 

@@ -2,12 +2,6 @@
 leaves no folder behind; Hydra's config errors follow the same rule as the project's own."""
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
 from hydra.core.global_hydra import GlobalHydra
 
@@ -15,19 +9,7 @@ from muble.app.config import compose
 from muble.app.usage import explain_config_error, suggest
 from muble.core.errors import ConfigError
 from muble.core.ranges import check_ranges, range_violations
-
-PROBE = Path(__file__).with_name("usage_probe.py")
-
-
-def run_many(cases: list[list[str]], tmp_path: Path) -> list[dict]:
-    """Exit code, stdout and stderr of each ``muble`` command line, all run in one subprocess."""
-    spec = tmp_path / "cases.json"
-    spec.write_text(json.dumps(cases))
-    env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
-    result = subprocess.run([sys.executable, str(PROBE), str(spec)], capture_output=True, text=True, env=env,
-                            cwd=tmp_path, timeout=600)
-    assert result.returncode == 0, result.stderr[-3000:]
-    return json.loads(result.stdout.strip().splitlines()[-1])
+from tests.app.usage_probe import run_many
 
 
 @pytest.fixture(autouse=True)

@@ -5,7 +5,10 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
+import subprocess
 import sys
+from pathlib import Path
 
 
 def run_case(argv: list[str]) -> dict:
@@ -23,6 +26,18 @@ def run_case(argv: list[str]) -> dict:
             traceback.print_exc(file=err)
             code = f"raised {type(e).__name__}"
     return {"argv": argv, "code": code, "stderr": err.getvalue(), "stdout": out.getvalue()}
+
+
+def run_many(cases: list[list[str]], workdir: Path) -> list[dict]:
+    """Exit code, stdout and stderr of each ``muble`` command line, all run in one subprocess in ``workdir``."""
+    spec = workdir / "cases.json"
+    spec.write_text(json.dumps(cases))
+    env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
+    result = subprocess.run([sys.executable, __file__, str(spec)], capture_output=True, text=True, env=env,
+                            cwd=workdir, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    spec.unlink()
+    return json.loads(result.stdout.strip().splitlines()[-1])
 
 
 if __name__ == "__main__":
