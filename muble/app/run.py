@@ -2,22 +2,71 @@
 
 It generates scene ``scene_index`` from ``seed``, picks an instruction of the configured task, lets the agent
 act with real physics, renders a keyframe after every primitive, and writes the scene, the sequence file, the
-keyframes, a GIF and a manifest under the run's output folder. The last line printed is the outcome.
+keyframes, a GIF, the keyframes' MuJoCo states (``keyframes/<episode>_states.npz``, for ``muble render
+--keyframes``) and a manifest under the run's output folder. The last line printed is the outcome.
 """
 from __future__ import annotations
 
 import logging
+import numbers
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.config import GROUP_OF_KIND
 from muble.app.hydra_app import run_hydra_job
+from muble.core.interfaces import Renderer
 from muble.core.manifest import make_manifest
 from muble.core.scene_io import write_json_atomic
 from muble.plugins.registry import get_registry
 
 log = logging.getLogger(__name__)
+
+# Program steps whose answer is a weight in grams (the SHOP-VRB2 queries).
+_WEIGHT_QUERIES = ("query_weight",)
+
+
+class KeyframeStateRecorder(Renderer):
+    """Wraps the episode's renderer and keeps MuJoCo's ``qpos`` at every keyframe (each keyframe renders every
+    configured camera in turn, so one state is kept per ``cameras`` calls)."""
+
+    def __init__(self, inner: Renderer, cameras: int):
+        self.inner, self.cameras = inner, max(1, cameras)
+        self.states: list[np.ndarray] = []
+        self._calls = 0
+
+    def setup(self, scene: Any, model: Any) -> None:
+        self.states, self._calls = [], 0
+        self.inner.setup(scene, model)
+
+    def render(self, data: Any, camera: str):
+        if self._calls % self.cameras == 0:
+            self.states.append(np.array(data.qpos, dtype=np.float64))
+        self._calls += 1
+        return self.inner.render(data, camera)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def format_answer(value: Any, instruction: Any = None) -> str:
+    """An answer for people: weights in grams to 0.1 g (``261.3 g``), per object where the answer maps ids to
+    values; anything else as it is. The exact value stays in the files."""
+    program = getattr(instruction, "program", None) or []
+    unit = " g" if program and program[-1].get("type") in _WEIGHT_QUERIES else ""
+
+    def one(v: Any) -> str:
+        if isinstance(v, numbers.Real) and not isinstance(v, bool):
+            return f"{float(v):.1f}{unit}"
+        return str(v)
+
+    if isinstance(value, dict):
+        return ", ".join(f"object {k}: {one(v)}" for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return ", ".join(one(v) for v in value)
+    return one(value)
 
 
 def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) -> dict[str, object]:
@@ -74,9 +123,12 @@ def job(cfg: DictConfig) -> dict:
         generator.close()
     instruction = choose_instruction(components["task"], scene, cfg.seed, cfg.scene_index)
     log.info("instruction: %s", instruction.instruction)
-    output = episode_runner(cfg, components).execute(scene, instruction, components["task"])
+    recorder = KeyframeStateRecorder(components["renderer"], len(cfg.episode.cameras))
+    output = episode_runner(cfg, {**components, "renderer": recorder}).execute(scene, instruction,
+                                                                              components["task"])
     stem = f"episode_{cfg.seed}_{cfg.scene_index:06d}"
     written = write_episode(output, out_dir, stem, gif=cfg.output.gif)
+    written.update(_write_keyframe_states(cfg, recorder, output, out_dir, stem))
     manifest["outputs"] = written
     manifest["outcome"] = output.result.outcome.value
     write_json_atomic(out_dir / "manifest.json", manifest, indent=2)
@@ -84,13 +136,29 @@ def job(cfg: DictConfig) -> dict:
     print(f"instruction: {instruction.instruction}")
     print(f"actions: {', '.join(str(a) for a in r.actions)}")
     if r.answer is not None:
-        print(f"answer: {r.answer.value}")
+        print(f"answer: {format_answer(r.answer.value, instruction)}")
     if r.error:
         print(f"error: {r.error}")
     gif = next((p for p in written if p.endswith(".gif")), None)
     print(f"outputs: {out_dir}" + (f" (GIF {out_dir / gif})" if gif else ""))
     print(f"outcome: {r.outcome.value} ({len(r.actions)} primitives, {output.timing.total:.1f} s)")
     return {"outcome": r.outcome.value, **summary}
+
+
+def _write_keyframe_states(cfg: DictConfig, recorder: KeyframeStateRecorder, output: Any, out_dir: Path,
+                           stem: str) -> dict[str, str]:
+    """``keyframes/<stem>_states.npz``: one MuJoCo state per keyframe, for ``muble render --keyframes``."""
+    from muble.core.keyframe_states import KeyframeStates, keyframe_states_bytes
+    from muble.dataset.atomic import write_bytes_atomic
+
+    if not recorder.states or len(recorder.states) != len(output.keyframes):
+        log.warning("keyframe states not written: %d states for %d keyframes", len(recorder.states),
+                    len(output.keyframes))
+        return {}
+    states = KeyframeStates(np.stack(recorder.states), robot=cfg.robot.name, object_set=cfg.objects.name,
+                            camera=cfg.episode.cameras[0])
+    rel = f"keyframes/{stem}_states.npz"
+    return {rel: write_bytes_atomic(out_dir / rel, keyframe_states_bytes(states))}
 
 
 def main(argv: list[str]) -> int:

@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytestmark = pytest.mark.slow
@@ -24,7 +26,9 @@ def test_main_job_prints_an_outcome_and_succeeds(episode):
     assert result.returncode == 0, result.stderr[-3000:]
     lines = result.stdout.strip().splitlines()
     assert lines[-1].startswith("outcome: success"), result.stdout
-    assert any(line.startswith("answer: [") for line in lines)
+    (answer,) = [line for line in lines if line.startswith("answer: ")]
+    assert re.fullmatch(r"answer: \d+\.\d g", answer), answer  # grams to 0.1 g; the exact value is in the files
+    assert "robosuite" not in result.stderr and "Traceback" not in result.stderr, result.stderr[-2000:]
 
 
 def test_main_job_writes_gif_keyframes_and_sequence(episode):
@@ -46,6 +50,29 @@ def test_main_job_writes_gif_keyframes_and_sequence(episode):
     for obs in sequence["observations_gt"]:
         assert {"robot_mask", "table_mask", "grasped_obj_idx"} <= set(obs["robot"])
         assert all({"pos", "ori", "in_hand", "raised", "mask"} <= set(o) for o in obs["objects"])
+
+
+def test_main_job_writes_keyframe_states_that_render_reads(episode):
+    from muble.core.keyframe_states import read_keyframe_states
+
+    _, out = episode
+    manifest = json.loads((out / "manifest.json").read_text())
+    (states_path,) = [p for p in manifest["outputs"] if p.endswith("_states.npz")]
+    states = read_keyframe_states(out / states_path)
+    frames = [p for p in manifest["outputs"] if p.endswith(".png")]
+    assert states.qpos.shape[0] == len(frames) and (states.robot, states.camera) == ("Panda", "front")
+    (scene_path,) = (out / "scenes").glob("*.json")
+    render_out = out / "rerendered"
+    result = subprocess.run([sys.executable, "-m", "muble.app.cli", "render", str(scene_path), "--keyframes",
+                             str(out / states_path), "--renderer", "mujoco", "--set", "width=212", "--set",
+                             "height=120", "--out", str(render_out)], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    from PIL import Image
+
+    last = sorted(frames)[-1]
+    original = np.asarray(Image.open(out / last), dtype=float)
+    again = np.asarray(Image.open(render_out / f"keyframe_{len(frames) - 1:04d}.png"), dtype=float)
+    assert np.abs(original - again).mean() < 1.0  # the same state, drawn again
 
 
 def test_scene_file_masks_come_from_the_camera_view(episode):
