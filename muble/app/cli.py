@@ -25,13 +25,17 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "serve": ("muble.app.serve", "serve episodes to an agent in another process (JSON protocol over ZeroMQ)"),
 }
 
+# Commands that are Hydra applications (the others parse their own arguments).
+HYDRA_COMMANDS = ("run", "generate", "eval")
+
 USAGE = """usage: muble [COMMAND] [ARGS…]
 
 commands:
 {commands}
 
 With no command, or when the first argument is a Hydra override (key=value) or flag (-m, --cfg …),
-`run` is meant. `muble COMMAND --help` shows a command's own help (Hydra's for the jobs).
+`run` is meant. `muble COMMAND --help` shows a command's own help (Hydra's for the jobs). `--verbose`
+(anywhere) also shows third-party libraries' messages and MuBlE's debug log.
 examples:
   muble renderer=mujoco seed=3
   muble -m task=measure_weight_single,stack_simple robot=Panda,UR5e
@@ -46,7 +50,12 @@ def usage() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from muble.app.quiet import quiet_third_party
+
     argv = list(sys.argv[1:] if argv is None else argv)
+    verbose = "--verbose" in argv
+    argv = [a for a in argv if a != "--verbose"]
+    quiet_third_party(verbose)
     if argv and argv[0] in ("-h", "--help", "help"):
         print(usage())
         return 0
@@ -59,6 +68,10 @@ def main(argv: list[str] | None = None) -> int:
         print(usage(), file=sys.stderr)
         return 2
     module_name, _ = COMMANDS[command]
+    if verbose and command in HYDRA_COMMANDS:
+        rest = [*rest, "hydra.verbose=[muble]"]
+    elif verbose:
+        logging.basicConfig(level=logging.DEBUG, format="[%(name)s][%(levelname)s] - %(message)s")
     try:
         module = importlib.import_module(module_name)
         code = module.main(rest)

@@ -1,0 +1,26 @@
+"""Quiet by default: robosuite's and PyOpenGL's messages about optional parts MuBlE does not use are dropped,
+and `--verbose` keeps them."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+IMPORT_ROBOSUITE = "from muble.app.quiet import quiet_third_party; quiet_third_party({verbose}); import robosuite"
+
+
+@pytest.mark.parametrize("verbose", [False, True])
+def test_robosuite_import_noise_only_when_verbose(verbose):
+    result = subprocess.run([sys.executable, "-c", IMPORT_ROBOSUITE.format(verbose=verbose)], capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    noisy = "private macro file" in result.stderr or "robosuite_models" in result.stderr
+    assert noisy == verbose, result.stderr
+
+
+def test_verbose_flag_is_taken_out_of_the_command_line(tmp_path):
+    from tests.app.usage_probe import run_many
+
+    (result,) = run_many([["--verbose", "plugins", "--kind", "renderer"]], tmp_path)
+    assert result["code"] == 0 and "mujoco" in result["stdout"], result
