@@ -4,9 +4,11 @@
     muble eval agent=random dataset.root=/data/shopvrb2 'dataset.splits=[test]' dataset.workers=8
     muble eval agent=oracle dataset.root=... evaluation.render=true renderer=mujoco renderer.width=320
 
-Writes under the run's output folder: ``episodes_<split>.jsonl`` (one result per index), ``report.json``
-(success per task type, failure taxonomy, timing, manifest), ``success_<split>.png`` and ``summary.md``; the
-results table of each split is printed.
+Writes under the run's output folder: ``episodes_<split>.jsonl`` (one result per index, appended as each episode
+finishes), ``report.json`` (success per task type, failure taxonomy, the entries with bad data, timing, manifest),
+``success_<split>.png`` and ``summary.md``; the results table of each split is printed. Every index the dataset
+records gets an outcome, unreadable files included (``invalid_data``). A run into a folder that holds an
+interrupted evaluation with the same settings (``hydra.run.dir=DIR``) resumes it.
 """
 from __future__ import annotations
 
@@ -23,9 +25,12 @@ from muble.core.manifest import make_manifest, sha256_file
 from muble.dataset.atomic import write_bytes_atomic
 from muble.dataset.executors import run_all
 from muble.dataset.layout import DatasetLayout
-from muble.evaluation.episodes import EvalJob, check_split, evaluate_index
+from muble.dataset.production import cached_components
+from muble.evaluation.episodes import EvalJob, evaluate_index
 from muble.evaluation.plot import success_bar_chart
-from muble.evaluation.report import OVERALL, failure_table, markdown, success_table, summarize
+from muble.evaluation.report import OVERALL, bad_entry_table, failure_table, markdown, success_table, summarize
+from muble.evaluation.resume import RECORDS, EpisodeLog, claim_folder, run_settings
+from muble.evaluation.split import SplitIndices, check_split
 
 log = logging.getLogger(__name__)
 
@@ -49,20 +54,31 @@ def check_config(cfg: DictConfig) -> Path:
     return root
 
 
-def evaluate_split(cfg: DictConfig, config: dict[str, Any], root: Path, split: str) -> list[dict[str, Any]]:
+def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
+                   out_dir: Path) -> list[dict[str, Any]]:
+    """Every selected index of a split gets a record: those already in the split's record file are read back, the
+    others run, each appended to the file as it finishes. Returns the records in index order."""
     from tqdm import tqdm
 
-    layout = DatasetLayout(root, split)
-    indices = check_split(layout)
-    if cfg.evaluation.limit:
-        indices = indices[:cfg.evaluation.limit]
-    jobs = [EvalJob(config, split, i) for i in indices]
-    records = []
-    for record in tqdm(run_all(cfg.dataset.executor, evaluate_index, jobs, cfg.dataset.workers), total=len(jobs),
-                       desc=f"eval {split}", unit="episode", disable=None):
-        log.info("%s %d (%s): %s", split, record["index"], record["template"], record["outcome"])
-        records.append(record)
-    return sorted(records, key=lambda r: r["index"])
+    indices = found.indices[:cfg.evaluation.limit] if cfg.evaluation.limit else found.indices
+    wanted = set(indices)
+    episodes = EpisodeLog(out_dir / RECORDS.format(split=found.split))
+    done = {i: r for i, r in episodes.read().items() if i in wanted}
+    # Drop what is not a complete record (a line cut short by a kill) before appending after it.
+    episodes.rewrite(list(done.values()))
+    jobs = [EvalJob(config, found.split, i) for i in indices if i not in done]
+    if done:
+        log.info("%s: %d of %d episodes already done in %s; running the other %d", found.split, len(done),
+                 len(indices), episodes.path, len(jobs))
+    with episodes:
+        for record in tqdm(run_all(cfg.dataset.executor, evaluate_index, jobs, cfg.dataset.workers),
+                           total=len(jobs), desc=f"eval {found.split}", unit="episode", disable=None):
+            log.info("%s %d (%s): %s", found.split, record["index"], record["template"], record["outcome"])
+            episodes.append(record)
+            done[record["index"]] = record
+    records = [done[i] for i in indices]
+    episodes.rewrite(records)
+    return records
 
 
 def job(cfg: DictConfig) -> dict[str, Any]:
@@ -70,18 +86,22 @@ def job(cfg: DictConfig) -> dict[str, Any]:
     out_dir = Path(cfg.output.dir)
     config = OmegaConf.to_container(cfg, resolve=True)
     # Validate every split before running any episode: a typo in the last split should not cost an hour.
-    for split in cfg.dataset.splits:
-        check_split(DatasetLayout(root, split))
+    found = {split: check_split(DatasetLayout(root, split)) for split in cfg.dataset.splits}
+    # The configured plugins (but a renderer) are built here once, so a bad option stops the run before any episode.
+    cached_components(config, renderer=False, task=False)
     dataset_manifest = root / "manifest.json"
+    dataset_sha = sha256_file(dataset_manifest) if dataset_manifest.is_file() else None
+    claim_folder(out_dir, run_settings(config, dataset_sha), list(cfg.dataset.splits))
     report: dict[str, Any] = {"agent": cfg.agent.name, "dataset": str(root), "splits": {}}
     plots: dict[str, str] = {}
     written: dict[str, str] = {}
     for split in cfg.dataset.splits:
-        records = evaluate_split(cfg, config, root, split)
-        name = f"episodes_{split}.jsonl"
-        written[name] = write_bytes_atomic(out_dir / name, "".join(
-            json.dumps(r, sort_keys=True) + "\n" for r in records).encode())
+        records = evaluate_split(cfg, config, found[split], out_dir)
+        name = RECORDS.format(split=split)
+        written[name] = sha256_file(out_dir / name)
         summary = summarize(records, list(cfg.dataset.templates))
+        summary["skipped"] = found[split].skipped
+        summary["indices_from"] = found[split].source
         report["splits"][split] = summary
         if cfg.evaluation.plot:
             rates = {t: s["success_rate"] for t, s in summary["templates"].items()}
@@ -93,12 +113,15 @@ def job(cfg: DictConfig) -> dict[str, Any]:
         print()
         print(failure_table(summary))
         print()
+        bad = bad_entry_table(summary)
+        if bad:
+            print(f"{len(summary['bad_entries'])} entries with bad data (counted in the rates above):")
+            print(bad)
+            print()
     written["summary.md"] = write_bytes_atomic(out_dir / "summary.md", markdown(report, plots).encode())
     seeds = {"seed": cfg.seed, "agent": config["agent"],
              "episodes": "stored scene + instruction per index; each worker replays them deterministically"}
-    report["manifest"] = make_manifest(
-        seeds, config, dataset_manifest_sha256=sha256_file(dataset_manifest) if dataset_manifest.is_file() else None,
-        files=written)
+    report["manifest"] = make_manifest(seeds, config, dataset_manifest_sha256=dataset_sha, files=written)
     write_bytes_atomic(out_dir / "report.json", json.dumps(report, indent=2, sort_keys=True).encode())
     overall = {split: s[OVERALL]["success_rate"] for split, s in report["splits"].items()}
     print(f"muble eval: report in {out_dir / 'report.json'}; success rate "

@@ -5,36 +5,22 @@ results are the same whichever executor ran them. The task that judges an episod
 """
 from __future__ import annotations
 
-import json
 import logging
-import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from muble.core.errors import ConfigError, MubleError
-from muble.dataset.layout import PREFIX, DatasetLayout
+from muble.core.errors import MubleError, PhysicsError, SceneValidationError, unknown_name
+from muble.core.types import Outcome
+from muble.dataset.layout import DatasetLayout
 from muble.dataset.production import IndexJob, cached_components
+from muble.evaluation.report import UNKNOWN
 
 log = logging.getLogger(__name__)
 
 # One unit of evaluation work: the same (config, split, index) record as a dataset job.
 EvalJob = IndexJob
-
-
-def split_indices(layout: DatasetLayout) -> list[int]:
-    """The indices of a split that are complete (their instruction file exists) and have a scene file."""
-    pattern = re.compile(rf"^{PREFIX}_{re.escape(layout.split)}_(\d+)\.json$")
-    found = []
-    folder = layout.split_dir / "instructions"
-    for path in folder.glob("*.json") if folder.is_dir() else ():
-        m = pattern.match(path.name)
-        if m and (layout.split_dir / layout.scene(int(m.group(1)))).is_file():
-            if json.loads(path.read_text(encoding="utf-8")).get("instruction") is None:
-                continue  # a scene no template of the mix applied to
-            found.append(int(m.group(1)))
-    return sorted(found)
 
 
 def build_components(config: dict[str, Any]) -> dict[str, Any]:
@@ -58,34 +44,89 @@ def plain(value: Any) -> Any:
     return str(value)
 
 
+def _record(job: EvalJob) -> dict[str, Any]:
+    """The fields of a result known before anything is read; the data fills in the rest."""
+    return {"split": job.split, "index": job.index, "template": UNKNOWN, "task": None, "instruction": None,
+            "ground_truth_primitives": 0, "file": None}
+
+
+def _failed(out: dict[str, Any], outcome: Outcome, error: str, file: str | None) -> dict[str, Any]:
+    return {**out, "outcome": outcome.value, "primitives": [], "answer": None, "error": error, "timing": None,
+            "keyframes": [], "file": file}
+
+
+def _describe(job: EvalJob, e: BaseException) -> str:
+    """An error for the record, logged: ours say what to change; anything else (a bug) is named by its type too,
+    with its traceback in the log."""
+    log.warning("%s %d: %s", job.split, job.index, e, exc_info=not isinstance(e, MubleError))
+    return str(e) if isinstance(e, MubleError) else f"{type(e).__name__}: {e}"
+
+
 def evaluate_index(job: EvalJob) -> dict[str, Any]:
-    """Run the agent on one stored index; returns its result record (an error becomes an outcome, not a crash)."""
+    """Run the agent on one stored index; returns its result record whatever the files hold or the code raises.
+
+    A file that cannot be read, parsed or built is ``invalid_data`` with the file named in ``file``; a scene that
+    builds but breaks the physics is ``broken_scene``; any other error ends the episode as ``execution_error`` with
+    the exception's type and message (and its traceback in the log), never as a crash of the evaluation.
+    """
+    out = _record(job)
+    try:
+        return _evaluate(job, out)
+    except Exception as e:  # a bug, not the data's fault: recorded with its type, traceback logged
+        log.exception("%s %d: unexpected error", job.split, job.index)
+        return _failed(out, Outcome.EXECUTION_ERROR, f"unexpected {type(e).__name__}: {e}", out["file"])
+
+
+def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     from omegaconf import OmegaConf
 
     from muble.app.run import episode_runner
-    from muble.core.instructions_io import instruction_from_dict
-    from muble.core.scene_io import load_scene
-    from muble.core.types import Outcome
+    from muble.core.instructions_io import load_instruction
+    from muble.core.scene_io import in_file, load_scene
     from muble.plugins.registry import get_registry
 
     cfg = job.config
     layout = DatasetLayout(Path(cfg["dataset"]["root"]), job.split)
-    scene = load_scene(layout.split_dir / layout.scene(job.index))
-    record = json.loads((layout.split_dir / layout.instruction(job.index)).read_text(encoding="utf-8"))
-    instruction = instruction_from_dict(record, job.index)
-    out: dict[str, Any] = {"split": job.split, "index": job.index, "template": instruction.template_id,
-                           "task": instruction.task_id, "instruction": instruction.instruction,
-                           "ground_truth_primitives": len(record.get("ground_truth_actions", []))}
-    components = build_components(cfg)
-    task = get_registry().create("task", instruction.template_id, {})
-    runner = episode_runner(OmegaConf.create(cfg), components)
+    scene_file, instruction_file = (layout.split_dir / layout.scene(job.index),
+                                    layout.split_dir / layout.instruction(job.index))
+    scene_name, instruction_name = (f"{job.split}/{layout.scene(job.index)}",
+                                    f"{job.split}/{layout.instruction(job.index)}")
+
+    # The data: every way a file can be unusable is the data's fault (invalid_data), named by file.
+    if not instruction_file.is_file():
+        error = SceneValidationError(f"the instruction file {instruction_file} is missing (the dataset lists this "
+                                     "index)")
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), instruction_name)
+    try:
+        record, instruction = load_instruction(instruction_file)
+        if instruction is None:
+            raise SceneValidationError(f"{instruction_file} has no instruction (no template applied to the scene)")
+    except Exception as e:  # recorded with its type and message
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), instruction_name)
+    out.update(task=instruction.task_id, instruction=instruction.instruction,
+               ground_truth_primitives=len(record.get("ground_truth_actions", [])))
+    registry = get_registry()
+    if instruction.template_id not in registry.names("task"):
+        error = in_file(SceneValidationError(unknown_name("template", instruction.template_id, registry.names("task")),
+                                             field="template_id"), instruction_file)
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), instruction_name)
+    out["template"] = instruction.template_id
+    if not scene_file.is_file():
+        error = SceneValidationError(f"the scene file {scene_file} is missing (the dataset lists this index)")
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), scene_name)
+    try:
+        scene = load_scene(scene_file)
+    except Exception as e:  # recorded with its type and message
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), scene_name)
+
+    task = registry.create("task", instruction.template_id, {})
+    runner = episode_runner(OmegaConf.create(cfg), build_components(cfg))
     try:
         output = runner.execute(scene, instruction, task)
-    except MubleError as e:
-        # A scene the simulator cannot even build is the broken-scene class of the taxonomy, not a crash.
-        log.warning("%s %d: %s", job.split, job.index, e)
-        return {**out, "outcome": Outcome.BROKEN_SCENE.value, "primitives": [], "answer": None,
-                "error": f"{type(e).__name__}: {e}", "timing": None, "keyframes": []}
+    except SceneValidationError as e:  # the runner could not build the scene: an object model or mass refused
+        return _failed(out, Outcome.INVALID_DATA, f"{scene_file}: {_describe(job, e)}", scene_name)
+    except PhysicsError as e:  # built, but does not start at rest or breaks the simulation
+        return _failed(out, Outcome.BROKEN_SCENE, f"{type(e).__name__}: {_describe(job, e)}", scene_name)
     result = output.result
     written = []
     if cfg["evaluation"]["render"] and cfg["evaluation"]["keyframes"] and output.keyframes:
@@ -100,18 +141,4 @@ def evaluate_index(job: EvalJob) -> dict[str, Any]:
     return {**out, "outcome": result.outcome.value, "primitives": [str(a) for a in result.actions],
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
-            "keyframes": written}
-
-
-def check_split(layout: DatasetLayout) -> list[int]:
-    """The split's indices, or a ConfigError saying how to point at a generated split."""
-    if not layout.split_dir.is_dir():
-        present = sorted(p.name for p in layout.root.iterdir() if p.is_dir() and (p / "instructions").is_dir())
-        raise ConfigError(f"split '{layout.split}' is not in dataset {layout.root}; splits present: "
-                          f"{', '.join(present) or '(none)'}. Set dataset.splits=[...] to one of them or generate "
-                          f"it with `muble generate dataset.splits=[{layout.split}] dataset.root={layout.root}`")
-    found = split_indices(layout)
-    if not found:
-        raise ConfigError(f"split '{layout.split}' in {layout.root} has no complete index (no instructions/*.json "
-                          "with a matching scenes/*.json); finish generating it with `muble generate`")
-    return found
+            "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None}

@@ -12,6 +12,10 @@ from muble.core.types import Outcome
 
 OVERALL = "overall"
 OUTCOMES = [o.value for o in Outcome]
+# The data's fault: entries listed one by one in the report, by file.
+BAD_DATA = (Outcome.INVALID_DATA.value, Outcome.BROKEN_SCENE.value)
+# The template row of episodes whose instruction file cannot be read or names no registered template.
+UNKNOWN = "unknown"
 
 
 def _rate(successes: int, episodes: int) -> float:
@@ -21,11 +25,14 @@ def _rate(successes: int, episodes: int) -> float:
 def summarize(records: Iterable[dict[str, Any]], templates: list[str] | None = None) -> dict[str, Any]:
     """Success rate per template and overall, outcome counts (all taxonomy classes, zeros included), timing.
 
-    ``templates`` fixes the row order (the configured template mix); templates met only in the records follow.
+    ``templates`` fixes the row order (the configured template mix); templates met only in the records follow, and
+    the ``unknown`` row (entries whose instruction could not be read) comes last. Entries with bad data count in
+    every denominator and are listed in ``bad_entries`` (index, file, outcome, error).
     """
     records = sorted(records, key=lambda r: r["index"])
     seen = [r["template"] for r in records]
-    order = [t for t in (templates or []) if t in seen] + sorted(set(seen) - set(templates or []))
+    extra = sorted(set(seen) - set(templates or []) - {UNKNOWN})
+    order = [t for t in (templates or []) if t in seen] + extra + ([UNKNOWN] if UNKNOWN in seen else [])
     rows = {}
     for template in order:
         rs = [r for r in records if r["template"] == template]
@@ -42,9 +49,12 @@ def summarize(records: Iterable[dict[str, Any]], templates: list[str] | None = N
     timing["episodes"] = len(timed)
     timing["episodes_per_hour_per_worker"] = 3600.0 * len(timed) / timing["total"] if timing["total"] else None
     primitives = [len(r["primitives"]) for r in records]
+    bad = [{"index": r["index"], "file": r.get("file"), "template": r["template"], "outcome": r["outcome"],
+            "error": r.get("error")} for r in records if r["outcome"] in BAD_DATA]
     return {"templates": rows, OVERALL: overall, "failures": {o: n for o, n in overall["outcomes"].items()
                                                              if o != Outcome.SUCCESS.value},
-            "mean_primitives": sum(primitives) / len(primitives) if primitives else 0.0, "timing": timing}
+            "mean_primitives": sum(primitives) / len(primitives) if primitives else 0.0, "timing": timing,
+            "bad_entries": bad}
 
 
 def success_table(summary: dict[str, Any], title: str = "") -> str:
@@ -70,6 +80,25 @@ def failure_table(summary: dict[str, Any]) -> str:
                      + [f"{o.ljust(width)}  {n:8d}" for o, n in counts.items()])
 
 
+def _one_line(text: Any, width: int | None = None) -> str:
+    line = " ".join(str(text or "").split())
+    return line if width is None or len(line) <= width else line[:width - 1] + "…"
+
+
+def bad_entry_table(summary: dict[str, Any], error_width: int = 100) -> str:
+    """The entries with bad data, one line each: file, outcome and error (empty when there are none)."""
+    bad = summary.get("bad_entries", [])
+    if not bad:
+        return ""
+    files = [e["file"] or f"index {e['index']}" for e in bad]
+    width = max(len("bad entry"), *(len(f) for f in files))
+    outcome_width = max(len("outcome"), *(len(e["outcome"]) for e in bad))
+    lines = [f"{'bad entry'.ljust(width)}  {'outcome'.ljust(outcome_width)}  error"]
+    lines += [f"{f.ljust(width)}  {e['outcome'].ljust(outcome_width)}  {_one_line(e['error'], error_width)}"
+              for f, e in zip(files, bad)]
+    return "\n".join(lines)
+
+
 def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
     """A Markdown summary of a report: per split, the success table, the failure taxonomy, timing and plot."""
     lines = [f"# Evaluation of agent `{report['agent']}`", "",
@@ -83,6 +112,15 @@ def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
         lines += [f"| **{OVERALL}** | **{o['episodes']}** | **{o['successes']}** | "
                   f"**{100 * o['success_rate']:.1f}%** |", "", "| failure class | episodes |", "|---|---:|"]
         lines += [f"| {c} | {n} |" for c, n in summary["failures"].items()]
+        if summary.get("skipped"):
+            lines += ["", f"{len(summary['skipped'])} indices skipped: no template of the mix applied to their scene."]
+        bad = summary.get("bad_entries", [])
+        if bad:
+            lines += ["", f"Entries with bad data ({len(bad)}; counted in the rates above):", "",
+                      "| file | outcome | error |", "|---|---|---|"]
+            for e in bad:
+                error = _one_line(e["error"]).replace("|", r"\|")
+                lines.append(f"| `{e['file'] or e['index']}` | {e['outcome']} | {error} |")
         t = summary["timing"]
         if t["total"]:
             lines += ["", f"Time per episode: {t['total'] / t['episodes']:.1f} s (physics "
