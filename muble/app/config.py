@@ -86,8 +86,9 @@ class DatasetConfig:
     template_weights: list[float] = bounded(default_factory=list, ge=0, each=True)  # empty = uniform
     sequences: bool = True  # run the oracle with physics for ground-truth sequences and keyframes
     gif: bool = False
-    executor: str = "processes"  # serial | processes | ray (RAY_ADDRESS selects an existing cluster)
+    executor: str = "processes"  # serial | processes | ray
     workers: int = bounded(2, ge=1)
+    ray_address: str | None = None  # executor=ray: an existing cluster to join; None = a private local cluster
 
 
 @dataclass

@@ -1,7 +1,8 @@
 """``muble generate``: the SHOP-VRB2 dataset, sharded by scene index, resumable, locally or on Ray.
 
     muble generate dataset.splits='{val: 20}' dataset.root=/data/shopvrb2 dataset.workers=2
-    muble generate dataset.executor=ray ...            # same code path on a Ray cluster (RAY_ADDRESS)
+    muble generate dataset.executor=ray ...            # same code path on a private local Ray cluster
+    muble generate dataset.executor=ray dataset.ray_address=HOST:6379 ...   # on an existing Ray cluster
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ log = logging.getLogger(__name__)
 
 # Settings that say how a dataset was produced, not what it contains: left out of its manifest so that runs on
 # different executors, worker counts or folders yield identical datasets.
-_EXECUTION_KEYS = ("root", "executor", "workers", "shard", "num_shards")
+_EXECUTION_KEYS = ("root", "executor", "workers", "shard", "num_shards", "ray_address")
 
 
 def dataset_config_record(config: dict[str, Any]) -> dict[str, Any]:
@@ -88,8 +89,9 @@ def job(cfg: DictConfig) -> dict:
         log.info("%s: %d of %d indices to produce (%d already done)", split, len(todo), len(wanted),
                  len(wanted) - len(todo))
         jobs = [IndexJob(config, split, i) for i in todo]
-        for _ in tqdm(run_all(cfg.dataset.executor, produce_index, jobs, cfg.dataset.workers), total=len(jobs),
-                      desc=f"generate {split}", unit="scene", disable=None):
+        results = run_all(cfg.dataset.executor, produce_index, jobs, cfg.dataset.workers,
+                          ray_address=cfg.dataset.ray_address)
+        for _ in tqdm(results, total=len(jobs), desc=f"generate {split}", unit="scene", disable=None):
             pass
         if cfg.dataset.num_shards == 1:
             write_combined(layout, wanted, muble.__version__)

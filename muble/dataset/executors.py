@@ -2,38 +2,80 @@
 
 All three call the same function with the same arguments, so results do not depend on the executor; each
 index's work is deterministic from (seed, index) alone.
+
+Local workers die with their parent: each asks the kernel for SIGKILL when its parent exits (Linux
+``PR_SET_PDEATHSIG``) and also watches its parent's pid, so a ``kill -9`` of ``muble generate`` leaves no worker
+writing beside a restarted run. Ray joins an existing cluster only when given its address explicitly
+(``dataset.ray_address``); otherwise it starts a private local one, whatever ``RAY_ADDRESS`` says.
 """
 from __future__ import annotations
 
+import ctypes
 import logging
 import multiprocessing
+import os
+import signal
+import sys
+import threading
+import time
 from typing import Any, Callable, Iterable, Iterator
 
 from muble.core.errors import ConfigError, unknown_name
 
 log = logging.getLogger(__name__)
 
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+PARENT_POLL_S = 0.5
 
-def _serial(fn: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[Any]:
+
+def _serial(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: Any) -> Iterator[Any]:
     for item in items:
         yield fn(item)
 
 
-def _processes(fn: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[Any]:
+def die_with_parent(parent_pid: int) -> None:
+    """Pool worker initializer: end this process as soon as ``parent_pid`` is gone."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):  # no prctl: the watchdog below still works
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the kernel could be told
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="muble-parent-watchdog", daemon=True).start()
+
+
+def _processes(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: Any) -> Iterator[Any]:
     if workers <= 1:
         yield from _serial(fn, items, workers)
         return
     # spawn, not fork: MuJoCo GL contexts and bpy must be created inside each worker.
-    with multiprocessing.get_context("spawn").Pool(workers, maxtasksperchild=50) as pool:
+    context = multiprocessing.get_context("spawn")
+    with context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),), maxtasksperchild=50) as pool:
         yield from pool.imap_unordered(fn, items)
 
 
-def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[Any]:
+def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: str | None = None,
+         **_: Any) -> Iterator[Any]:
     import ray
 
     if not ray.is_initialized():
-        # Connects to a running cluster when RAY_ADDRESS is set, else starts a local one.
-        ray.init(num_cpus=workers or None, include_dashboard=False, log_to_driver=False)
+        if ray_address:
+            log.info("joining the Ray cluster at %s (dataset.ray_address)", ray_address)
+            ray.init(address=ray_address, log_to_driver=False)
+        else:
+            if os.environ.get("RAY_ADDRESS"):
+                log.warning("RAY_ADDRESS=%s ignored: set dataset.ray_address to use an existing cluster; starting "
+                            "a private local one", os.environ["RAY_ADDRESS"])
+            # address="local" always starts a new cluster for this process, never one found in the environment.
+            ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False)
     remote = ray.remote(num_cpus=1)(fn)
     pending = [remote.remote(item) for item in items]
     while pending:
@@ -41,15 +83,18 @@ def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[A
         yield ray.get(done[0])
 
 
-EXECUTORS: dict[str, Callable[[Callable[[Any], Any], list[Any], int], Iterator[Any]]] = {
+EXECUTORS: dict[str, Callable[..., Iterator[Any]]] = {
     "serial": _serial,
     "processes": _processes,
     "ray": _ray,
 }
 
 
-def run_all(executor: str, fn: Callable[[Any], Any], items: Iterable[Any], workers: int = 1) -> Iterator[Any]:
-    """Results of ``fn`` over ``items`` as they complete (order not guaranteed)."""
+def run_all(executor: str, fn: Callable[[Any], Any], items: Iterable[Any], workers: int = 1,
+            ray_address: str | None = None) -> Iterator[Any]:
+    """Results of ``fn`` over ``items`` as they complete (order not guaranteed).
+
+    ``ray_address`` (Ray only): an existing cluster to join; None starts a private local cluster."""
     if executor not in EXECUTORS:
         raise ConfigError(unknown_name("executor", executor, list(EXECUTORS)))
-    return EXECUTORS[executor](fn, list(items), workers)
+    return EXECUTORS[executor](fn, list(items), workers, ray_address=ray_address)
