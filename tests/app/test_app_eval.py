@@ -147,7 +147,7 @@ def bad_dataset(dataset, tmp_path_factory) -> Path:
     _write_json(root / _instruction(9), _edited(instruction, lambda d: d.update(template_id="no_such_template")))
     _write_json(root / _instruction(10), _edited(instruction, lambda d: d.pop("program")))
     _write_json(root / _scene(13), _edited(scene, lambda d: d["objects"][0].update(weight_gt=1e-9)))
-    _write_json(root / _scene(NO_STIFFNESS), _edited(scene, lambda d: [o.pop("stiffness") for o in d["objects"]]))
+    _write_json(root / _scene(NO_STIFFNESS), _edited(scene, lambda d: [o.pop("stiffness", None) for o in d["objects"]]))
     _write_json(root / _instruction(15), [instruction.read_text()])
     _write_json(root / _instruction(SKIPPED), {"split": "val", "image_index": SKIPPED, "instruction": None,
                                                "skipped": "no template of the mix applies to this scene"})
