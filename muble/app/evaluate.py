@@ -71,7 +71,8 @@ def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
         log.info("%s: %d of %d episodes already done in %s; running the other %d", found.split, len(done),
                  len(indices), episodes.path, len(jobs))
     with episodes:
-        for record in tqdm(run_all(cfg.dataset.executor, evaluate_index, jobs, cfg.dataset.workers),
+        for record in tqdm(run_all(cfg.dataset.executor, evaluate_index, jobs, cfg.dataset.workers,
+                                   ray_address=cfg.dataset.ray_address),
                            total=len(jobs), desc=f"eval {found.split}", unit="episode", disable=None):
             log.info("%s %d (%s): %s", found.split, record["index"], record["template"], record["outcome"])
             episodes.append(record)

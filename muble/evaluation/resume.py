@@ -31,8 +31,8 @@ _EXECUTION: dict[str, set[str] | None] = {
     "scene_index": None,  # `muble run`'s; an evaluation takes its indices from the dataset
     "task": None,  # each instruction names its own template
     "generator": None,  # scenes come from the dataset's files
-    "dataset": {"executor", "workers", "sizes", "start", "shard", "num_shards", "templates", "template_weights",
-                "sequences", "gif"},
+    "dataset": {"executor", "workers", "ray_address", "sizes", "start", "shard", "num_shards", "templates",
+                "template_weights", "sequences", "gif"},
     "evaluation": {"limit", "plot"},
 }
 
