@@ -50,6 +50,7 @@ def run_hydra_job(config_name: str, argv: list[str], job: Callable[[DictConfig],
                     raise
                 raise _Usage(message) from e
             check_ranges(cfg)
+            check_choices()
             for split in cfg.dataset.splits:
                 check_split_name(split)
             if checks is not None:
@@ -79,6 +80,18 @@ def run_hydra_job(config_name: str, argv: list[str], job: Callable[[DictConfig],
 
 class _Usage(Exception):
     """A config error found after composition (reported like a ``MubleError``)."""
+
+
+def check_choices() -> None:
+    """Refuse a ``*_schema`` option chosen by hand: schemas are what option yaml files extend, not options."""
+    from hydra.core.hydra_config import HydraConfig
+
+    for group, choice in HydraConfig.get().runtime.choices.items():
+        if isinstance(choice, str) and choice.endswith("_schema") and not group.startswith("hydra"):
+            top = group.split("@")[0]
+            if "/" not in top and top != "_global_":
+                raise _Usage(f"'{top}={choice}' selects a schema, not an option; choose one of the {top} options "
+                             f"(`muble plugins` lists them), e.g. {top}={choice[:-len('_schema')]}")
 
 
 def _log_to_files(error: BaseException) -> None:

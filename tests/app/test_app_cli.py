@@ -60,6 +60,15 @@ def test_unknown_group_option_lists_valid_options(tmp_path):
     assert "nope" in result.stderr and "mujoco" in result.stderr and "blender" in result.stderr
 
 
+def test_schemas_are_neither_listed_nor_selectable(tmp_path):
+    listed = muble("renderer=nope", f"hydra.run.dir={tmp_path}")
+    assert "_schema" not in listed.stderr and "mujoco" in listed.stderr
+    assert "_schema" not in muble("plugins").stdout
+    chosen = muble("renderer=mujoco_schema", "dry_run=true", f"hydra.run.dir={tmp_path}")
+    assert chosen.returncode == 2 and "selects a schema" in chosen.stderr and "renderer=mujoco" in chosen.stderr
+    assert not (tmp_path / "manifest.json").exists()
+
+
 def test_mistyped_key_is_an_error(tmp_path):
     result = muble("renderer.widht=10", f"hydra.run.dir={tmp_path}")
     assert result.returncode != 0 and "widht" in result.stderr
