@@ -24,7 +24,10 @@ class OmplPlannerConfig:
     """Options of the OMPL joint-space planner."""
 
     planner: str = "RRTConnect"  # any name in OMPL_PLANNERS
-    time_limit: float = bounded(2.0, gt=0)  # s of planning before PlanningError
+    # Planning work before PlanningError, counted in collision checks (states and motion steps), not seconds:
+    # a query ends the same way on an idle and on a saturated machine.
+    check_budget: int = bounded(10_000, ge=1)
+    time_limit: float = bounded(60.0, gt=0)  # s: only a safety cap against a runaway query
     simplify: bool = True  # shorten the raw path (vertex reduction and shortcuts)
     check_step: float = bounded(0.02, gt=0)  # rad: largest joint step between two collision checks along a motion
     max_velocity: float = bounded(1.0, gt=0)  # rad/s per joint
@@ -100,7 +103,10 @@ class OmplPlanner(MotionPlanner):
         space.setBounds(bounds)
         setup = og.SimpleSetup(space)
 
+        checks = [0]
+
         def valid(state) -> bool:
+            checks[0] += 1
             return bool(world.is_valid(np.fromiter((state[i] for i in range(dof)), float, dof)))
 
         setup.setStateValidityChecker(valid)
@@ -113,11 +119,16 @@ class OmplPlanner(MotionPlanner):
             start[i] = float(start_q[i])
             target[i] = float(goal_q[i])
         setup.setStartAndGoalStates(start, target)
-        status = setup.solve(self.config.time_limit)
+        budget, deadline = self.config.check_budget, time.monotonic() + self.config.time_limit
+        status = setup.solve(ob.PlannerTerminationCondition(
+            lambda: checks[0] >= budget or time.monotonic() > deadline))
+        logger.debug("OMPL %s: %s after %d collision checks", self.config.planner, status.asString(), checks[0])
         if not setup.haveExactSolutionPath():
+            spent = (f"{self.config.time_limit:.1f} s (planner.time_limit)" if checks[0] < budget
+                     else f"{budget} collision checks")
             raise PlanningError(
-                f"no collision-free path found in {self.config.time_limit:.1f} s ({status.asString()}); the goal "
-                "may be enclosed by obstacles: clear the way or raise planner.time_limit"
+                f"no collision-free path found in {spent} ({status.asString()}); the goal may be enclosed by "
+                "obstacles: clear the way or raise planner.check_budget"
             )
         path = setup.getSolutionPath()
         if self.config.simplify:
