@@ -104,6 +104,13 @@ class Category:
     stack_base: bool
     sizes: tuple[str, ...] = ("small", "medium-sized", "large")
     mass_exponent: float = 2.0  # mass ∝ scale^e: 2 for thin-walled shells, 3 for solid or filled items
+    # Models built when a scene names them but never sampled (so that adding one changes no generated scene):
+    # the original SHOP-VRB2 models this catalogue does not sample.
+    imported_variants: dict[str, tuple[str, Callable[[float], Geometry]]] = field(default_factory=dict)
+
+    def model(self, name: str) -> tuple[str, Callable[[float], Geometry]] | None:
+        """(shape word, geometry function) of a sampled or imported model, ``None`` if unknown."""
+        return self.variants.get(name) or self.imported_variants.get(name)
 
 
 def grasp_quat(closing, approach) -> np.ndarray:
@@ -240,12 +247,14 @@ class CatalogueObjectSet(ObjectSet):
     def geometry(self, spec: ObjectSpec) -> Geometry:
         """The (cached) geometry of ``spec``'s model at its scale."""
         cat = self._category(spec.category)
-        if spec.model not in cat.variants:
-            raise ConfigError(unknown_name(f"'{spec.category}' model", spec.model, list(cat.variants)))
+        variant = cat.model(spec.model)
+        if variant is None:
+            raise ConfigError(unknown_name(f"'{spec.category}' model", spec.model,
+                                           [*cat.variants, *cat.imported_variants]))
         key = MeshCache.key(self.set_name, spec.model, spec.scale, spec.params)
         geometry = self.cache.load(key)
         if geometry is None:
-            geometry = cat.variants[spec.model][1](spec.scale)
+            geometry = variant[1](spec.scale)
             self.cache.store(key, geometry)
             log.debug("generated %s at scale %.3f", spec.model, spec.scale)
         return geometry

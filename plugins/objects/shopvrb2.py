@@ -18,7 +18,10 @@ import math
 import numpy as np
 
 from muble_plugins.objects import geometry as g
-from muble.core.objects import GraspFrame
+from muble.core.objects import GraspFrame, ObjectSpec
+from muble.core.scene import SceneObject
+from muble_plugins.objects import original
+from muble_plugins.objects.build_cache import built_geometry
 from muble_plugins.objects.catalogue import (PAINTS, Category, CatalogueObjectSet, Finish, Geometry, grasp_quat,
                                              side,
                                              top_down)
@@ -186,6 +189,19 @@ def _glass(outer, wall, base):
 GLASS1 = [(0.033, 0.0), (0.035, 0.10)]  # straight tumbler
 GLASS2 = [(0.028, 0.0), (0.04, 0.12)]  # tapered highball
 GLASS3 = [(0.038, 0.0), (0.040, 0.08)]  # short old-fashioned
+GLASS4 = [(0.030, 0.0), (0.036, 0.085)]  # tapered juice glass (the original SHOP-VRB2 glass4)
+
+
+def _square_glass(width, height, wall, base):
+    """A square tumbler (the original SHOP-VRB2 "cuboid" glass5): a floor and four upright walls."""
+    def build(s: float) -> Geometry:
+        w, h = width * s, height * s
+        visual, uv, parts = g.tray((w, w, h), wall * s, base * s, flare=0.0)
+        z = h - GRIP_DEPTH
+        # Across two opposite walls from above, and around the body from the side like a round glass.
+        frames = [top_down((0.0, 0.0, z), k * math.pi / 2, w) for k in range(2)]
+        return Geometry(visual, parts, frames + _side_frames(w / 2, 0.5 * h), uv)
+    return build
 
 
 def _mug(outer, wall, base):
@@ -279,6 +295,8 @@ STEM_GRIP_HEIGHT = 0.036  # m: a horizontal hand (about 63 mm tall) must stay of
 
 WINE1 = [(0.018, 0.0), (0.038, 0.03), (0.041, 0.06), (0.040, 0.10)]  # tulip bowl on an 8 cm stem, open enough for a finger
 WINE2 = [(0.02, 0.0), (0.045, 0.025), (0.048, 0.05), (0.046, 0.07)]  # wide red-wine bowl on a 6 cm stem
+# White-wine bowl on a 7 cm stem (the original SHOP-VRB2 wine_glass3).
+WINE3 = [(0.017, 0.0), (0.036, 0.03), (0.039, 0.055), (0.038, 0.085)]
 
 CATALOGUE: dict[str, Category] = {
     c.name: c
@@ -319,7 +337,9 @@ CATALOGUE: dict[str, Category] = {
              "glass2": ("cylindrical", _glass(GLASS2, 0.004, 0.008)),
              "glass3": ("cylindrical", _glass(GLASS3, 0.004, 0.01))},
             (Finish("glass", (180, 300), ("transparent",)), Finish("plastic", (40, 80), PAINTS)),
-            grasp_type="cylinder", pickupable=True, stackable=True, stack_base=False),
+            grasp_type="cylinder", pickupable=True, stackable=True, stack_base=False,
+            imported_variants={"glass4": ("cylindrical", _glass(GLASS4, 0.004, 0.008)),
+                               "glass5": ("cuboid", _square_glass(0.07, 0.08, 0.004, 0.008))}),
         Category(
             "mug",
             {"mug1": ("cylindrical", _mug(MUG1, 0.005, 0.007)),
@@ -352,7 +372,8 @@ CATALOGUE: dict[str, Category] = {
             {"wine_glass1": ("irregularly shaped", _wine_glass(0.037, 0.08, WINE1)),
              "wine_glass2": ("irregularly shaped", _wine_glass(0.04, 0.06, WINE2))},
             (Finish("glass", (140, 220), ("transparent",)), Finish("plastic", (50, 90), PAINTS)),
-            grasp_type="cylinder", pickupable=True, stackable=False, stack_base=False),
+            grasp_type="cylinder", pickupable=True, stackable=False, stack_base=False,
+            imported_variants={"wine_glass3": ("irregularly shaped", _wine_glass(0.036, 0.07, WINE3))}),
     ]
 }
 
@@ -362,3 +383,9 @@ class ShopVrb2Objects(CatalogueObjectSet):
 
     set_name = "shopvrb2"
     catalogue = CATALOGUE
+
+    def spec_from_scene_object(self, obj: SceneObject) -> ObjectSpec:
+        """The spec that builds a scene object, from this project's files or the original SHOP-VRB2 ones
+        (original model names, scale factors and shape words mapped: ``muble_plugins.objects.original``)."""
+        return original.spec_from_scene_object(obj, self.catalogue, self.set_name,
+                                               lambda spec: float(max(built_geometry(self, spec).extents[:2])))

@@ -11,7 +11,7 @@ def spec_of(objects, category, model, size="medium-sized", seed=0):
     spec = objects.sample(np.random.default_rng(seed), category)
     cat = objects.catalogue[category]
     factor = (SIZE_SCALES[size] / spec.scale) ** cat.mass_exponent
-    spec.model, spec.shape = model, cat.variants[model][0]
+    spec.model, spec.shape = model, cat.model(model)[0]
     spec.size, spec.scale = size, SIZE_SCALES[size]
     spec.weight_g = round(spec.weight_g * factor, 1)
     return spec
