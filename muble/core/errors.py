@@ -14,6 +14,19 @@ class ConfigError(MubleError):
     """A configuration value is unknown, missing or of the wrong type."""
 
 
+class SceneGenerationError(ConfigError):
+    """No sampled layout for a scene index passed the generator's checks within its tries.
+
+    ``index`` is the scene index and ``reasons`` counts the rejections per check (``"placement"``,
+    ``"occlusion"``, ``"stability"``, ``"reach"``, ``"not accepted"`` …).
+    """
+
+    def __init__(self, message: str, *, index: int | None = None, reasons: dict[str, int] | None = None):
+        super().__init__(message)
+        self.index = index
+        self.reasons = dict(reasons or {})
+
+
 class SceneValidationError(MubleError, ValueError):
     """A scene file or scene graph breaks the SHOP-VRB2 schema.
 

@@ -106,6 +106,11 @@ class PrimitiveAction(ABC):
     @abstractmethod
     def execute(self, env: "Environment") -> ActionResult: ...  # noqa: F821
 
+    def feasible(self, env: "Environment") -> None:  # noqa: F821
+        """Raise ``PlanningError`` when this primitive could not succeed from the environment's current state,
+        without moving anything (the scene generator asks ``approach`` whether every object can be grasped).
+        Optional; the default raises nothing (no check)."""
+
 
     def symbolic_effect(self, scene: "SceneGraph") -> ActionResult:
         """What the primitive does in the symbolic world (no physics): change ``scene`` (ground truth; flags in

@@ -38,8 +38,13 @@ class GeneratorConfig:
     settle_time: float = 1.0  # s
     stability_tolerance: float = 0.005  # m
     timestep: float = 0.002  # s
+    # Accept a layout only when ``robot`` (RobotConfig fields; empty: Panda) can grasp every pickupable object and
+    # put it down again (``muble.generation.reachability``).
+    reach_check: bool = True
+    robot: dict[str, Any] = field(default_factory=dict)
     placement_tries: int = 60  # positions tried per object before the layout is restarted
     layout_tries: int = 25  # layouts (fresh samples) tried per scene before giving up
+    scene_samples: int = 200  # scene samples (of layout_tries layouts each) tried per index to suit its template
     camera_position: list[float] = field(default_factory=lambda: list(DEFAULT_POSITION))
     camera_rotation: list[float] = field(default_factory=lambda: list(DEFAULT_ROTATION_DEG))  # Blender EulerXYZ
     image_width: int = DEFAULT_WIDTH

@@ -11,13 +11,13 @@ import dataclasses
 import logging
 import math
 import time
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from muble.core.camera import CameraParams, euler_xyz_to_matrix
-from muble.core.errors import ConfigError
+from muble.core.errors import ConfigError, SceneGenerationError
 from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.scene import SceneGraph, SceneObject
 from muble.generation import checks, ground_truth
@@ -47,7 +47,8 @@ class SceneGenerator:
     """Generates scenes by index. ``object_set`` and ``renderer`` default to registry plugins named in the config."""
 
     def __init__(self, config: GeneratorConfig | dict | DictConfig | None = None, seed: int = 0,
-                 object_set: Any = None, renderer: Any = None):
+                 object_set: Any = None, renderer: Any = None,
+                 reach_check: Callable[[SceneGraph, dict[int, ObjectModel]], str | None] | None = None):
         self.config = cfg = _config(config)
         self.seed = int(seed)
         self._check_config(cfg)
@@ -66,6 +67,12 @@ class SceneGenerator:
         self._view = shared_view(self.camera, cfg.table_x, cfg.table_y,
                                  slots=cfg.min_objects + len(cfg.count_probabilities) - 1)
         self.directions = ground_truth.directions(self.camera)
+        if reach_check is None and cfg.reach_check:
+            from muble.generation.reachability import ReachCheck
+
+            reach_check = ReachCheck(cfg.robot)
+        # (scene, models) -> None, or why the robot cannot grasp and put down some object: the last check.
+        self.reach_check = reach_check
         self.failures: collections.Counter[str] = collections.Counter()  # why layouts were rejected, all scenes
         self.timings: collections.Counter[str] = collections.Counter()  # seconds spent per stage, all scenes
 
@@ -114,9 +121,10 @@ class SceneGenerator:
         self._renderer = self._mask_renderer = None
 
     # --- sampling ---------------------------------------------------------------------------------------------
-    def _sample_specs(self, rng: np.random.Generator) -> list[ObjectSpec] | None:
+    def _sample_specs(self, rng: np.random.Generator, count: int | None = None) -> list[ObjectSpec] | None:
         cfg = self.config
-        count = cfg.min_objects + int(rng.choice(len(cfg.count_probabilities), p=cfg.count_probabilities))
+        if count is None:
+            count = cfg.min_objects + int(rng.choice(len(cfg.count_probabilities), p=cfg.count_probabilities))
         specs: list[ObjectSpec] = []
         for _ in range(count):
             for _ in range(WEIGHT_RESAMPLES):
@@ -141,13 +149,20 @@ class SceneGenerator:
         return placements  # type: ignore[return-value]
 
     # --- one scene --------------------------------------------------------------------------------------------
-    def generate(self, index: int) -> SceneGraph:
-        """The scene for ``index``; raises ``ConfigError`` naming the failing check if no layout passes."""
+    def generate(self, index: int, *, sample: int = 0, objects: int | None = None,
+                 accept: Callable[[SceneGraph], bool] | None = None) -> SceneGraph:
+        """The scene for ``index``; raises ``SceneGenerationError`` naming the failing checks if no layout passes.
+
+        ``sample`` > 0 draws a further, independent scene for the same index (its own stream ``[seed, index,
+        sample]``), e.g. when the scene drawn first does not suit the task wanted there. ``objects`` fixes the
+        object count instead of drawing it. ``accept(scene)`` is asked about each placed layout before the
+        costlier checks (visibility, rest, reach); it sees every field but the masks.
+        """
         cfg = self.config
-        rng = np.random.default_rng([self.seed, int(index)])
+        rng = np.random.default_rng([self.seed, int(index)] + ([int(sample)] if sample else []))
         reasons: collections.Counter[str] = collections.Counter()
         for _ in range(cfg.layout_tries):
-            specs = self._sample_specs(rng)
+            specs = self._sample_specs(rng, objects)
             if specs is None:
                 reasons["weights"] += 1
                 continue
@@ -160,6 +175,9 @@ class SceneGenerator:
             self.timings["placement"] += t2 - t1
             if placements is None:
                 reasons["placement"] += 1
+                continue
+            if accept is not None and not accept(self._scene(index, specs, models, placements, None)):
+                reasons["not accepted"] += 1
                 continue
             frame = self._draw(self.renderer, models, placements)
             t4 = time.perf_counter()
@@ -175,14 +193,25 @@ class SceneGenerator:
                 if np.any(moved > cfg.stability_tolerance):
                     reasons["stability"] += 1
                     continue
-            masks = self._masks(models, placements, frame) if cfg.masks else None
+            scene = self._scene(index, specs, models, placements, None)
+            if self.reach_check is not None:
+                t5 = time.perf_counter()
+                unreachable = self.reach_check(scene, dict(enumerate(models)))
+                self.timings["reach"] += time.perf_counter() - t5
+                if unreachable:
+                    reasons["reach"] += 1
+                    log.debug("scene %d: layout rejected: %s", index, unreachable)
+                    continue
+            if cfg.masks:
+                self._apply_masks(scene, self._masks(models, placements, frame))
             self.failures.update(reasons)
-            return self._scene(index, specs, models, placements, masks)
+            return scene
         self.failures.update(reasons)
         detail = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items()))
-        raise ConfigError(
+        raise SceneGenerationError(
             f"scene {index}: no valid layout in {cfg.layout_tries} tries ({detail}). Place fewer or smaller "
-            "objects, lower generator.margin or generator.min_visible_pixels, or widen reach_x/reach_y")
+            "objects, lower generator.margin or generator.min_visible_pixels, or widen reach_x/reach_y",
+            index=int(index), reasons=dict(reasons))
 
     def _masks(self, models, placements, frame) -> np.ndarray:
         if self.check_camera is self.camera:
@@ -190,6 +219,15 @@ class SceneGenerator:
         if self._mask_renderer is None:
             self._mask_renderer = self._renderer_for(self.camera)
         return self._draw(self._mask_renderer, models, placements).segmentation
+
+    @staticmethod
+    def _apply_masks(scene: SceneGraph, segmentation: np.ndarray) -> None:
+        from muble.core.types import SEG_TABLE
+
+        *masks, table_mask = ground_truth.encode_masks(segmentation, [*range(len(scene.objects)), SEG_TABLE])
+        for obj, mask in zip(scene.objects, masks):
+            obj.mask = mask
+        scene.table = {"mask": table_mask}
 
     def _scene(self, index, specs, models, placements, segmentation) -> SceneGraph:
         cfg = self.config

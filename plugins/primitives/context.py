@@ -24,6 +24,7 @@ TABLE_MARGIN = 0.08  # m kept free along the table's edges when choosing a place
 
 _worlds: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 _grips: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_grips_by_kind: dict[tuple, object] = {}
 
 
 @dataclass
@@ -56,7 +57,13 @@ def grip_geometry(env):
 
     grip = _grips.get(env)
     if grip is None:
-        grip = _grips[env] = measure_grip(env)
+        # The pads' geometry depends on the gripper model alone: measured once per process for each kind.
+        kind = (env.names.robot, type(env.names.gripper_format).__name__, tuple(env.names.left_pads),
+                tuple(env.names.right_pads), float(env.model.opt.timestep))
+        grip = _grips_by_kind.get(kind)
+        if grip is None:
+            grip = _grips_by_kind[kind] = measure_grip(env)
+        _grips[env] = grip
     return grip
 
 

@@ -300,20 +300,26 @@ def hand_clearance(world, target_body: int | str, ignore=(), reach: float = CLEA
     collidable = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
     hand = np.flatnonzero(collidable & np.isin(m.geom_bodyid, list(world.gripper_bodies)))
     others = np.flatnonzero(collidable & ~np.isin(m.geom_bodyid, list(world.robot_bodies | skip)))
-    rel_pos = [site_rot.T @ (d.geom_xpos[g] - site_pos) for g in hand]
+    rel_pos = np.array([site_rot.T @ (d.geom_xpos[g] - site_pos) for g in hand]).reshape(-1, 3)
     rel_rot = [site_rot.T @ d.geom_xmat[g].reshape(3, 3) for g in hand]
     other_pos = d.geom_xpos[others].copy()
     other_r = m.geom_rbound[others]
+    plane = other_r == 0
+    hand_r = m.geom_rbound[hand]
 
     def clearance(pose: Pose) -> float:
         rot = _quat_mat(pose.quat)
         best = reach
-        for g, p, r in zip(hand, rel_pos, rel_rot):
-            centre = pose.pos + rot @ p
-            d.geom_xpos[g] = centre
-            d.geom_xmat[g] = (rot @ r).ravel()
-            # Bounding spheres first; a zero bound (a plane) is always measured.
-            near = (other_r == 0) | (np.linalg.norm(other_pos - centre, axis=1) - other_r - m.geom_rbound[g] < best)
+        centres = pose.pos + rel_pos @ rot.T
+        # Bounding spheres first (all hand geoms at once); a zero bound (a plane) is always measured.
+        gaps = np.linalg.norm(other_pos[None] - centres[:, None], axis=2) - other_r[None] - hand_r[:, None]
+        for k in np.flatnonzero(np.any(plane[None] | (gaps < best), axis=1)):
+            near = plane | (gaps[k] < best)
+            if not near.any():
+                continue
+            g = hand[k]
+            d.geom_xpos[g] = centres[k]
+            d.geom_xmat[g] = (rot @ rel_rot[k]).ravel()
             for o in others[near]:
                 best = min(best, mujoco.mj_geomDistance(m, d, int(g), int(o), best, None))
         return float(best)

@@ -41,6 +41,11 @@ REST_WAIT = 1.5  # s a put-down object may take to come to rest after the hand l
 LIFT_SIDESTEPS = ((0.0, 0.0), *((r * np.cos(a), r * np.sin(a)) for r in (0.04, 0.08)
                                 for a in np.linspace(0.0, 2 * np.pi, 8, endpoint=False)))
 PUT_BACK_RADIUS = 0.05  # m a put-down without a target may shift the object to find a free place
+FEASIBLE_CANDIDATES = 16  # grasp candidates per hand opening that ``Approach.feasible`` tries at most
+FEASIBLE_RISE = 0.10  # m the hand must rise straight up holding the object for ``Approach.feasible``
+FEASIBLE_IK_RESTARTS = 12  # random inverse-kinematics restarts per pose in ``Approach.feasible``
+FINGERS_STILL = 0.005  # m/s (rad/s) of finger joint speed below which the fingers count as at rest
+FINGERS_OPEN_SLACK = 0.003  # m the pads may still lack of the measured open gap for the hand to count as open
 END_TRACKING = 0.05  # rad any arm joint may end from the planned final configuration for the motion to count
 MOVE_VEL_TOLERANCE = 0.01  # m between the hand's travel and velocity x duration
 MAX_ATTEMPT = 16  # ``attempt`` values a retrying agent may pass
@@ -188,30 +193,14 @@ class Approach(PrimitiveAction):
         if env.held_object is not None:
             raise PlanningError(f"the hand already holds object {env.held_object}; lower it before approaching")
         snap = env.snapshot()
-        model = env.object_models[obj_id]
         grip = ctx.grip_geometry(env)
-        table = ctx.table(env)
         reasons, tried = [], 0
-        # Fully open first; in clutter (or next to the object's own handle) a hand opened only part way, still
-        # wide enough for a rim or a handle, may fit where the open one touches something.
         for command in (-1.0, *PRESHAPE_COMMANDS):
-            env.set_gripper(command)
-            if command == -1.0:
-                env.hold(0.3)  # the fingers go on opening on the way; the measured open gap applies
-                max_width = grip.max_width
-            else:
-                env.hold(PRESHAPE_SETTLE)
-                max_width = ctx.pad_gap(env) - 2 * PAD_MARGIN - PRESHAPE_SLACK
-            world = ctx.collision_world(env)
-            # Ranked by how far the hand stays from the neighbours, with more directions around round objects.
-            candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z, max_width=max_width,
-                                          rest_quat=ctx.world_rest_quat(env), grip=grip,
-                                          clearance=hand_clearance(world, body, ignore=[table.body]))
-            if not candidates and command == -1.0:
+            try:
+                world, candidates = self._candidates(env, obj_id, body, command)
+            except PlanningError:
                 env.restore(snap)
-                raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
-                                    f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "
-                                    "choose another robot.gripper or object")
+                raise
             tried += len(candidates)
             candidates = rotated(candidates, attempt)
             # A grasp whose arm configuration lies on another branch (wrist turned most of a turn) is kept back:
@@ -236,6 +225,87 @@ class Approach(PrimitiveAction):
         env.restore(snap)
         raise PlanningError(f"no grasp of object {obj_id} is reachable without collision "
                             f"({tried} tried): {reasons[0] if reasons else ''}")
+
+    def feasible(self, env) -> None:
+        """Raise ``PlanningError`` unless the target can be grasped and put down again from the current state:
+        one of the first ``FEASIBLE_CANDIDATES`` grasps that ``execute`` would try is reached without collision
+        (the planned move over it and the straight move in), and holding the object there the hand rises
+        straight up off its support (the reverse of setting it back down where it stands). Inverse kinematics
+        gets ``FEASIBLE_IK_RESTARTS`` restarts, so the check is a little stricter than ``execute``. Nothing
+        moves: the environment is restored."""
+        obj_id = int(self.arguments["target"])
+        body = ctx.body_name(env, obj_id)
+        if env.held_object is not None:
+            raise PlanningError(f"the hand already holds object {env.held_object}; lower it before approaching")
+        snap = env.snapshot()
+        grip = ctx.grip_geometry(env)
+        reasons, tried = [], 0
+        try:
+            for command in (-1.0, *PRESHAPE_COMMANDS):
+                if reasons and all("out of reach" in r for r in reasons):
+                    break  # a narrower hand reaches no farther
+                world, candidates = self._candidates(env, obj_id, body, command,
+                                                     settle=not _fingers_open(env, command, grip))
+                for grasp in candidates[:FEASIBLE_CANDIDATES]:
+                    tried += 1
+                    try:
+                        _, down = self._plan(env, world, body, grasp, grip, FEASIBLE_IK_RESTARTS)
+                        self._rise_holding(env, world, body, down.q[-1])
+                        return
+                    except PlanningError as e:
+                        logger.debug("grasp %d of object %d (hand %+.0f): %s", tried, obj_id, command, e)
+                        reasons.append(str(e))
+                    finally:
+                        world.hold(None)
+                        world.allow_contact([])
+                        world.sync(env.data)
+        finally:
+            env.restore(snap)
+        raise PlanningError(f"no grasp of object {obj_id} is reachable without collision and rises clear of its "
+                            f"support ({tried} tried): {reasons[0] if reasons else ''}")
+
+    @staticmethod
+    def _candidates(env, obj_id: int, body: str, command: float, settle: bool = True):
+        """The collision world and the ranked grasp candidates with the hand opened by ``command`` (-1: fully;
+        a part-way opening, still wide enough for a rim or a handle, may fit in clutter where the open hand
+        touches something, or next to the object's own handle). The fingers are moved there in physics
+        (``settle=False``: they already are)."""
+        model = env.object_models[obj_id]
+        grip = ctx.grip_geometry(env)
+        table = ctx.table(env)
+        if settle:
+            env.set_gripper(command)
+            env.hold(0.3 if command == -1.0 else PRESHAPE_SETTLE)
+        if command == -1.0:
+            max_width = grip.max_width  # the fingers go on opening on the way; the measured open gap applies
+        else:
+            max_width = ctx.pad_gap(env) - 2 * PAD_MARGIN - PRESHAPE_SLACK
+        world = ctx.collision_world(env)
+        # Ranked by how far the hand stays from the neighbours, with more directions around round objects.
+        candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z, max_width=max_width,
+                                      rest_quat=ctx.world_rest_quat(env), grip=grip,
+                                      clearance=hand_clearance(world, body, ignore=[table.body]))
+        if not candidates and command == -1.0:
+            raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
+                                f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "
+                                "choose another robot.gripper or object")
+        return world, candidates
+
+    @staticmethod
+    def _rise_holding(env, world, body: str, q_grasp: np.ndarray) -> None:
+        """Raise ``PlanningError`` unless, holding ``body`` at ``q_grasp``, the hand rises ``FEASIBLE_RISE``
+        straight up touching only what the object stands on or already overlaps (as ``lift`` allows)."""
+        m = world.model
+        world.kinematics.set_q(q_grasp)
+        world.hold(body)
+        held = m.body(body).id
+        support = {ctx.table(env).body}
+        world.allow_contact(support)
+        support |= {m.body(name).id for pair in world.contacts(q_grasp) for name in pair} - world.robot_bodies - {held}
+        world.allow_contact(support)
+        pose = world.ee_pose(q_grasp)
+        goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, FEASIBLE_RISE], pose.quat), 0.005, 0.05)
+        ctx.planner(env, "straight_line").plan(q_grasp, goal, world)
 
     @staticmethod
     def _go(env, snap, obj_id: int, body: str, to_pre, down, grasp: Pose, tried: int) -> ActionResult:
@@ -275,8 +345,15 @@ class Approach(PrimitiveAction):
         return _result(report, target=obj_id, grasp_pos=grasp.pos.tolist(), candidates_tried=tried)
 
     @staticmethod
-    def _plan(env, world, body: str, grasp: Pose, grip):
-        """The move to the pre-grasp pose (backed off along the approach) and the straight line in."""
+    def _plan(env, world, body: str, grasp: Pose, grip, ik_restarts: int | None = None):
+        """The move to the pre-grasp pose (backed off along the approach) and the straight line in
+        (``ik_restarts``: at most this many random restarts for the grasp and pre-grasp poses)."""
+        if ik_restarts is not None and ik_restarts < world.ik_restarts:
+            saved, world.ik_restarts = world.ik_restarts, ik_restarts
+            try:
+                return Approach._plan(env, world, body, grasp, grip)
+            finally:
+                world.ik_restarts = saved
         approach = grasp_approach(grasp)
         # A frame set deeper than the hand fits (the palm inside a tall object) is backed off along the
         # approach a little at a time, up to GRIP_BACKOFF and never so far that the pads miss the object.
@@ -308,6 +385,15 @@ class Approach(PrimitiveAction):
         world.allow_contact([])
         to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world)
         return to_pre, down
+
+
+def _fingers_open(env, command: float, grip) -> bool:
+    """Whether the hand is already fully open (``command`` -1), the fingers at rest there."""
+    if command != -1.0 or env.gripper_command != -1.0 or ctx.pad_gap(env) < grip.open_gap - FINGERS_OPEN_SLACK:
+        return False
+    m = env.model
+    dofs = [m.jnt_dofadr[m.joint(j).id] for j in env.names.gripper_joints]
+    return float(np.max(np.abs(env.data.qvel[dofs]), initial=0.0)) < FINGERS_STILL
 
 
 def _pad_overlap(env, body: str, grasp: Pose, grip) -> float:

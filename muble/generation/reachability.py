@@ -1,0 +1,54 @@
+"""The generator's reach check: the configured robot can grasp every pickupable object and put it down again.
+
+The robot's environment is built for the scene as it will start, and the registered ``approach`` primitive is
+asked, through ``PrimitiveAction.feasible``, whether each pickupable object has a grasp reached without
+collision from the rest pose (the planned move over it and the straight move in: the same candidates, planner
+and collision world that ``approach`` uses when it runs) from which the hand, holding the object, rises clear of
+its support. Nothing is executed: only the arm's rest state and the fingers' opening are simulated.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from muble.core.errors import PlanningError
+from muble.core.objects import ObjectModel
+from muble.core.scene import SceneGraph
+
+log = logging.getLogger(__name__)
+
+SETTLE = 0.5  # s of physics before the check, as before an episode (the fingers open, the objects at rest)
+
+
+class ReachCheck:
+    """``check(scene, models)`` -> ``None`` when every pickupable object can be grasped and put down again, else
+    why not (the first object that cannot, with the primitive's reason).
+
+    ``robot`` holds ``muble.app.config.RobotConfig`` fields (name, gripper …; empty: Panda); ``primitive`` is the
+    registry name of the grasping primitive asked.
+    """
+
+    def __init__(self, robot: dict[str, Any] | None = None, primitive: str = "approach"):
+        self.robot = dict(robot or {}) or None
+        self.primitive = primitive
+
+    def __call__(self, scene: SceneGraph, models: dict[int, ObjectModel]) -> str | None:
+        from muble.plugins.registry import get_registry
+        from muble.sim.env import TabletopEnv
+
+        registry = get_registry()
+        env = TabletopEnv(scene, models, self.robot, {})
+        try:
+            env.open_gripper()
+            env.hold(SETTLE)  # as an episode starts: the hand open, the objects settled
+            for obj in scene.objects:
+                if not obj.pickupable:
+                    continue
+                try:
+                    registry.create("primitive", self.primitive, {"target": obj.id}).feasible(env)
+                except PlanningError as e:
+                    x, y = (round(float(v), 3) for v in obj.position[:2])
+                    return f"object {obj.id} ({obj.name}) at ({x}, {y}): {e}"
+            return None
+        finally:
+            env.close()
