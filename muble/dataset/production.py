@@ -1,8 +1,9 @@
 """Producing a dataset split: every index is a pure function of (seed, split, index), written atomically.
 
 ``produce_index`` runs in any worker (local process, Ray task or the driver): it builds the configured plugins
-once per process, generates the scene, renders its image, picks an instruction from the template mix, runs the
-oracle with physics for the ground-truth sequence (observations after every primitive, keyframes) and writes
+once per process, takes the index's template and object count from the split's task mix
+(``muble.generation.task_mix``), generates a scene that suits that template with an instruction whose ground
+truth is feasible, renders its image, runs the oracle with physics for the ground-truth sequence (observations after every primitive, keyframes) and writes
 all of it, the instruction file last. An index whose instruction file exists is complete; a killed run leaves
 only hidden temporaries, removed on restart, so a restarted run ends byte-identical to an uninterrupted one.
 """
@@ -17,7 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from muble.core.errors import ConfigError
 from muble.dataset.atomic import write_bytes_atomic
 from muble.dataset.layout import DatasetLayout
 from muble.generation.ground_truth import apply_masks
@@ -55,7 +55,8 @@ def cached_components(config: dict[str, Any], renderer: bool = True, task: bool 
 
 
 def choose_instruction(tasks: list[Any], weights: np.ndarray, scene: Any, rng: np.random.Generator):
-    """An instruction from the template mix: a template drawn by weight, then the others in drawn order.
+    """An instruction for a given scene from a template mix: a template drawn by weight, then the others in drawn
+    order. (``produce_index`` goes the other way: the template first, then a scene that suits it.)
 
     Returns (None, None) when no template of the mix applies to the scene (e.g. a weight comparison in a scene
     with a single object of each kind)."""
@@ -73,6 +74,7 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     from muble.core.instructions_io import instruction_to_dict
     from muble.episode.runner import instruction_rng, png_bytes, write_episode
     from muble.generation.generator import SceneGenerator
+    from muble.generation.task_mix import suited_scene, template_weights
     from muble.plugins.registry import get_registry
 
     cfg = job.config
@@ -84,25 +86,22 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     seed = split_seed(cfg["seed"], job.split)
     generator_options = dict(cfg["generator"], split=job.split)
     generator = SceneGenerator(generator_options, seed=seed, object_set=components["object_set"])
+    tasks = {name: registry.create("task", name, {}) for name in ds["templates"]}
+    weights = template_weights(list(tasks), ds["template_weights"])
     try:
-        scene = generator.generate(job.index)
+        suited = suited_scene(generator, tasks, weights, seed, job.index, lambda i: instruction_rng(seed, i))
     finally:
         generator.close()
+    scene, task, instruction = suited.scene, suited.task, suited.instruction
     scene.image_filename = Path(layout.image(job.index)).name
+    instruction.image_filename = scene.image_filename
     written: dict[str, str] = {}
-
-    tasks = [registry.create("task", name, {}) for name in ds["templates"]]
-    weights = np.asarray(ds["template_weights"] or [1.0] * len(tasks), dtype=float)
-    if len(weights) != len(tasks) or np.any(weights < 0) or weights.sum() <= 0:
-        raise ConfigError("dataset.template_weights needs one non-negative weight per template, not all zero")
-    rng = instruction_rng(seed, job.index)
-    task, instruction = choose_instruction(tasks, weights / weights.sum(), scene, rng)
 
     from muble.app.run import episode_runner
     from omegaconf import OmegaConf
 
     runner = episode_runner(OmegaConf.create(cfg), components)
-    if instruction is not None and ds["sequences"]:
+    if ds["sequences"]:
         output = runner.execute(scene, instruction, task)
         written.update(write_episode(output, out, layout.stem(job.index), gif=ds["gif"]))
         image = output.keyframes[0] if output.keyframes else None
@@ -112,14 +111,10 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
             out / layout.scene(job.index), json.dumps(scene_to_dict(scene)).encode())
     if image is not None:
         written[layout.image(job.index)] = write_bytes_atomic(out / layout.image(job.index), png_bytes(image))
-    if instruction is None:
-        # The scene stays in the dataset (indices keep their meaning); its instruction record says why it has none.
-        record = {"split": job.split, "image_filename": scene.image_filename, "image_index": job.index,
-                  "instruction": None, "skipped": f"no template of {list(ds['templates'])} applies to this scene"}
-    else:
-        instruction.split, instruction.image_index = job.split, job.index
-        record = instruction_to_dict(instruction)
-        record["ground_truth_actions"] = [[a.name, a.params] for a in task.ground_truth(instruction, scene)]
+    instruction.split, instruction.image_index = job.split, job.index
+    record = instruction_to_dict(instruction)
+    record["ground_truth_actions"] = [[a.name, a.params] for a in suited.ground_truth]
+    record["scene_samples"] = suited.samples
     written[layout.instruction(job.index)] = write_bytes_atomic(
         out / layout.instruction(job.index), json.dumps(record).encode())
     return job.index, written
