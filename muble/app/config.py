@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
@@ -54,12 +55,22 @@ class OutputConfig:
     gif: bool = True
 
 
+class ActionNameStyle(str, Enum):
+    """How sequence files name the primitives (``muble.core.action_names``)."""
+
+    registry = "registry"
+    original = "original"
+
+
 @dataclass
 class EpisodeConfig:
     """The action loop's limits and what is rendered after every primitive."""
 
     max_steps: int = bounded(100, ge=1)
     cameras: list[str] = field(default_factory=lambda: ["front"])
+    # Primitive names in sequence files: "registry" (move, approach, close_gripper, lift, weigh, lower …) or
+    # "original" (the original MuBlE's move, approach_grasp, grasp, pick_up, put_down, release).
+    action_names: ActionNameStyle = ActionNameStyle.registry
 
 
 SHOPVRB2_TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",

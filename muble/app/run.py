@@ -127,7 +127,7 @@ def job(cfg: DictConfig) -> dict:
     output = episode_runner(cfg, {**components, "renderer": recorder}).execute(scene, instruction,
                                                                               components["task"])
     stem = f"episode_{cfg.seed}_{cfg.scene_index:06d}"
-    written = write_episode(output, out_dir, stem, gif=cfg.output.gif)
+    written = write_episode(output, out_dir, stem, gif=cfg.output.gif, action_names=cfg.episode.action_names)
     written.update(_write_keyframe_states(cfg, recorder, output, out_dir, stem))
     manifest["outputs"] = written
     manifest["outcome"] = output.result.outcome.value

@@ -103,7 +103,8 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     runner = episode_runner(OmegaConf.create(cfg), components)
     if ds["sequences"]:
         output = runner.execute(scene, instruction, task)
-        written.update(write_episode(output, out, layout.stem(job.index), gif=ds["gif"]))
+        written.update(write_episode(output, out, layout.stem(job.index), gif=ds["gif"],
+                                     action_names=cfg.get("episode", {}).get("action_names", "registry")))
         image = output.keyframes[0] if output.keyframes else None
     else:
         image = _render_initial(runner, scene)

@@ -202,8 +202,11 @@ class EpisodeRunner:
         return EpisodeOutput(scene, instruction, result, keyframes, timing=timing)
 
 
-def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool = True) -> dict[str, str]:
-    """Write keyframes, GIF and sequence file atomically; returns {relative path: sha256}."""
+def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool = True,
+                  action_names: str = "registry") -> dict[str, str]:
+    """Write keyframes, GIF and sequence file atomically; returns {relative path: sha256}.
+
+    ``action_names``: ``registry`` or ``original`` primitive names in the sequence file."""
     written: dict[str, str] = {}
     paths = []
     for i, rgb in enumerate(output.keyframes):
@@ -213,7 +216,7 @@ def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool =
     if gif and output.keyframes:
         rel = f"keyframes/{stem}.gif"
         written[rel] = write_bytes_atomic(directory / rel, gif_bytes(output.keyframes))
-    output.sequence = sequence_dict(output.instruction, output.result, paths)
+    output.sequence = sequence_dict(output.instruction, output.result, paths, action_names=action_names)
     rel = f"sequences/{stem}.json"
     written[rel] = write_bytes_atomic(directory / rel, json.dumps(output.sequence).encode())
     rel = f"scenes/{stem}.json"

@@ -5,6 +5,7 @@ from typing import Any
 
 import numpy as np
 
+from muble.core.action_names import check_style, named
 from muble.core.interfaces import Instruction
 from muble.core.scene import SceneGraph
 from muble.core.scene_io import object_to_dict
@@ -41,7 +42,8 @@ def _objects(scene: SceneGraph, observation: Observation, camera: str) -> list[d
     return out
 
 
-def _robot(observation: Observation, action: ActionCall | None, weight: float | None) -> dict[str, Any]:
+def _robot(observation: Observation, action: ActionCall | None, weight: float | None,
+           action_names: str = "registry") -> dict[str, Any]:
     m = observation.measurements
     target = None if action is None else action.params.get("target")
     gripper = float(m.get("gripper_command", -1.0))
@@ -51,13 +53,17 @@ def _robot(observation: Observation, action: ActionCall | None, weight: float | 
         "gripper_action": gripper,
         "gripper_closed": gripper > 0,
         "weight_measurement": 0.0 if weight is None else float(weight),
-        "action": ["START", None] if action is None else [action.name, target],
+        "action": ["START", None] if action is None else [named(action.name, action_names), target],
     }
 
 
 def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths: list[str],
-                  camera: str = "front") -> dict[str, Any]:
-    """The sequence file: ``observations`` as the agent saw them, ``observations_gt`` with ground truth too."""
+                  camera: str = "front", action_names: str = "registry") -> dict[str, Any]:
+    """The sequence file: ``observations`` as the agent saw them, ``observations_gt`` with ground truth too.
+
+    ``action_names="original"`` writes the original release's primitive names (``muble.core.action_names``).
+    """
+    check_style(action_names)
     observations, observations_gt = [], []
     weight = None
     steps = [(None, episode.initial, episode.initial_gt)] + [(s.action, s.observation, s.scene_gt)
@@ -65,7 +71,7 @@ def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths:
     for i, (action, observation, scene_gt) in enumerate(steps):
         if i and episode.steps[i - 1].result.measurement is not None and action.name == "weigh":
             weight = episode.steps[i - 1].result.measurement
-        robot = _robot(observation, action, weight)
+        robot = _robot(observation, action, weight, action_names)
         # What the agent saw (its measurements only) and, apart, the ground truth at the same moment.
         observations.append({"robot": robot, "objects": _objects(observation.scene, observation, camera)})
         gt = dict(robot)
