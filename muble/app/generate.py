@@ -18,7 +18,9 @@ from muble.core.errors import ConfigError
 from muble.core.manifest import make_manifest, sha256_file
 from muble.dataset.atomic import TMP_PREFIX, remove_stale_temporaries, write_bytes_atomic
 from muble.dataset.executors import run_all
+from muble.dataset.identity import check_or_store_identity
 from muble.dataset.layout import DatasetLayout
+from muble.dataset.lock import RunLock
 from muble.dataset.production import IndexJob, produce_index, split_seed
 
 log = logging.getLogger(__name__)
@@ -66,7 +68,13 @@ def write_combined(layout: DatasetLayout, wanted: list[int], version: str) -> di
 
 def checksums(root: Path) -> dict[str, str]:
     return {str(p.relative_to(root)): sha256_file(p) for p in sorted(root.rglob("*"))
-            if p.is_file() and p.name != "manifest.json" and not p.name.startswith(TMP_PREFIX)}
+            if p.is_file() and p.name != "manifest.json" and not p.name.startswith(TMP_PREFIX)
+            and p.suffix != ".lock"}
+
+
+def lock_path(cfg: DictConfig) -> Path:
+    """One lock per shard: shards of one dataset may run side by side, two runs of one shard may not."""
+    return Path(cfg.dataset.root) / f".muble-generate-shard{cfg.dataset.shard}of{cfg.dataset.num_shards}.lock"
 
 
 def job(cfg: DictConfig) -> dict:
@@ -75,31 +83,40 @@ def job(cfg: DictConfig) -> dict:
     import muble
 
     root = Path(cfg.dataset.root)
-    root.mkdir(parents=True, exist_ok=True)
-    stale = remove_stale_temporaries(root)
-    if stale:
-        log.info("removed %d partial files of an interrupted run", stale)
-    config = OmegaConf.to_container(cfg, resolve=True)
-    produced = {}
     sizes = split_sizes(cfg)
-    for split, size in sizes.items():
-        layout = DatasetLayout(root, split)
-        wanted = indices(cfg, size)
-        todo = [i for i in wanted if not (layout.split_dir / layout.instruction(i)).exists()]
-        log.info("%s: %d of %d indices to produce (%d already done)", split, len(todo), len(wanted),
-                 len(wanted) - len(todo))
-        jobs = [IndexJob(config, split, i) for i in todo]
-        results = run_all(cfg.dataset.executor, produce_index, jobs, cfg.dataset.workers,
-                          ray_address=cfg.dataset.ray_address)
-        for _ in tqdm(results, total=len(jobs), desc=f"generate {split}", unit="scene", disable=None):
-            pass
-        if cfg.dataset.num_shards == 1:
-            write_combined(layout, wanted, muble.__version__)
-        produced[split] = len(wanted)
-    seeds = {"seed": cfg.seed, "split_seeds": {s: split_seed(cfg.seed, s) for s in sizes},
-             "indices": "(seed, split, index) -> numpy default_rng streams; OMPL re-seeded per query"}
-    manifest = make_manifest(seeds, dataset_config_record(config), files=checksums(root))
-    write_bytes_atomic(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True).encode())
+    root.mkdir(parents=True, exist_ok=True)
+    config = OmegaConf.to_container(cfg, resolve=True)
+    with RunLock(lock_path(cfg), f"dataset.root {root} (shard {cfg.dataset.shard})"):
+        check_or_store_identity(root, config)  # a resume with other settings is refused before any change
+        stale = remove_stale_temporaries(root)
+        if stale:
+            log.info("removed %d partial files of an interrupted run", stale)
+        plan = {}
+        for split, size in sizes.items():
+            layout, wanted = DatasetLayout(root, split), indices(cfg, size)
+            todo = [i for i in wanted if not (layout.split_dir / layout.instruction(i)).exists()]
+            plan[split] = (layout, wanted, todo)
+        if any(todo for _, _, todo in plan.values()) and (root / "manifest.json").exists():
+            # The manifest describes a finished dataset; until this run finishes there is none to describe.
+            (root / "manifest.json").unlink()
+            log.info("manifest.json removed until this run completes")
+        produced = {}
+        for split, (layout, wanted, todo) in plan.items():
+            log.info("%s: %d of %d indices to produce (%d already done)", split, len(todo), len(wanted),
+                     len(wanted) - len(todo))
+            jobs = [IndexJob(config, split, i) for i in todo]
+            results = run_all(cfg.dataset.executor, produce_index, jobs, cfg.dataset.workers,
+                              ray_address=cfg.dataset.ray_address)
+            bar = tqdm(results, total=len(jobs), desc=f"generate {split}", unit="scene", disable=None)
+            for done, (index, _) in enumerate(bar, start=1):
+                log.info("%s: index %d written (%d/%d)", split, index, done, len(jobs))
+            if cfg.dataset.num_shards == 1:
+                write_combined(layout, wanted, muble.__version__)
+            produced[split] = len(wanted)
+        seeds = {"seed": cfg.seed, "split_seeds": {s: split_seed(cfg.seed, s) for s in sizes},
+                 "indices": "(seed, split, index) -> numpy default_rng streams; OMPL re-seeded per query"}
+        manifest = make_manifest(seeds, dataset_config_record(config), files=checksums(root))
+        write_bytes_atomic(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True).encode())
     print(f"muble generate: {produced} scenes in {root}")
     return produced
 

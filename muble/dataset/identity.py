@@ -1,0 +1,64 @@
+"""What makes a dataset the dataset it is: the settings that change its files, stored in ``dataset_config.json``
+at its root when it is first made. Resuming or extending a dataset (more indices, another split) with other
+settings would mix two datasets in one folder, so it is refused, naming each difference.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from muble.core.errors import ConfigError
+from muble.dataset.atomic import write_bytes_atomic
+
+IDENTITY_FILE = "dataset_config.json"
+
+# Top-level keys that do not change a dataset's files (the other jobs' settings, where outputs go).
+_NOT_IDENTITY = ("output", "evaluation", "scene_index", "dry_run", "task", "hydra")
+# dataset.* keys that choose which indices are produced, where and how, not what each one holds.
+_NOT_IDENTITY_DATASET = ("root", "executor", "workers", "shard", "num_shards", "ray_address", "splits", "sizes",
+                         "start")
+
+
+def dataset_identity(config: dict[str, Any]) -> dict[str, Any]:
+    """The part of a resolved config that decides the content of every index (seeds, templates, generator,
+    object set, robot, renderer, planner, agent …)."""
+    identity = {k: v for k, v in config.items() if k not in _NOT_IDENTITY}
+    identity["dataset"] = {k: v for k, v in config.get("dataset", {}).items() if k not in _NOT_IDENTITY_DATASET}
+    return identity
+
+
+def _differences(stored: Any, requested: Any, path: str = "") -> list[str]:
+    if isinstance(stored, dict) and isinstance(requested, dict):
+        out: list[str] = []
+        for key in sorted(set(stored) | set(requested), key=str):
+            sub = f"{path}.{key}" if path else str(key)
+            if key not in stored:
+                out.append(f"{sub}: not stored, requested {json.dumps(requested[key])}")
+            elif key not in requested:
+                out.append(f"{sub}: stored {json.dumps(stored[key])}, not requested")
+            else:
+                out.extend(_differences(stored[key], requested[key], sub))
+        return out
+    return [] if stored == requested else [f"{path}: stored {json.dumps(stored)}, requested {json.dumps(requested)}"]
+
+
+def check_or_store_identity(root: Path, config: dict[str, Any]) -> None:
+    """Store the identity of a new dataset at ``root``; for an existing one, raise ``ConfigError`` listing every
+    difference between its stored identity and the requested one."""
+    requested = json.loads(json.dumps(dataset_identity(config)))  # tuples -> lists, as stored
+    path = root / IDENTITY_FILE
+    stored = None
+    if path.is_file():
+        stored = json.loads(path.read_text())
+    elif (root / "manifest.json").is_file():  # made before identities were stored: its manifest's config
+        stored = dataset_identity(json.loads((root / "manifest.json").read_text()).get("config", {}))
+    if stored is None:
+        write_bytes_atomic(path, json.dumps(requested, indent=2, sort_keys=True).encode())
+        return
+    differences = _differences(stored, requested)
+    if differences:
+        shown = "; ".join(differences[:8]) + (f"; and {len(differences) - 8} more" if len(differences) > 8 else "")
+        raise ConfigError(f"dataset.root {root} holds a dataset made with other settings ({shown}). To resume or "
+                          "extend it, run with its settings (stored in "
+                          f"{path.name}); to make a new dataset, pass another dataset.root")
