@@ -2,7 +2,8 @@
 
 A SHOP-VRB2 program is a list of steps ``{type, input, input_value, output}``. Steps run as chains: ``scene``
 starts a chain with every object id, each filter narrows the previous step's output, and ``stack`` collects the
-final output of every chain before it (top of the stack first). The recorded ``input`` field is informative
+final output of every chain before it (top of the stack first). ``filter_relate`` (left, right, front, behind)
+turns the one object before it into the objects on that side of it (``related``). The recorded ``input`` field is informative
 only; execution always follows the chain.
 
 Weights are known only once measured: in ``"measured"`` mode a step that needs the weight of an object whose
@@ -30,6 +31,25 @@ ATTRIBUTE_FILTERS = {
 }
 WEIGHT_SUPERLATIVES = ("heaviest", "lightest")
 WEIGHT_ORDERS = ("ascending", "descending")
+# Spatial relations of ``filter_relate`` (the original SHOP-VRB2 words) and the scene direction each one follows
+# (sign, direction name) when the scene has ``directions``; without them left is -y and front is +x, as the table
+# parts are named (``muble.core.table``).
+RELATIONS = {"left": (1.0, "left"), "right": (-1.0, "left"), "front": (1.0, "front"), "behind": (-1.0, "front")}
+_DEFAULT_DIRECTIONS = {"left": (0.0, -1.0), "front": (1.0, 0.0)}
+
+
+def related(scene: SceneGraph, anchor: int, relation: str) -> list[int]:
+    """The ids of the objects that are ``relation`` (left, right, front, behind) of object ``anchor``, in scene
+    order: those whose position lies on that side of the anchor's along the scene's direction for it (as the
+    original SHOP-VRB2 ``relationships`` are computed)."""
+    if relation not in RELATIONS:
+        raise PlanningError(unknown_name("relation", str(relation), list(RELATIONS)))
+    sign, name = RELATIONS[relation]
+    directions = scene.directions or {}
+    axis = tuple(directions[name][:2]) if name in directions else _DEFAULT_DIRECTIONS[name]
+    origin = scene.object(anchor).position
+    return [o.id for o in scene.objects if o.id != anchor
+            and sign * ((o.position[0] - origin[0]) * axis[0] + (o.position[1] - origin[1]) * axis[1]) > 0]
 
 
 def table_parts_of(obj: SceneObject, scene: SceneGraph | None = None) -> frozenset[str]:
@@ -123,6 +143,14 @@ def _step_filter_table_part(ctx: _Context, step: dict, prev: Any, index: int) ->
     return [i for i in _ids(prev, step, index) if part in table_parts_of(ctx.by_id[i], ctx.scene)]
 
 
+def _step_filter_relate(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    ids = _ids(prev, step, index)
+    if len(ids) != 1:
+        raise PlanningError(f"step {index} (filter_relate) relates to one object, but the steps before it give "
+                            f"{len(ids)}: {ids}; describe the reference object uniquely")
+    return related(ctx.scene, ids[0], step.get("input_value"))
+
+
 def _step_filter_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
     ids = _ids(prev, step, index)
     which = step.get("input_value")
@@ -170,6 +198,7 @@ STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
     "scene": _step_scene,
     **{name: _attribute_filter(attr) for name, attr in ATTRIBUTE_FILTERS.items()},
     "filter_table_part": _step_filter_table_part,
+    "filter_relate": _step_filter_relate,
     "filter_weight": _step_filter_weight,
     "order_weight": _step_order_weight,
     "query_weight": _step_query_weight,
