@@ -3,6 +3,9 @@
 Every world (symbolic or physical) builds the scene an agent observes with ``agent_view``; ground truth stays
 with the world, the success checks and the ``observations_gt`` of sequence files.
 
+Instructions too (``agent_instruction``): an agent gets the text and the program without the recorded outputs
+(target ids, true weights) and none of the instruction file's ground-truth records.
+
 The view is an allow-list, so a property nobody thought of stays hidden by default:
 - visible: identity and visible attributes (model, category, shape, size, material, colour), pose, bbox,
   mask, affordances (stackable, stack base, pickupable), the gripper flags and the contact state (what an
@@ -18,6 +21,7 @@ from __future__ import annotations
 import copy
 from typing import Iterable, Mapping
 
+from muble.core.interfaces import Instruction
 from muble.core.scene import SceneGraph, SceneObject
 
 # Keys of ``SceneObject.extra`` an agent may see: the gripper's flags and the physical contact state.
@@ -66,6 +70,20 @@ def agent_view(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | 
     for name in _SCENE_VISIBLE:
         setattr(view, name, copy.deepcopy(getattr(scene, name)))
     return view
+
+
+# Keys of a program step an agent may see: the recorded ``output`` of a step is ground truth (the target ids
+# chosen on the initial scene, the true weights of a ``query_weight``), so it is left out.
+PROGRAM_STEP_KEYS = ("type", "input", "input_value", "side_inputs", "value_inputs")
+
+
+def agent_instruction(instruction: Instruction) -> Instruction:
+    """``instruction`` as an agent may know it: the text and the program without recorded outputs; none of the
+    instruction file's other records (ground-truth actions, the task's target …)."""
+    program = [{k: copy.deepcopy(step[k]) for k in PROGRAM_STEP_KEYS if k in step} if isinstance(step, dict)
+               else step for step in instruction.program]
+    return Instruction(instruction.instruction, program, instruction.template_id, instruction.task_id,
+                       instruction.image_filename, instruction.image_index, instruction.split)
 
 
 def leaks(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | None = None) -> list[str]:

@@ -20,6 +20,7 @@ from typing import Any, Callable, Protocol
 
 from muble.core.errors import PhysicsError, PlanningError
 from muble.core.interfaces import Agent, Instruction, Task
+from muble.core.observation import agent_instruction
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome
 
@@ -121,6 +122,7 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
     """Let ``agent`` act in ``world`` until it stops; the episode is judged by ``judge``: a ``Task`` (its ``judge``
     gets the whole record) or a function of (instruction, final ground-truth scene, answer)."""
     check_call = check_call or registry_call_check()
+    told = agent_instruction(instruction)  # what the agent is given; the judge gets the whole record
     monitor = EpisodeMonitor(max_steps=max_steps, max_repeats=max_repeats)
     observation = world.observe(None, 0)
     initial, initial_gt = observation, world.ground_truth()
@@ -137,12 +139,12 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
                              failures)
 
     try:
-        agent.reset(instruction, observation)
+        agent.reset(told, observation)
     except Exception as e:  # noqa: BLE001 - whatever an agent raises ends its episode, never the evaluation
         return finish(Outcome.AGENT_ERROR, f"agent.reset raised {type(e).__name__}: {e}")
     while True:
         try:
-            decision = agent.act(instruction, observation)
+            decision = agent.act(told, observation)
         except PlanningError as e:  # the agent's program cannot be carried out in this scene
             return finish(Outcome.PROGRAM_FAILURE, str(e))
         except Exception as e:  # noqa: BLE001 - see above

@@ -32,12 +32,20 @@ class Snoop(Agent):
                     if self.measured.get(obj_id, {}).get(key) != value:
                         self.found.append(f"sensor {key} reports object {obj_id} unmeasured")
 
+    def _inspect_instruction(self, instruction) -> None:
+        if instruction.extra:
+            self.found.append(f"instruction records {sorted(instruction.extra)}")
+        if any("output" in step for step in instruction.program):
+            self.found.append("the program's recorded outputs")
+
     def reset(self, instruction, observation):
+        self._inspect_instruction(instruction)
         self.measured, self.last, self.step = {}, None, 0
         self._inspect(observation)
         self.inner.reset(instruction, observation)
 
     def act(self, instruction, observation):
+        self._inspect_instruction(instruction)
         if observation.step and observation.step != self.step:  # a new observation (not the one answered on)
             self.step = observation.step
             self._inspect(observation)
