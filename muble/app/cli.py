@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     module_name, _ = COMMANDS[command]
     if verbose and command in HYDRA_COMMANDS:
-        rest = [*rest, "hydra.verbose=[muble]"]
+        rest = [*rest, "hydra.verbose=[muble,muble_plugins]"]
     elif verbose:
         logging.basicConfig(level=logging.DEBUG, format="[%(name)s][%(levelname)s] - %(message)s")
     try:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -24,3 +25,14 @@ def test_verbose_flag_is_taken_out_of_the_command_line(tmp_path):
 
     (result,) = run_many([["--verbose", "plugins", "--kind", "renderer"]], tmp_path)
     assert result["code"] == 0 and "mujoco" in result["stdout"], result
+
+
+@pytest.mark.blender
+def test_blender_render_prints_only_its_result(tmp_path):
+    scene = Path(__file__).resolve().parents[1] / "planning" / "data" / "glass_beside_a_tall_thermos.json"
+    result = subprocess.run([sys.executable, "-m", "muble.app.cli", "render", str(scene), "--set", "width=96",
+                             "--set", "height=64", "--set", "samples=1", "--out", str(tmp_path / "r")],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.stdout.strip().splitlines() == [f"rendered 1 keyframe(s) of {scene} to {tmp_path / 'r'}"]
+    assert result.stderr.strip() == "", result.stderr[-3000:]

@@ -18,6 +18,7 @@ from muble.core.interfaces import Renderer
 from muble.core.types import SEG_BACKGROUND, SEG_TABLE, Frame
 
 from .config import BlenderRendererConfig
+from .console import blender_console_silenced
 from .exr import read_exr
 from .geometry import geom_mesh, geom_rgba
 from .labels import drawn_geoms, geom_labels, labels_from_pass, pass_index
@@ -90,7 +91,8 @@ class BlenderRenderer(Renderer):
             # Remove the pass folder even when close() is never called.
             weakref.finalize(self, shutil.rmtree, str(self._pass_dir), True)
         bscene = self._bscene
-        configure_engine(bscene, cfg)
+        with blender_console_silenced():  # Cycles probes GPU libraries and reports each missing one
+            configure_engine(bscene, cfg)
         set_passes(bscene.view_layers[0], cfg.depth, cfg.segmentation, cfg.normals)
         bscene.world = build_world(cfg)
         self._model = model
@@ -229,7 +231,8 @@ class BlenderRenderer(Renderer):
         self.sync(data, camera)
         path = self._pass_dir / "passes.exr"
         self._bscene.render.filepath = str(path)
-        result = bpy.ops.render.render(write_still=True, scene=self._bscene.name)
+        with blender_console_silenced():
+            result = bpy.ops.render.render(write_still=True, scene=self._bscene.name)
         if "FINISHED" not in result or not path.exists():
             raise RenderError(f"Blender did not write the render passes to {path} (operator returned {result})")
         frame = self._frame_from_passes(read_exr(path), camera)
