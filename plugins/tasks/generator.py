@@ -1,6 +1,7 @@
 """Instruction generation: sample template options, describe the objects, phrase the text, build the program.
 
-Rejection is cheap because it happens on object-level options first (see ``templates``); descriptions come from
+Rejection is cheap because it happens on object-level options first (see ``templates``; each template's options,
+text slots and program come from its template file, ``template_data``); descriptions come from
 the scene's ``SceneIndex``, so every noun phrase denotes exactly its intended objects. Output is deterministic
 given the random generator's state and the scene.
 """
@@ -12,52 +13,12 @@ import numpy as np
 
 from muble import ConfigError, Instruction, SceneGraph
 from muble.core.errors import unknown_name
-from muble.core.instructions_io import program_step
-from muble.core.program import OPPOSITE_PART, execute
+from muble.core.program import execute
 
-from muble_plugins.tasks.descriptions import Description, SceneIndex
+from muble_plugins.tasks.descriptions import SceneIndex
 from muble_plugins.tasks.templates import TEMPLATES, OptionContext, Template
-from muble_plugins.tasks.vocabulary import ATTRIBUTE_STEP, describe
 
 MIN_WORDS, MAX_WORDS = 5, 16
-
-
-def _chain(desc: Description) -> list[dict[str, Any]]:
-    return [program_step("scene")] + [program_step(ATTRIBUTE_STEP[a], input_value=v) for a, v in desc]
-
-
-def _filters(desc: Description) -> list[dict[str, Any]]:
-    return [program_step(ATTRIBUTE_STEP[a], input_value=v) for a, v in desc]
-
-
-# template id -> (option, chosen descriptions) -> (text slots, program without outputs)
-Builder = Callable[[tuple, list[Description]], tuple[dict[str, str], list[dict[str, Any]]]]
-_BUILDERS: dict[str, Builder] = {
-    "measure_weight_single": lambda o, d: ({"O1": describe(d[0])}, _chain(d[0]) + [program_step("query_weight")]),
-    "measure_weight_multi": lambda o, d: ({"O1s": describe(d[0], many=True)},
-                                          _chain(d[0]) + [program_step("query_weight")]),
-    "pick_up_lightest": lambda o, d: ({"O1s": describe(d[0], many=True), "WS": o[1]},
-                                      _chain(d[0]) + [program_step("filter_weight", input_value=o[1]),
-                                                      program_step("pick_up")]),
-    "move_single": lambda o, d: ({"O1": describe(d[0]), "TP": o[1]},
-                                 _chain(d[0]) + [program_step("move_to", input_value=o[1])]),
-    "remove": lambda o, d: ({"O1s": describe(d[0], many=True), "TP": o[1]},
-                            [program_step("scene"), program_step("filter_table_part", input_value=o[1])]
-                            + _filters(d[0]) + [program_step("move_to", input_value=OPPOSITE_PART[o[1]])]),
-    "move_weight": lambda o, d: ({"O1s": describe(d[0], many=True), "WS": o[1], "TP": o[2]},
-                                 _chain(d[0]) + [program_step("filter_weight", input_value=o[1]),
-                                                 program_step("move_to", input_value=o[2])]),
-    "stack_simple": lambda o, d: ({"O1": describe(d[0]), "O2": describe(d[1])},
-                                  _chain(d[0]) + _chain(d[1]) + [program_step("stack")]),
-    "stack_weight": lambda o, d: ({"O1s": describe(d[0], many=True), "WS": o[1], "O2": describe(d[1])},
-                                  _chain(d[0]) + [program_step("filter_weight", input_value=o[1])]
-                                  + _chain(d[1]) + [program_step("stack")]),
-    "stack_three": lambda o, d: ({"O1": describe(d[0]), "O2": describe(d[1]), "O3": describe(d[2])},
-                                 _chain(d[0]) + _chain(d[1]) + _chain(d[2]) + [program_step("stack")]),
-    "stack_order": lambda o, d: ({"O1s": describe(d[0], many=True)},
-                                 _chain(d[0]) + [program_step("order_weight", input_value="ascending"),
-                                                 program_step("stack")]),
-}
 
 
 def _described(option: tuple) -> list[int | tuple[int, ...]]:
@@ -88,7 +49,7 @@ def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.
     options = list(template.options(context))
     if not options:
         return []
-    build = _BUILDERS[template.template_id]
+    build = template.build
     out: list[Instruction] = []
     for k in rng.permutation(len(options)):
         option = options[int(k)]
@@ -98,7 +59,7 @@ def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.
                  for x in _described(option)]
         slots, program = build(option, descs)
         for phrasing in rng.permutation(len(template.texts)):
-            text = template.texts[int(phrasing)].format(**slots)
+            text = template.fill(template.texts[int(phrasing)], slots)
             if MIN_WORDS <= len(text.split()) <= MAX_WORDS:
                 break
         else:

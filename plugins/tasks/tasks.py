@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
@@ -14,7 +15,7 @@ from muble_plugins.tasks.generator import generate_for_template
 from muble_plugins.tasks.planner import plan_next
 from muble_plugins.tasks.descriptions import SceneIndex
 from muble_plugins.tasks.success import check
-from muble_plugins.tasks.templates import TEMPLATES, Template
+from muble_plugins.tasks.templates import TEMPLATES, Template, load_templates
 
 MAX_PLAN_STEPS = 100
 
@@ -58,11 +59,20 @@ class ShopVrb2Task(Task):
         return plan.answer if plan.answer is not None else plan.actions
 
 
+def task_class(template: Template, class_name: str | None = None) -> type[ShopVrb2Task]:
+    """A Task plugin class for a template (built-in, or read from any template file)."""
+    name = class_name or "".join(w.capitalize() for w in template.template_id.split("_")) + "Task"
+    return type(name, (ShopVrb2Task,), {"template": template, "task_id": template.task_id,
+                                        "__doc__": f"Template '{template.template_id}': {template.description}."})
+
+
+def template_file_tasks(path: str | Path) -> dict[str, type[ShopVrb2Task]]:
+    """Task classes for every template of a template file, by template id (what a plugin registers)."""
+    return {name: task_class(t) for name, t in load_templates(path).items()}
+
+
 def _task_class(template_id: str, class_name: str) -> type[ShopVrb2Task]:
-    template = TEMPLATES[template_id]
-    return type(class_name, (ShopVrb2Task,), {"template": template, "task_id": template.task_id,
-                                              "__doc__": f"SHOP-VRB2 template '{template_id}': "
-                                                         f"{template.description}."})
+    return task_class(TEMPLATES[template_id], class_name)
 
 
 MeasureWeightSingle = _task_class("measure_weight_single", "MeasureWeightSingle")
