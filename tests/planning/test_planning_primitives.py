@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from muble import ConfigError, PlanningError, get_registry
+from muble.core.params import specs
 from muble.sim.env import TabletopEnv
 from muble.sim.fixtures import five_object_scene
 
@@ -25,7 +26,8 @@ def test_every_primitive_is_registered_with_declared_params():
     registry = get_registry()
     expected = {"move", "approach", "close_gripper", "open_gripper", "lift", "lower", "weigh", "squeeze", "move_vel"}
     assert expected <= set(registry.names("primitive"))
-    assert registry.get("primitive", "move_vel").record.factory.params == ("velocity", "duration")
+    declared = specs(registry.get("primitive", "move_vel").record.factory.params)
+    assert [(p.name, p.kind, p.required) for p in declared] == [("velocity", "vector", True), ("duration", "number", False)]
     with pytest.raises(ConfigError, match="target"):
         registry.create("primitive", "approach", {"object": 1})
 
