@@ -5,6 +5,7 @@ The environment type is referred to by name (``"Environment"``) to keep this mod
 """
 from __future__ import annotations
 
+import contextlib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -67,6 +68,13 @@ class CollisionWorld(ABC):
     def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
         """End-effector position (3,) at ``q``. Optional (Cartesian planners use it)."""
         raise NotImplementedError(f"{type(self).__name__} does not provide forward kinematics")
+
+    def resting_at(self, q: np.ndarray) -> "contextlib.AbstractContextManager[bool]":
+        """A context manager for planning from ``q``: within it, contacts present at ``q`` between what the arm
+        holds and objects it rests against (not the arm itself) count only where they get deeper, so such a
+        start is valid and a path may leave the contact but not push into it; it yields whether ``q`` is valid
+        then. Optional; the default tolerates nothing and yields ``is_valid(q)``."""
+        return contextlib.nullcontext(self.is_valid(q))
 
 
 class MotionPlanner(ABC):

@@ -7,9 +7,10 @@ geoms get a margin so that a configuration closer than ``clearance`` to an obsta
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import logging
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 
 import mujoco
 import numpy as np
@@ -24,6 +25,7 @@ logger = logging.getLogger(__name__)
 _ROBOT_CLASS = 1  # contype bit of robot (and held object) geoms; conaffinity of everything is 1
 _WORLD_CLASS = 2  # contype bit of world geoms: world & world never collide in the check model
 LIMIT_TOLERANCE = 0.003  # rad past a joint limit still accepted as valid
+RESTING_SLACK = 0.001  # m a contact tolerated by ``resting_at`` may deepen (contact distances vary that much)
 
 
 def _subtree_bodies(model: mujoco.MjModel, root: int) -> set[int]:
@@ -97,6 +99,9 @@ class MujocoCollisionWorld(CollisionWorld):
         self._held_qpos_adr: int | None = None
         self._held_offset: tuple[np.ndarray, np.ndarray] | None = None
         self._allowed_bodies: set[int] = set()
+        # Per geom pair, the least distance a contact may have (inf: none tolerated); see ``resting_at``.
+        self._tolerated = np.full((m.ngeom, m.ngeom), np.inf)
+        self._tolerating = False
         self.sync(data)
         self._self_ignore = self._self_collision_filter()
         self._update_ignore()
@@ -207,9 +212,14 @@ class MujocoCollisionWorld(CollisionWorld):
         self.last_contacts = []
         n = d.ncon
         if n == 0:
+            self._hit_geoms, self._hit_dist = np.zeros((0, 2), dtype=int), np.zeros(0)
             return True
         geoms = d.contact.geom[:n]
-        hits = ~self._ignore[geoms[:, 0], geoms[:, 1]] & (d.contact.dist[:n] <= self.clearance)
+        dist = d.contact.dist[:n]
+        hits = ~self._ignore[geoms[:, 0], geoms[:, 1]] & (dist <= self.clearance)
+        if self._tolerating:
+            hits &= dist < self._tolerated[geoms[:, 0], geoms[:, 1]] - RESTING_SLACK
+        self._hit_geoms, self._hit_dist = geoms[hits].copy(), dist[hits].copy()
         if not hits.any():
             return True
         self.last_contacts = [
@@ -231,6 +241,35 @@ class MujocoCollisionWorld(CollisionWorld):
         allowed_pairs = np.outer(own, allowed)
         ignore |= allowed_pairs | allowed_pairs.T
         self._ignore = ignore
+
+    @contextlib.contextmanager
+    def resting_at(self, q: np.ndarray) -> Iterator[bool]:
+        """Within the block, contacts present at ``q`` between the held object and the other objects or the table
+        (an object taken while it still leans on a neighbour, or lifted beside one) count only where they come
+        closer than at ``q`` (by more than ``RESTING_SLACK``): a path may leave them, not push into them. The arm's
+        and gripper's own contacts are never tolerated. Yields whether ``q`` is valid so."""
+        q = np.asarray(q, dtype=float)
+        valid = self.is_valid(q)
+        if valid or self._held_body is None:
+            yield valid
+            return
+        self._collide(q)  # the contacts at q (is_valid may have stopped at a joint limit)
+        held = self._held_geoms
+        pairs = [(int(a), int(b), float(dist)) for (a, b), dist in zip(self._hit_geoms, self._hit_dist)
+                 if held[a] != held[b] and not (self._robot_geoms[a] or self._robot_geoms[b])]
+        for a, b, dist in pairs:
+            self._tolerated[a, b] = self._tolerated[b, a] = min(dist, self._tolerated[a, b])
+        self._tolerating = True
+        try:
+            valid = self.is_valid(q)
+            if pairs:
+                logger.debug("planning from a held object resting against %s: %s", sorted(
+                    {self.model.body(self.model.geom_bodyid[b if held[a] else a]).name for a, b, _ in pairs}),
+                    "valid" if valid else f"still in collision {self.last_contacts[:3]}")
+            yield valid
+        finally:
+            self._tolerating = False
+            self._tolerated[:] = np.inf
 
     def is_valid(self, q: np.ndarray) -> bool:
         lim = self.kinematics.limits

@@ -64,12 +64,17 @@ class OmplPlanner(MotionPlanner):
         return world.inverse_kinematics(goal, seeds=np.asarray(start_q, dtype=float)[None])
 
     def plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory:
-        began = time.perf_counter()
         start_q = np.asarray(start_q, dtype=float)
-        if not world.is_valid(start_q):
-            contacts = getattr(world, "last_contacts", [])
-            raise PlanningError(f"start configuration is in collision {contacts[:3]}; move the arm clear first "
-                                "(e.g. a straight-line retreat) or allow the contact")
+        # A held object may start against what it rests on or leans on (not the arm): the path may leave it.
+        with world.resting_at(start_q) as valid:
+            if not valid:
+                contacts = getattr(world, "last_contacts", [])
+                raise PlanningError(f"start configuration is in collision {contacts[:3]}; move the arm clear "
+                                    "first (e.g. a straight-line retreat) or allow the contact")
+            return self._plan(start_q, goal, world)
+
+    def _plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory:
+        began = time.perf_counter()
         goal_q = self.resolve_goal(start_q, goal, world)
         self.last_used_sampling = False
         if self.config.try_direct and self.segment_valid(world, start_q, goal_q):
