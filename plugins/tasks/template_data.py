@@ -82,23 +82,31 @@ class TemplateSpec:
 
 
 # ------------------------------------------------------------------------------------------------ references
-def _value(ref: Any, bound: dict[str, Any], c: Any) -> Any:
+# References and constraints are compiled once into closures of (bound parameters, option context): generation
+# checks them hundreds of thousands of times.
+Ref = Callable[[dict, Any], Any]
+
+
+def compile_ref(ref: Any) -> Ref:
+    """A reference (see the module doc) as a function of (bound parameters, option context)."""
     if isinstance(ref, str):
         name = ref[1:-1] if ref.startswith("<") and ref.endswith(">") else ref
-        return bound.get(name, name)  # not a parameter: a literal word ("left", "ascending")
+        return lambda b, c: b.get(name, name)  # not a parameter: a literal word ("left", "ascending")
     if isinstance(ref, dict) and len(ref) == 1:
         (kind, args), = ref.items()
-        if kind == "extreme":
-            return c.extreme(_value(args[0], bound, c), _value(args[1], bound, c))
-        if kind == "stiffness_extreme":
-            return c.stiffness_extreme(_value(args[0], bound, c), _value(args[1], bound, c))
-        if kind == "members_in":
-            part = _value(args[1], bound, c)
-            return [i for i in _value(args[0], bound, c) if part in c.parts(i)]
         if kind == "opposite":
-            return OPPOSITE_PART[_value(args, bound, c)]
-        if kind == "related":
-            return related(c.index.scene, _value(args[0], bound, c), _value(args[1], bound, c))
+            part = compile_ref(args)
+            return lambda b, c: OPPOSITE_PART[part(b, c)]
+        if isinstance(args, list) and len(args) == 2:
+            first, second = compile_ref(args[0]), compile_ref(args[1])
+            if kind == "extreme":
+                return lambda b, c: c.extreme(first(b, c), second(b, c))
+            if kind == "stiffness_extreme":
+                return lambda b, c: c.stiffness_extreme(first(b, c), second(b, c))
+            if kind == "members_in":
+                return lambda b, c: [i for i in first(b, c) if second(b, c) in c.parts(i)]
+            if kind == "related":
+                return lambda b, c: related(c.index.scene, first(b, c), second(b, c))
     raise ConfigError(f"unknown reference {ref!r}; use a parameter name or one of extreme, stiffness_extreme, "
                       "members_in, opposite, related")
 
@@ -123,24 +131,225 @@ def _ranked_ok(c: Any, ranked: list[int] | None) -> bool:
         and all(c.obj(i).stackable for i in ranked[1:])
 
 
-CONSTRAINTS: dict[str, Callable[[dict, Callable[[Any], Any], Any], bool]] = {
-    "is": lambda k, v, c: all(getattr(c.obj(i), k["property"]) for i in _members(v(k["target"]))),
-    "max_count": lambda k, v, c: len(v(k["target"])) <= int(k["value"]),
-    "min_count": lambda k, v, c: len(v(k["target"])) >= int(k["value"]),
-    "distinct": lambda k, v, c: (lambda a, b: a != b if isinstance(b, int) else a not in b)(
-        v(k["target"][0]), v(k["target"][1])),
-    "not_tp": lambda k, v, c: v(k["target"][1]) not in c.parts(v(k["target"][0])),
-    "tp_set": lambda k, v, c: (lambda inside: bool(inside) and all(getattr(c.obj(i), k["property"]) for i in inside))(
-        [i for i in v(k["target"][0]) if v(k["target"][1]) in c.parts(i)]),
-    "weight_extreme": lambda k, v, c: c.extreme(v(k["target"][0]), v(k["target"][1])) is not None,
-    "weight_order": lambda k, v, c: c.by_weight(v(k["target"])) is not None,
-    "stack_order": lambda k, v, c: _ranked_ok(c, c.by_weight(v(k["target"]))),
-    "stiffness_extreme": lambda k, v, c: c.stiffness_extreme(v(k["target"][0]), v(k["target"][1])) is not None,
-    "stiffness_order": lambda k, v, c: c.by_stiffness(v(k["target"])) is not None,
-    "stiffness_stack_order": lambda k, v, c: _ranked_ok(c, c.by_stiffness(v(k["target"]))),
-    "related": lambda k, v, c: v(k["target"][2]) in related(c.index.scene, v(k["target"][0]), v(k["target"][1])),
+def _targets(k: dict, n: int) -> list[Ref]:
+    target = k["target"]
+    if n == 1:
+        return [compile_ref(target)]
+    if not isinstance(target, list) or len(target) != n:
+        raise ConfigError(f"constraint {k['type']} needs a target of {n} references, got {target!r}")
+    return [compile_ref(t) for t in target]
+
+
+def _is(k):
+    (t,), prop = _targets(k, 1), k["property"]
+
+    def check(b, c):
+        value = t(b, c)
+        if isinstance(value, int):
+            return getattr(c.obj(value), prop)
+        return all(getattr(c.obj(i), prop) for i in value)
+    return check
+
+
+def _count(limit_ok):
+    def make(k):
+        (t,), value = _targets(k, 1), int(k["value"])
+        return lambda b, c: limit_ok(len(t(b, c)), value)
+    return make
+
+
+def _distinct(k):
+    first, second = _targets(k, 2)
+
+    def check(b, c):
+        x, y = first(b, c), second(b, c)
+        return x != y if isinstance(y, int) else x not in y
+    return check
+
+
+def _not_tp(k):
+    obj, part = _targets(k, 2)
+    return lambda b, c: part(b, c) not in c.parts(obj(b, c))
+
+
+def _tp_set(k):
+    group, part = _targets(k, 2)
+    prop = k["property"]
+
+    def check(b, c):
+        where = part(b, c)
+        inside = [i for i in group(b, c) if where in c.parts(i)]
+        return bool(inside) and all(getattr(c.obj(i), prop) for i in inside)
+    return check
+
+
+def _pair(method):
+    def make(k):
+        group, which = _targets(k, 2)
+        return lambda b, c: getattr(c, method)(group(b, c), which(b, c)) is not None
+    return make
+
+
+def _ranked(method, stack):
+    def make(k):
+        (group,) = _targets(k, 1)
+        if stack:
+            return lambda b, c: _ranked_ok(c, getattr(c, method)(group(b, c)))
+        return lambda b, c: getattr(c, method)(group(b, c)) is not None
+    return make
+
+
+def _related(k):
+    anchor, relation, other = _targets(k, 3)
+    return lambda b, c: other(b, c) in related(c.index.scene, anchor(b, c), relation(b, c))
+
+
+def _room(k):
+    movers, part = _targets(k, 2)
+    return lambda b, c: c.room(_members(movers(b, c)), part(b, c))
+
+
+# Constraint type -> a factory of its check(bound, context) from the constraint's entry.
+CONSTRAINTS: dict[str, Callable[[dict], Ref]] = {
+    "is": _is,
+    "max_count": _count(lambda n, v: n <= v),
+    "min_count": _count(lambda n, v: n >= v),
+    "distinct": _distinct,
+    "not_tp": _not_tp,
+    "tp_set": _tp_set,
+    "weight_extreme": _pair("extreme"),
+    "weight_order": _ranked("by_weight", stack=False),
+    "stack_order": _ranked("by_weight", stack=True),
+    "stiffness_extreme": _pair("stiffness_extreme"),
+    "stiffness_order": _ranked("by_stiffness", stack=False),
+    "stiffness_stack_order": _ranked("by_stiffness", stack=True),
+    "related": _related,
 }
-DEAR_CONSTRAINTS = {"room": lambda k, v, c: c.room(_members(v(k["target"][0])), v(k["target"][1]))}
+DEAR_CONSTRAINTS: dict[str, Callable[[dict], Ref]] = {"room": _room}
+
+
+# ------------------------------------------------------------------------------------------ compiled options
+# Generation lists every option of every template for every scene, so a template's options are compiled once into
+# plain nested loops (Python source built from the validated entry: parameter names are identifiers, words are
+# repr()'d literals, properties one of PROPERTIES), as fast as hand-written ones.
+PROPERTIES = ("pickupable", "stackable", "stack_base")
+
+
+def _is_any(c: Any, value: Any, prop: str) -> bool:
+    if value is None:
+        return False
+    if isinstance(value, int):
+        return getattr(c.obj(value), prop)
+    return all(getattr(c.obj(i), prop) for i in value)
+
+
+def _tp_set_ok(c: Any, group: Any, part: str, prop: str) -> bool:
+    inside = [i for i in group if part in c.parts(i)]
+    return bool(inside) and all(getattr(c.obj(i), prop) for i in inside)
+
+
+_HELPERS = {"_is_any": _is_any, "_tp_set_ok": _tp_set_ok, "_ranked_ok": _ranked_ok, "_members": _members,
+            "related": related, "OPPOSITE": OPPOSITE_PART}
+
+
+def _expr(ref: Any, kinds: dict[str, str]) -> str:
+    """A reference as a Python expression over the loop variables ``p_<NAME>`` and the option context ``c``."""
+    if isinstance(ref, str):
+        name = ref[1:-1] if ref.startswith("<") and ref.endswith(">") else ref
+        return f"p_{name}" if name in kinds else repr(name)
+    if isinstance(ref, dict) and len(ref) == 1:
+        (kind, args), = ref.items()
+        if kind == "opposite":
+            return f"OPPOSITE[{_expr(args, kinds)}]"
+        if isinstance(args, list) and len(args) == 2:
+            a, b = _expr(args[0], kinds), _expr(args[1], kinds)
+            if kind in ("extreme", "stiffness_extreme"):
+                return f"c.{kind}({a}, {b})"
+            if kind == "members_in":
+                return f"[i for i in {a} if {b} in c.parts(i)]"
+            if kind == "related":
+                return f"related(c.index.scene, {a}, {b})"
+    raise ConfigError(f"unknown reference {ref!r}; use a parameter name or one of extreme, stiffness_extreme, "
+                      "members_in, opposite, related")
+
+
+def _condition(k: dict, kinds: dict[str, str]) -> str:
+    """A constraint as a Python boolean expression (see ``_expr``)."""
+    kind, target = k["type"], k.get("target")
+    targets = target if isinstance(target, list) else [target]
+    e = [_expr(t, kinds) for t in targets]
+    needs = {"is": 1, "max_count": 1, "min_count": 1, "weight_order": 1, "stack_order": 1, "stiffness_order": 1,
+             "stiffness_stack_order": 1, "distinct": 2, "not_tp": 2, "tp_set": 2, "weight_extreme": 2,
+             "stiffness_extreme": 2, "room": 2, "related": 3}[kind]
+    if len(e) != needs:
+        raise ConfigError(f"constraint {kind} needs a target of {needs} reference(s), got {target!r}")
+    if kind in ("is", "tp_set") and k.get("property") not in PROPERTIES:
+        raise ConfigError(unknown_name("property", str(k.get("property")), PROPERTIES))
+    plain = isinstance(target, str) and _refs(target)[0] in kinds
+    if kind == "is":
+        if plain and kinds[_refs(target)[0]] == "object":
+            return f"c.obj({e[0]}).{k['property']}"
+        if plain:
+            return f"all(c.obj(i).{k['property']} for i in {e[0]})"
+        return f"_is_any(c, {e[0]}, {k['property']!r})"
+    if kind in ("max_count", "min_count"):
+        return f"len({e[0]}) {'<=' if kind == 'max_count' else '>='} {int(k['value'])}"
+    if kind == "distinct":
+        second = _refs(targets[1])[0]
+        return f"{e[0]} != {e[1]}" if kinds.get(second) == "object" else f"{e[0]} not in {e[1]}"
+    if kind == "not_tp":
+        return f"{e[1]} not in c.parts({e[0]})"
+    if kind == "tp_set":
+        return f"_tp_set_ok(c, {e[0]}, {e[1]}, {k['property']!r})"
+    if kind == "weight_extreme":
+        return f"c.extreme({e[0]}, {e[1]}) is not None"
+    if kind == "stiffness_extreme":
+        return f"c.stiffness_extreme({e[0]}, {e[1]}) is not None"
+    if kind in ("weight_order", "stiffness_order"):
+        return f"c.{'by_weight' if kind == 'weight_order' else 'by_stiffness'}({e[0]}) is not None"
+    if kind in ("stack_order", "stiffness_stack_order"):
+        return f"_ranked_ok(c, c.{'by_weight' if kind == 'stack_order' else 'by_stiffness'}({e[0]}))"
+    if kind == "related":
+        return f"{e[2]} in related(c.index.scene, {e[0]}, {e[1]})"
+    return f"c.room(_members({e[0]}), {e[1]})"  # room
+
+
+def compile_options(spec: "TemplateSpec") -> tuple[Callable, Callable | None]:
+    """(options(c) -> list of option tuples, feasible(option, c) -> bool or None) compiled from ``spec``."""
+    kinds = dict(spec.parameters)
+    names = list(kinds)
+    at: list[list[str]] = [[] for _ in names]
+    unary: list[list[str]] = [[] for _ in names]
+    dear = []
+    for k in spec.constraints:
+        condition = _condition(k, kinds)
+        if k["type"] in DEAR_CONSTRAINTS:
+            dear.append(condition)
+            continue
+        named = [n for n in _refs(k.get("target")) if n in kinds]
+        depth = max((names.index(n) for n in named), default=0)
+        (unary if len(set(named)) == 1 else at)[depth].append(condition)
+    domains = {"object": "c.index.unique", "objects": "c.index.groups"}
+    lines = ["def options(c):", "    out = []"]
+    for d, name in enumerate(names):
+        domain = domains.get(kinds[name], repr(WORD_DOMAINS.get(kinds[name], ())))
+        keep = " and ".join(unary[d]) or "True"
+        lines.append(f"    D{d} = [p_{name} for p_{name} in {domain} if {keep}]")
+    indent = "    "
+    for d, name in enumerate(names):
+        lines.append(f"{indent}for p_{name} in D{d}:")
+        indent += "    "
+        if at[d]:
+            lines.append(f"{indent}if not ({' and '.join(at[d])}):")
+            lines.append(f"{indent}    continue")
+    lines.append(f"{indent}out.append(({''.join(f'p_{n}, ' for n in names)}))")
+    lines.append("    return out")
+    if dear:
+        lines += ["def feasible(option, c):", f"    ({''.join(f'p_{n}, ' for n in names)}) = option",
+                  f"    return {' and '.join(dear)}"]
+    namespace = dict(_HELPERS)
+    exec(compile("\n".join(lines), f"<template {spec.template_id}>", "exec"), namespace)  # noqa: S102
+    return namespace["options"], namespace.get("feasible")
 
 
 # ---------------------------------------------------------------------------------------------- machinery
@@ -150,12 +359,29 @@ class DataTemplate:
     def __init__(self, spec: TemplateSpec):
         self.spec = spec
         self.names = [n for n, _ in spec.parameters]
-        cheap = [k for k in spec.constraints if k["type"] in CONSTRAINTS]
-        self.dear = [k for k in spec.constraints if k["type"] in DEAR_CONSTRAINTS]
-        # Each cheap constraint is checked at the first parameter after which it can be evaluated.
-        self.at: list[list[dict]] = [[] for _ in self.names]
-        for k in cheap:
-            self.at[self._ready(k)].append(k)
+        self.described = [n for n, kind in spec.parameters if kind in ("object", "objects")]
+        self.slots = [(n, kind == "objects") for n, kind in spec.parameters]
+        # Phrasings as format strings (braces of the text escaped), program steps with their references compiled.
+        self.formats = {t: _TOKEN.sub(r"{\1}", t.replace("{", "{{").replace("}", "}}")) for t in spec.texts}
+        self.steps = []
+        for step in spec.program:
+            value = step.get("input_value")
+            if "describe" in step:
+                self.steps.append((None, step["describe"]))
+            elif isinstance(value, dict) or (isinstance(value, str) and value.startswith("<")):
+                self.steps.append((step["type"], compile_ref(value)))  # a parameter (<TP>) or {opposite: TP}
+            else:
+                self.steps.append((step["type"], value))
+        self.dear = [DEAR_CONSTRAINTS[k["type"]](k) for k in spec.constraints if k["type"] in DEAR_CONSTRAINTS]
+        self._compiled, self._compiled_feasible = compile_options(spec)
+        # Each cheap constraint is checked as soon as the parameters it names are bound; one that names a single
+        # parameter filters that parameter's values once per scene.
+        self.at: list[list[Ref]] = [[] for _ in self.names]
+        self.unary: list[list[Ref]] = [[] for _ in self.names]
+        for k in spec.constraints:
+            if k["type"] in CONSTRAINTS:
+                named = {n for n in _refs(k.get("target")) if n in self.names}
+                (self.unary if len(named) == 1 else self.at)[self._ready(k)].append(CONSTRAINTS[k["type"]](k))
 
     def _ready(self, constraint: dict) -> int:
         needed = [n for n in _refs(constraint.get("target")) if n in self.names]
@@ -169,54 +395,57 @@ class DataTemplate:
         return list(WORD_DOMAINS[kind])
 
     def options(self, c: Any) -> Iterator[tuple]:
+        return iter(self._compiled(c))
+
+    def options_interpreted(self, c: Any) -> Iterator[tuple]:
+        """The same options as ``options``, by the closures instead of the compiled loops (a cross-check)."""
         bound: dict[str, Any] = {}
+        last = len(self.names) - 1
+        domains = []
+        for depth, (name, kind) in enumerate(self.spec.parameters):
+            values = self._domain(kind, c)
+            if self.unary[depth]:
+                values = [v for v in values if all(check({name: v}, c) for check in self.unary[depth])]
+            domains.append(values)
 
-        def holds(k: dict) -> bool:
-            return CONSTRAINTS[k["type"]](k, lambda ref: _value(ref, bound, c), c)
+        names = self.names
 
-        def walk(depth: int) -> Iterator[tuple]:
-            if depth == len(self.names):
-                yield tuple(bound[n] for n in self.names)
-                return
-            name, kind = self.spec.parameters[depth]
-            for value in self._domain(kind, c):
+        def walk(depth: int) -> list[tuple]:
+            name, checks, out = names[depth], self.at[depth], []
+            for value in domains[depth]:
                 bound[name] = value
-                if all(holds(k) for k in self.at[depth]):
-                    yield from walk(depth + 1)
-            bound.pop(name, None)
+                for check in checks:
+                    if not check(bound, c):
+                        break
+                else:
+                    if depth == last:
+                        out.append(tuple(bound[n] for n in names))
+                    else:
+                        out += walk(depth + 1)
+            return out
 
-        yield from walk(0)
+        return iter(walk(0)) if names else iter(())
 
     def feasible(self, option: tuple, c: Any) -> bool:
-        bound = dict(zip(self.names, option))
-        return all(DEAR_CONSTRAINTS[k["type"]](k, lambda ref: _value(ref, bound, c), c) for k in self.dear)
+        return self._compiled_feasible is None or self._compiled_feasible(option, c)
 
     def build(self, option: tuple, descriptions: list) -> tuple[dict[str, str], list[dict[str, Any]]]:
         """Text slots and the program (without outputs) of an option with its chosen descriptions."""
         bound = dict(zip(self.names, option))
-        described = {}
-        k = 0
-        for name, kind in self.spec.parameters:
-            if kind in ("object", "objects"):
-                described[name] = descriptions[k]
-                k += 1
-        slots = {}
-        for name, kind in self.spec.parameters:
-            slots[name] = describe(described[name], many=kind == "objects") if name in described else bound[name]
+        described = dict(zip(self.described, descriptions))
+        slots = {name: describe(described[name], many=many) if name in described else bound[name]
+                 for name, many in self.slots}
         program = []
-        for step in self.spec.program:
-            if "describe" in step:
-                program += [program_step(ATTRIBUTE_STEP[a], input_value=v) for a, v in described[step["describe"]]]
-                continue
-            value = step.get("input_value")
-            if isinstance(value, dict) or (isinstance(value, str) and value.startswith("<")):
-                value = _value(value, bound, None)  # a parameter (<TP>) or a derived word ({opposite: TP})
-            program.append(program_step(step["type"], input_value=value))
+        for kind, value in self.steps:
+            if kind is None:  # {describe: NAME}
+                program += [program_step(ATTRIBUTE_STEP[a], input_value=v) for a, v in described[value]]
+            else:
+                program.append(program_step(kind, input_value=value(bound, None) if callable(value) else value))
         return slots, program
 
-    @staticmethod
-    def fill(text: str, slots: dict[str, str]) -> str:
-        return _TOKEN.sub(lambda m: str(slots[m.group(1)]), text)
+    def fill(self, text: str, slots: dict[str, str]) -> str:
+        """The phrasing ``text`` (one of the template's) with its parameters filled in."""
+        return self.formats[text].format(**slots)
 
 
 # ------------------------------------------------------------------------------------------------ reading

@@ -8,7 +8,8 @@ that a measured weight cannot swap the order (stiffness likewise, with a relativ
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -40,16 +41,36 @@ class Template:
     fill: Callable[[str, dict[str, str]], str] | None = None
 
 
+def _memo(method):
+    """Cache a ranking method's result per arguments on the context (each is asked again for every table part or
+    base an option pairs with it)."""
+    name = method.__name__
+
+    @functools.wraps(method)
+    def cached(self, *args):
+        key = (name, *args)
+        if key not in self._ranked:
+            self._ranked[key] = method(self, *args)
+        return self._ranked[key]
+    return cached
+
+
 @dataclass
 class OptionContext:
     index: SceneIndex
     weight_margin: float
+    # Memos: the scene does not change while the options are listed.
+    _parts: dict[int, frozenset[str]] = field(default_factory=dict)
+    _ranked: dict[tuple, object] = field(default_factory=dict)
 
     def obj(self, i: int):
         return self.index.objects[i]
 
     def parts(self, i: int) -> frozenset[str]:
-        return table_parts_of(self.index.objects[i], self.index.scene)
+        found = self._parts.get(i)
+        if found is None:
+            found = self._parts[i] = table_parts_of(self.index.objects[i], self.index.scene)
+        return found
 
     def pickable_unique(self) -> list[int]:
         return [i for i in self.index.unique if self.obj(i).pickupable]
@@ -62,6 +83,7 @@ class OptionContext:
         """Whether the objects ``movers``, put down one after another on ``part``, all find room there."""
         return room_on_part(self.index.scene, [self.obj(i) for i in movers], part)
 
+    @_memo
     def by_weight(self, group: tuple[int, ...]) -> list[int] | None:
         """Group ids heaviest first, or ``None`` when two weights are closer than the margin."""
         ranked = sorted(group, key=lambda i: -self.obj(i).weight_gt)
@@ -71,6 +93,7 @@ class OptionContext:
     def stiffness(self, i: int) -> float | None:
         return self.obj(i).stiffness
 
+    @_memo
     def by_stiffness(self, group: tuple[int, ...]) -> list[int] | None:
         """Group ids hardest first, or ``None`` when a stiffness is unknown or two are within the margin."""
         if any(self.stiffness(i) is None for i in group):
@@ -79,6 +102,7 @@ class OptionContext:
         apart = all(self.stiffness(a) >= self.stiffness(b) * (1 + STIFFNESS_MARGIN) for a, b in zip(ranked, ranked[1:]))
         return ranked if apart else None
 
+    @_memo
     def stiffness_extreme(self, group: tuple[int, ...], which: str) -> int | None:
         """The hardest or softest object of the group, ``None`` unless it stands apart by the margin."""
         if any(self.stiffness(i) is None for i in group):
@@ -88,6 +112,7 @@ class OptionContext:
         low, high = sorted((self.stiffness(top), self.stiffness(second)))
         return top if high >= low * (1 + STIFFNESS_MARGIN) else None
 
+    @_memo
     def extreme(self, group: tuple[int, ...], which: str) -> int | None:
         ranked = sorted(group, key=lambda i: -self.obj(i).weight_gt)
         top, second = (ranked[0], ranked[1]) if which == "heaviest" else (ranked[-1], ranked[-2])

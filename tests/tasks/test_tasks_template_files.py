@@ -123,3 +123,20 @@ def test_a_bad_template_file_names_template_and_field(tmp_path, change, says):
     path.write_text(RELATED_WEIGHTS.replace(change, bad))
     with pytest.raises(ConfigError, match=f"template 'measure_weight_beside'.*{says}"):
         read_template_file(path)
+
+
+def test_compiled_options_agree_with_the_interpreted_constraints(tmp_path):
+    from muble_plugins.tasks.descriptions import SceneIndex
+    from muble_plugins.tasks.template_data import DataTemplate
+    from muble_plugins.tasks.templates import OptionContext
+
+    path = tmp_path / "beside.yaml"
+    path.write_text(RELATED_WEIGHTS)
+    specs = read_template_file(path) + read_template_file(
+        __import__("muble_plugins.tasks.templates", fromlist=["BUILTIN_FILE"]).BUILTIN_FILE)
+    for scene in sample_scenes(5, 25):
+        index = SceneIndex(scene)
+        for spec in specs:
+            data = DataTemplate(spec)
+            assert list(data.options(OptionContext(index, 2.0))) == \
+                list(data.options_interpreted(OptionContext(index, 2.0)))
