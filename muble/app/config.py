@@ -100,6 +100,10 @@ class DatasetConfig:
     executor: str = "processes"  # serial | processes | ray
     workers: int = bounded(2, ge=1)
     ray_address: str | None = None  # executor=ray: an existing cluster to join; None = a private local cluster
+    # muble eval on files in the original SHOP-VRB2 layout instead of a generated dataset folder (both or neither;
+    # scenes_file: a combined {info, scenes} file, a single scene or a folder of scene files).
+    scenes_file: str | None = None
+    instructions_file: str | None = None
 
 
 @dataclass

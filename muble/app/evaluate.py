@@ -3,6 +3,11 @@
     muble eval agent=oracle dataset.root=/data/shopvrb2                     # split val, no rendering
     muble eval agent=random dataset.root=/data/shopvrb2 'dataset.splits=[test]' dataset.workers=8
     muble eval agent=oracle dataset.root=... evaluation.render=true renderer=mujoco renderer.width=320
+    muble eval agent=oracle dataset.scenes_file=SCENES.json dataset.instructions_file=INSTRUCTIONS.json
+
+The last form evaluates on files in the original SHOP-VRB2 layout (``muble.evaluation.files``): one episode per
+instruction, on the scene with its ``image_filename``/``image_index``, reported as one split named after the
+instruction file.
 
 Writes under the run's output folder: ``episodes_<split>.jsonl`` (one result per index, appended as each episode
 finishes), ``report.json`` (success per task type, failure taxonomy, the entries with bad data, timing, manifest),
@@ -27,6 +32,7 @@ from muble.dataset.executors import run_all
 from muble.dataset.layout import DatasetLayout
 from muble.dataset.production import cached_components
 from muble.evaluation.episodes import EvalJob, evaluate_index
+from muble.evaluation.files import check_files, uses_files
 from muble.evaluation.plot import success_bar_chart
 from muble.evaluation.report import OVERALL, bad_entry_table, failure_table, markdown, success_table, summarize
 from muble.evaluation.resume import RECORDS, EpisodeLog, claim_folder, run_settings
@@ -43,6 +49,8 @@ def check_config(cfg: DictConfig) -> Path:
     if cfg.agent.name not in registry.names("agent"):
         raise ConfigError(f"unknown agent '{cfg.agent.name}'; set agent= to one of: "
                           f"{', '.join(registry.names('agent'))}")
+    if uses_files(cfg.dataset):
+        return Path(cfg.dataset.instructions_file).parent
     root = Path(cfg.dataset.root)
     if not root.is_dir():
         raise ConfigError(f"dataset folder {root} does not exist; set dataset.root= to a folder written by "
@@ -86,17 +94,24 @@ def job(cfg: DictConfig) -> dict[str, Any]:
     root = check_config(cfg)
     out_dir = Path(cfg.output.dir)
     config = OmegaConf.to_container(cfg, resolve=True)
-    # Validate every split before running any episode: a typo in the last split should not cost an hour.
-    found = {split: check_split(DatasetLayout(root, split)) for split in cfg.dataset.splits}
+    dataset_manifest = root / "manifest.json"
+    if uses_files(cfg.dataset):
+        # Original-format files: one split of every instruction in the instruction file.
+        split, indices, dataset_sha = check_files(cfg.dataset)
+        found = {split: SplitIndices(split, indices, source=str(cfg.dataset.instructions_file))}
+        dataset = f"{cfg.dataset.scenes_file} + {cfg.dataset.instructions_file}"
+    else:
+        # Validate every split before running any episode: a typo in the last split should not cost an hour.
+        found = {split: check_split(DatasetLayout(root, split)) for split in cfg.dataset.splits}
+        dataset_sha = sha256_file(dataset_manifest) if dataset_manifest.is_file() else None
+        dataset = str(root)
     # The configured plugins (but a renderer) are built here once, so a bad option stops the run before any episode.
     cached_components(config, renderer=False, task=False)
-    dataset_manifest = root / "manifest.json"
-    dataset_sha = sha256_file(dataset_manifest) if dataset_manifest.is_file() else None
-    claim_folder(out_dir, run_settings(config, dataset_sha), list(cfg.dataset.splits))
-    report: dict[str, Any] = {"agent": cfg.agent.name, "dataset": str(root), "splits": {}}
+    claim_folder(out_dir, run_settings(config, dataset_sha), list(found))
+    report: dict[str, Any] = {"agent": cfg.agent.name, "dataset": dataset, "splits": {}}
     plots: dict[str, str] = {}
     written: dict[str, str] = {}
-    for split in cfg.dataset.splits:
+    for split in found:
         records = evaluate_split(cfg, config, found[split], out_dir)
         name = RECORDS.format(split=split)
         written[name] = sha256_file(out_dir / name)
@@ -110,7 +125,7 @@ def job(cfg: DictConfig) -> dict[str, Any]:
             plots[split] = f"success_{split}.png"
             written[plots[split]] = write_bytes_atomic(
                 out_dir / plots[split], success_bar_chart(rates, f"{cfg.agent.name} on {split}: success rate"))
-        print(success_table(summary, f"agent {cfg.agent.name}, split {split} ({root})"))
+        print(success_table(summary, f"agent {cfg.agent.name}, split {split} ({dataset})"))
         print()
         print(failure_table(summary))
         print()

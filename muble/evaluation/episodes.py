@@ -81,44 +81,16 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     from omegaconf import OmegaConf
 
     from muble.app.run import episode_runner
-    from muble.core.instructions_io import load_instruction
-    from muble.core.scene_io import in_file, load_scene
+    from muble.evaluation.files import uses_files
     from muble.plugins.registry import get_registry
 
     cfg = job.config
     layout = DatasetLayout(Path(cfg["dataset"]["root"]), job.split)
-    scene_file, instruction_file = (layout.split_dir / layout.scene(job.index),
-                                    layout.split_dir / layout.instruction(job.index))
-    scene_name, instruction_name = (f"{job.split}/{layout.scene(job.index)}",
-                                    f"{job.split}/{layout.instruction(job.index)}")
-
-    # The data: every way a file can be unusable is the data's fault (invalid_data), named by file.
-    if not instruction_file.is_file():
-        error = SceneValidationError(f"the instruction file {instruction_file} is missing (the dataset lists this "
-                                     "index)")
-        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), instruction_name)
-    try:
-        record, instruction = load_instruction(instruction_file)
-        if instruction is None:
-            raise SceneValidationError(f"{instruction_file} has no instruction (no template applied to the scene)")
-    except Exception as e:  # recorded with its type and message
-        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), instruction_name)
-    out.update(task=instruction.task_id, instruction=instruction.instruction,
-               ground_truth_primitives=len(record.get("ground_truth_actions", [])))
+    loaded = _from_files(job, out) if uses_files(cfg["dataset"]) else _from_dataset(job, out, layout)
+    if isinstance(loaded, dict):
+        return loaded  # the data's fault: the record says which file and why
+    scene, instruction, scene_file, scene_name = loaded
     registry = get_registry()
-    if instruction.template_id not in registry.names("task"):
-        error = in_file(SceneValidationError(unknown_name("template", instruction.template_id, registry.names("task")),
-                                             field="template_id"), instruction_file)
-        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), instruction_name)
-    out["template"] = instruction.template_id
-    if not scene_file.is_file():
-        error = SceneValidationError(f"the scene file {scene_file} is missing (the dataset lists this index)")
-        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), scene_name)
-    try:
-        scene = load_scene(scene_file)
-    except Exception as e:  # recorded with its type and message
-        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), scene_name)
-
     task = registry.create("task", instruction.template_id, {})
     runner = episode_runner(OmegaConf.create(cfg), build_components(cfg))
     try:
@@ -142,3 +114,76 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
             "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None}
+
+
+def _instruction_checked(job: EvalJob, out: dict[str, Any], record: dict[str, Any], instruction: Any,
+                         instruction_file: Any, instruction_name: str) -> dict[str, Any] | None:
+    """Fill the record from the instruction; a failed record when its template is not registered."""
+    from muble.core.scene_io import in_file
+    from muble.plugins.registry import get_registry
+
+    out.update(task=instruction.task_id, instruction=instruction.instruction,
+               ground_truth_primitives=len(record.get("ground_truth_actions", [])))
+    registry = get_registry()
+    if instruction.template_id not in registry.names("task"):
+        error = in_file(SceneValidationError(unknown_name("template", instruction.template_id, registry.names("task")),
+                                             field="template_id"), instruction_file)
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), instruction_name)
+    out["template"] = instruction.template_id
+    return None
+
+
+def _from_files(job: EvalJob, out: dict[str, Any]) -> dict[str, Any] | tuple:
+    """Instruction ``job.index`` of ``dataset.instructions_file`` and its scene from ``dataset.scenes_file``."""
+    from muble.evaluation.files import load_files
+
+    dataset = job.config["dataset"]
+    instruction_name = f"{Path(dataset['instructions_file']).name} instruction {job.index}"
+    scene_name = Path(dataset["scenes_file"]).name
+    try:
+        record, instruction = load_files(dataset).instruction(job.index)
+    except Exception as e:  # recorded with its type and message
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), instruction_name)
+    failed = _instruction_checked(job, out, record, instruction, dataset["instructions_file"], instruction_name)
+    if failed is not None:
+        return failed
+    try:
+        scene = load_files(dataset).scene_for(instruction)
+    except Exception as e:  # recorded with its type and message
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), scene_name)
+    scene_name = f"{scene_name} scene {scene.image_filename or scene.image_index}"
+    return scene, instruction, Path(dataset["scenes_file"]), scene_name
+
+
+def _from_dataset(job: EvalJob, out: dict[str, Any], layout: DatasetLayout) -> dict[str, Any] | tuple:
+    """The stored scene and instruction of ``job.index`` in a generated dataset split."""
+    from muble.core.instructions_io import load_instruction
+    from muble.core.scene_io import load_scene
+
+    scene_file, instruction_file = (layout.split_dir / layout.scene(job.index),
+                                    layout.split_dir / layout.instruction(job.index))
+    scene_name, instruction_name = (f"{job.split}/{layout.scene(job.index)}",
+                                    f"{job.split}/{layout.instruction(job.index)}")
+
+    # The data: every way a file can be unusable is the data's fault (invalid_data), named by file.
+    if not instruction_file.is_file():
+        error = SceneValidationError(f"the instruction file {instruction_file} is missing (the dataset lists this "
+                                     "index)")
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), instruction_name)
+    try:
+        record, instruction = load_instruction(instruction_file)
+        if instruction is None:
+            raise SceneValidationError(f"{instruction_file} has no instruction (no template applied to the scene)")
+    except Exception as e:  # recorded with its type and message
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), instruction_name)
+    failed = _instruction_checked(job, out, record, instruction, instruction_file, instruction_name)
+    if failed is not None:
+        return failed
+    if not scene_file.is_file():
+        error = SceneValidationError(f"the scene file {scene_file} is missing (the dataset lists this index)")
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, error), scene_name)
+    try:
+        scene = load_scene(scene_file)
+    except Exception as e:  # recorded with its type and message
+        return _failed(out, Outcome.INVALID_DATA, _describe(job, e), scene_name)
+    return scene, instruction, scene_file, scene_name
