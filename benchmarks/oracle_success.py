@@ -10,6 +10,7 @@ close_gripper) show apart from carrying and placing.
 Goal: the oracle succeeds on at least 98% of the episodes of every task type (acceptance: 50 scenes each).
 
     python benchmarks/oracle_success.py [--scenes 50] [--templates stack_simple remove] [--seed 0] [--workers 2]
+    python benchmarks/oracle_success.py --scenes 30 --seeds 7 8 9     # several seeds: overall and per seed
 
 Scenes are cached under --root/pool_s<seed>; every run is deterministic in (seed, scene index, template).
 """
@@ -122,24 +123,18 @@ def evaluate_template(pool: ScenePool, template: str, scenes: int, seed: int, ro
     return [json.loads(line) for line in (out / f"episodes_{SPLIT}.jsonl").read_text().splitlines() if line.strip()]
 
 
-def main() -> None:
-    from muble.app.config import SHOPVRB2_TEMPLATES
-
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scenes", type=int, default=10, help="scenes per template (acceptance: 50)")
-    parser.add_argument("--templates", nargs="*", default=list(SHOPVRB2_TEMPLATES))
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--root", type=Path, default=Path("/tmp/muble_oracle_success"))
-    args = parser.parse_args()
-
+def run_seed(args, seed: int) -> dict:
+    """Every template on ``seed``'s scene pool; prints one line per template and the failure examples."""
     start = time.perf_counter()
-    pool = ScenePool(args.root, args.seed)
+    pool = ScenePool(args.root, seed)
     per_template, without_grasp, failures, examples = {}, {}, Counter(), {}
     retried = {}  # episodes in which the oracle retried a failed primitive (an ``attempt=`` call), per template
+    episodes, successes, failed_per_template = 0, 0, {}
     for template in args.templates:
-        records = evaluate_template(pool, template, args.scenes, args.seed, args.root, args.workers)
+        records = evaluate_template(pool, template, args.scenes, seed, args.root, args.workers)
         ok = sum(r["outcome"] == "success" for r in records)
+        episodes, successes = episodes + len(records), successes + ok
+        failed_per_template[template] = len(records) - ok
         retried[template] = sum(any("attempt=" in p for p in r["primitives"]) for r in records)
         per_template[template] = round(ok / max(len(records), 1), 4)
         judged = [r for r in records if failure_kind(r) != "execution_error:grasp"]
@@ -149,22 +144,46 @@ def main() -> None:
         for r in records:
             if r["outcome"] != "success":
                 examples.setdefault(failure_kind(r), f"{template} #{r['index']}: {r['error']}")
-        print(f"{template:24s} {ok:3d}/{len(records):3d}  {100 * per_template[template]:5.1f}%  "
+        print(f"seed {seed} {template:24s} {ok:3d}/{len(records):3d}  {100 * per_template[template]:5.1f}%  "
               f"retried in {retried[template]:2d}  {dict(kinds) if kinds else ''}", flush=True)
-    total = sum(1 for _ in per_template)
-    worst = min(per_template.values()) if per_template else 0.0
-    grasp = failures.get("execution_error:grasp", 0)
-    print("failure taxonomy:", dict(failures))
+    print(f"seed {seed} failure taxonomy:", dict(failures))
     for kind, example in sorted(examples.items()):
         print(f"  {kind}: {example[:300]}")
-    print(json.dumps({
-        "benchmark": "oracle_success", "metric": "min_success_rate_per_task_type", "value": worst, "unit": "ratio",
-        "goal": GOAL, "scenes_per_template": args.scenes, "templates": total, "seed": args.seed,
-        "success_per_template": per_template, "failures": dict(failures), "grasp_failures": grasp,
-        "episodes_with_retries": retried,
+    return {
+        "seed": seed, "success_per_template": per_template, "failures": dict(failures),
+        "grasp_failures": failures.get("execution_error:grasp", 0), "episodes_with_retries": retried,
         "min_success_excluding_grasp_failures": min(without_grasp.values()) if without_grasp else 0.0,
+        "episodes": episodes, "successes": successes, "overall": round(successes / max(episodes, 1), 4),
+        "max_failures_per_template": max(failed_per_template.values(), default=0),
         "seconds": round(time.perf_counter() - start, 1),
-    }))
+    }
+
+
+def main() -> None:
+    from muble.app.config import SHOPVRB2_TEMPLATES
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--scenes", type=int, default=10, help="scenes per template (acceptance: 50)")
+    parser.add_argument("--templates", nargs="*", default=list(SHOPVRB2_TEMPLATES))
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", type=int, nargs="*", help="several seeds in turn (overrides --seed)")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--root", type=Path, default=Path("/tmp/muble_oracle_success"))
+    args = parser.parse_args()
+
+    runs = [run_seed(args, seed) for seed in (args.seeds or [args.seed])]
+    worst = min(min(r["success_per_template"].values(), default=0.0) for r in runs)
+    summary = {
+        "benchmark": "oracle_success", "metric": "min_success_rate_per_task_type", "value": worst, "unit": "ratio",
+        "goal": GOAL, "scenes_per_template": args.scenes, "templates": len(args.templates),
+    }
+    if len(runs) == 1:
+        summary.update(runs[0])
+    else:
+        episodes, successes = sum(r["episodes"] for r in runs), sum(r["successes"] for r in runs)
+        summary.update(seeds=[r["seed"] for r in runs], overall=round(successes / max(episodes, 1), 4),
+                       episodes=episodes, per_seed=runs, seconds=round(sum(r["seconds"] for r in runs), 1))
+    print(json.dumps(summary))
 
 
 if __name__ == "__main__":
