@@ -1,17 +1,29 @@
-"""A headless OpenGL context: EGL first, OSMesa as the fallback.
+"""A headless OpenGL context: EGL first, OSMesa as the fallback, kept for reuse once a renderer is done with it.
 
 The backend is fixed when PyOpenGL is first imported (through ``PYOPENGL_PLATFORM``), so the choice is made
 here, before anything imports it, and kept for the life of the process.
+
+A fresh context costs far more than making one: on Mesa's software rasteriser its first frames compile the
+fixed-function shader variants MuJoCo draws with (about 0.6 CPU-seconds for a robosuite scene, every episode
+when each episode's renderer is closed). ``release_context`` keeps a closed renderer's context for the next
+``make_context`` of the same thread, so only the process's first episode pays. Which context draws a frame does
+not change its pixels.
 """
 from __future__ import annotations
 
+import atexit
 import logging
 import os
+import threading
 
 from muble import RenderError
 
 log = logging.getLogger(__name__)
 BACKENDS = ("egl", "osmesa")
+MAX_SPARE = 2  # contexts kept per thread; more renderers than that at once are rare
+
+_spare = threading.local()  # a context is current in one thread only, so spares are kept per thread
+_all_spares: list[list] = []
 
 
 def _context_class(backend: str):
@@ -24,8 +36,26 @@ def _context_class(backend: str):
     return GLContext
 
 
+def _spares() -> list:
+    if not hasattr(_spare, "contexts"):
+        _spare.contexts = []
+        _all_spares.append(_spare.contexts)
+    return _spare.contexts
+
+
+_exit_hook = False
+
+
 def make_context(width: int, height: int):
-    """A current offscreen GL context of at least ``width`` x ``height``."""
+    """A current offscreen GL context of at least ``width`` x ``height`` (a released one when there is one).
+
+    MuJoCo draws into its own framebuffer object sized from the model, so a context's own surface size does
+    not limit the image; the size is passed for backends that need one."""
+    spares = _spares()
+    if spares:
+        context = spares.pop()
+        context.make_current()
+        return context
     requested = os.environ.get("MUJOCO_GL", "").strip().lower()
     candidates = [requested] if requested else list(BACKENDS)
     errors = []
@@ -35,6 +65,10 @@ def make_context(width: int, height: int):
         try:
             context = _context_class(backend)(width, height)
             context.make_current()
+            global _exit_hook
+            if not _exit_hook:  # after the backend's own exit hook, so ours runs first (atexit is LIFO)
+                atexit.register(free_spares)
+                _exit_hook = True
             log.debug("OpenGL context from %s (%dx%d)", backend, width, height)
             return context
         except RenderError:
@@ -44,3 +78,22 @@ def make_context(width: int, height: int):
     raise RenderError(
         "no headless OpenGL context could be made (" + "; ".join(errors) + "). Set MUJOCO_GL=egl with a working "
         "EGL driver (Mesa works), or MUJOCO_GL=osmesa with libosmesa6 installed")
+
+
+def release_context(context) -> None:
+    """Give back a context whose MuJoCo resources are freed; it is kept for reuse or freed."""
+    spares = _spares()
+    if len(spares) < MAX_SPARE:
+        spares.append(context)
+    else:
+        context.free()
+
+
+def free_spares() -> None:
+    """Free every kept context (at exit, so EGL does not complain about live contexts)."""
+    for spares in _all_spares:
+        while spares:
+            try:
+                spares.pop().free()
+            except Exception:  # noqa: BLE001 - a context of a finished thread may already be gone
+                pass

@@ -198,7 +198,9 @@ class MujocoRenderer(Renderer):
             self._context.free()
             self._context = None
         if self._gl is not None:
-            self._gl.free()
+            from muble_plugins.renderers.mujoco.gl import release_context
+
+            release_context(self._gl)
             self._gl = None
         self._model = self._scene = None
 

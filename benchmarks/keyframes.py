@@ -1,0 +1,127 @@
+"""MuJoCo keyframe cost as ``muble generate`` pays it: 848x480 RGB + depth + segmentation, written.
+
+Per episode the renderer is set up on the episode's model and closed at the end (``EpisodeRunner``); per
+keyframe it draws RGB and the segmentation/depth pass, the PNG is encoded (``png_bytes``) and the masks are
+COCO-RLE encoded as the sequence file holds them (each object twice, robot and table), plus the scene file's
+masks from the first keyframe and the episode GIF. The cost per keyframe is that total over the keyframes.
+
+The baseline is the same work with a fresh OpenGL context per episode (what every episode paid before contexts
+were kept), measured in the same run, episodes interleaved so load on a shared machine hits both alike. Both
+paths must write the same bytes: the run fails otherwise.
+
+    python benchmarks/keyframes.py [EPISODES] [KEYFRAMES_PER_EPISODE]
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import logging
+import os
+import sys
+import time
+
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+GOAL_SECONDS = 0.2
+
+
+def episode(renderer, env, scene, keyframes: int) -> tuple[float, float, str]:
+    """Wall and CPU seconds of one episode's keyframes, and a digest of everything written."""
+    import mujoco
+
+    from muble.core.types import SEG_ROBOT, SEG_TABLE
+    from muble.episode.runner import gif_bytes, png_bytes
+    from muble.episode.sequence import encode_rle
+    from muble.generation.ground_truth import apply_masks
+
+    digest = hashlib.sha256()
+    arm = env.data.qpos[:7].copy()
+    start, cpu = time.perf_counter(), time.process_time()
+    renderer.setup(env.sync_scene_graph(), env.model)
+    camera = env.names.cameras.get("front", "front")
+    frames = []
+    for k in range(keyframes):
+        env.data.qpos[:7] = arm + 0.05 * k * np.sin(np.arange(7) + k)  # the arm moves between keyframes
+        mujoco.mj_forward(env.model, env.data)
+        frame = renderer.render(env.data, camera)
+        digest.update(png_bytes(frame.rgb))
+        for obj in scene.objects:
+            for _ in ("observations", "observations_gt"):
+                digest.update(json.dumps(encode_rle(frame.segmentation == obj.id)).encode())
+        for label in (SEG_ROBOT, SEG_TABLE):
+            digest.update(json.dumps(encode_rle(frame.segmentation == label)).encode())
+        if k == 0:
+            masked = copy.deepcopy(scene)
+            apply_masks(masked, frame.segmentation)
+            digest.update(json.dumps([o.mask.to_dict() for o in masked.objects]).encode())
+        frames.append(frame.rgb)
+    digest.update(gif_bytes(frames))
+    renderer.close()
+    env.data.qpos[:7] = arm
+    return time.perf_counter() - start, time.process_time() - cpu, digest.hexdigest()
+
+
+def main() -> int:
+    from omegaconf import OmegaConf
+
+    import muble_plugins.renderers.mujoco.gl as gl
+    from muble.app.config import compose
+    from muble.app.run import build_components, scene_generator
+    from muble.sim.build import object_models
+    from muble.sim.env import TabletopEnv
+
+    logging.basicConfig(level=logging.WARNING)
+    episodes = int(sys.argv[1]) if len(sys.argv) > 1 else 3
+    keyframes = int(sys.argv[2]) if len(sys.argv) > 2 else 6
+    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", "renderer=mujoco"])
+    components = build_components(cfg, task=False)
+    renderer = components["renderer"]
+    generator = scene_generator(cfg, components["object_set"])
+    try:
+        scenes = [generator.generate(i) for i in range(episodes)]
+    finally:
+        generator.close()
+    robot = OmegaConf.to_container(cfg.robot, resolve=True)
+    kept = gl.MAX_SPARE
+    totals = {"fresh": [0.0, 0.0], "kept": [0.0, 0.0]}
+    mismatches = 0
+    warm_env = TabletopEnv(scenes[0], object_models(scenes[0], components["object_set"], cfg.objects.name), robot, {})
+    episode(renderer, warm_env, scenes[0], 1)  # imports and the first context, paid once by any process
+    warm_env.close()
+    for i, scene in enumerate(scenes):
+        env = TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name), robot, {})
+        digests = {}
+        for mode in (("fresh", "kept") if i % 2 == 0 else ("kept", "fresh")):
+            gl.MAX_SPARE = kept if mode == "kept" else 0
+            if mode == "fresh":
+                gl.free_spares()
+            wall, cpu, digests[mode] = episode(renderer, env, scene, keyframes)
+            totals[mode][0] += wall
+            totals[mode][1] += cpu
+        mismatches += digests["fresh"] != digests["kept"]
+        env.close()
+    gl.MAX_SPARE = kept
+    n = episodes * keyframes
+    per = {mode: {"wall_s": round(t[0] / n, 3), "cpu_s": round(t[1] / n, 3)} for mode, t in totals.items()}
+    ratio = totals["kept"][0] / totals["fresh"][0]
+    for mode, label in (("fresh", "fresh GL context per episode (before)"), ("kept", "GL context kept (now)")):
+        print(f"{label:40s}: {per[mode]['wall_s']:.3f} s/keyframe wall, {per[mode]['cpu_s']:.3f} CPU-s/keyframe")
+    print(f"ratio now/before (wall): {ratio:.3f}; outputs identical: {mismatches == 0}")
+    print(json.dumps({
+        "benchmark": "keyframes", "metric": "seconds per MuJoCo keyframe written as by muble generate "
+        "(848x480 RGB+depth+segmentation, PNG, masks, GIF; setup amortised)",
+        "value": per["kept"]["wall_s"], "unit": "s", "goal": GOAL_SECONDS,
+        "baseline": per["fresh"]["wall_s"], "ratio_to_baseline": round(ratio, 3),
+        "cpu_seconds": per["kept"]["cpu_s"], "baseline_cpu_seconds": per["fresh"]["cpu_s"],
+        "identical_outputs": mismatches == 0, "episodes": episodes, "keyframes_per_episode": keyframes,
+        "resolution": [renderer.config.width, renderer.config.height], "cores": os.cpu_count(),
+        "load_average_1min": round(os.getloadavg()[0], 2),
+    }))
+    return 0 if mismatches == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
