@@ -20,7 +20,7 @@ def _composed(**overrides):
 
 def test_yaml_extends_the_schema():
     cfg = _composed()
-    assert (cfg.width, cfg.height, cfg.engine, cfg.device) == (640, 480, "CYCLES", "CPU")
+    assert (cfg.width, cfg.height, cfg.engine, cfg.device) == (848, 480, "CYCLES", "CPU")
     with pytest.raises(ConfigKeyError):
         _composed(sampels=8)
 

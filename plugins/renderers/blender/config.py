@@ -20,7 +20,7 @@ class BlenderRendererConfig:
     Cycles' fast GI approximation for indirect light.
     """
 
-    width: int = bounded(640, ge=1)
+    width: int = bounded(848, ge=1)  # the SHOP-VRB2 camera's image, as the MuJoCo renderer: masks line up
     height: int = bounded(480, ge=1)
     engine: str = "CYCLES"  # CYCLES or BLENDER_EEVEE (EEVEE wants a GPU or a display)
     device: str = "CPU"  # CPU, GPU (CUDA/OptiX/HIP/oneAPI/Metal, first found) or auto (GPU if any)
@@ -30,7 +30,8 @@ class BlenderRendererConfig:
     denoise: bool = True
     denoiser_quality: str = "FAST"  # OpenImageDenoise quality: FAST, BALANCED, HIGH
     max_bounces: int = 2
-    transmission_bounces: int = 4  # glass needs more than the other bounce kinds
+    transmission_bounces: int = 8  # glass: in and out of both walls of a bowl, and the table seen through it
+    transparent_bounces: int = 8
     fast_gi: bool = True  # approximate indirect light past the first bounce (ambient-occlusion style)
     threads: int = bounded(0, ge=0)  # 0 = all cores
     # Ground-truth passes, read from the same render as the RGB.
