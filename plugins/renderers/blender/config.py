@@ -32,6 +32,8 @@ class BlenderRendererConfig:
     max_bounces: int = 2
     transmission_bounces: int = 8  # glass: in and out of both walls of a bowl, and the table seen through it
     transparent_bounces: int = 8
+    diffuse_bounces: int = 2  # each capped by max_bounces
+    glossy_bounces: int = 2
     fast_gi: bool = True  # approximate indirect light past the first bounce (ambient-occlusion style)
     threads: int = bounded(0, ge=0)  # 0 = all cores
     # Ground-truth passes, read from the same render as the RGB.
@@ -49,4 +51,4 @@ class BlenderRendererConfig:
     light_energy: float = 1.0  # multiplies the key/fill/back rig
     light_jitter: float = 0.1  # relative jitter of light position and energy, drawn per scene from ``seed``
     seed: int = 0
-    exposure: float = 0.0  # stops
+    exposure: float = 1.0  # stops; with the scene lamps, frames sit mid-range without clipping highlights

@@ -23,7 +23,7 @@ from .exr import read_exr
 from .geometry import geom_mesh, geom_rgba
 from .labels import drawn_geoms, geom_labels, labels_from_pass, pass_index
 from .materials import MaterialLibrary, material_class
-from .stage import build_lights, build_world, check_config, configure_engine, set_passes
+from .stage import build_lights, build_scene_lamps, build_world, check_config, configure_engine, set_passes
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
@@ -125,8 +125,11 @@ class BlenderRenderer(Renderer):
             collection.objects.link(obj)
             self._objects.append(obj)
         centre, radius = self._stage_extent(model, labels)
-        rng = np.random.default_rng([cfg.seed, int(scene.image_index)])
-        build_lights(collection, centre, radius, cfg, rng)
+        if getattr(scene, "lamp_params", None):
+            build_scene_lamps(collection, scene.lamp_params, centre, cfg)
+        else:
+            rng = np.random.default_rng([cfg.seed, int(scene.image_index)])
+            build_lights(collection, centre, radius, cfg, rng)
         camera_data = bpy.data.cameras.new("muble_camera")
         camera_data.sensor_fit = "VERTICAL"
         camera_data.clip_start, camera_data.clip_end = 0.01, 100.0

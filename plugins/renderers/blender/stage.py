@@ -101,10 +101,11 @@ def configure_engine(scene: Any, cfg: BlenderRendererConfig) -> None:
             cycles.denoising_prefilter = "FAST" if cfg.denoiser_quality == "FAST" else "ACCURATE"
             cycles.denoising_input_passes = "RGB_ALBEDO"
         cycles.max_bounces = cfg.max_bounces
-        cycles.diffuse_bounces = min(cfg.max_bounces, 2)
-        cycles.glossy_bounces = min(cfg.max_bounces, 2)
+        cycles.diffuse_bounces = min(cfg.max_bounces, cfg.diffuse_bounces)
+        cycles.glossy_bounces = min(cfg.max_bounces, cfg.glossy_bounces)
         cycles.transmission_bounces = cfg.transmission_bounces
-        cycles.transparent_max_bounces = cfg.transmission_bounces
+        cycles.transparent_max_bounces = cfg.transparent_bounces
+        # A glass bowl is four surfaces deep: its refracted paths need their own budget past max_bounces.
         cycles.max_bounces = max(cfg.max_bounces, cfg.transmission_bounces)
         cycles.caustics_reflective = False
         cycles.caustics_refractive = False
@@ -136,9 +137,50 @@ def build_world(cfg: BlenderRendererConfig) -> Any:
     return world
 
 
+# SHOP-VRB2 scene files carry the original's three lamps in ``lamp_params`` (name -> position); the role is read
+# from the name. Power is the irradiance at the aim point (W per square metre of distance), size in metres.
+LAMP_ROLES = {"key": (4.0, 0.8), "fill": (1.5, 1.2), "back": (2.5, 0.6)}
+
+
+def _lamp_role(name: str) -> str | None:
+    lowered = name.lower()
+    return next((role for role in LAMP_ROLES if role in lowered), None)
+
+
+def _area_light(collection: Any, name: str, location: Any, target: Any, power: float, size: float) -> Any:
+    import bpy
+    from mathutils import Vector
+
+    data = bpy.data.lights.new(f"muble_{name}", type="AREA")
+    data.shape = "DISK"
+    data.size = size
+    # Power scales with distance squared so the irradiance at the target does not depend on the distance.
+    data.energy = power * (Vector(location) - Vector(target)).length ** 2
+    light = bpy.data.objects.new(f"muble_{name}", data)
+    light.location = Vector(location)
+    light.rotation_euler = (Vector(target) - light.location).to_track_quat("-Z", "Y").to_euler()
+    collection.objects.link(light)
+    return light
+
+
+def build_scene_lamps(collection: Any, lamps: dict[str, Any], target: np.ndarray,
+                      cfg: BlenderRendererConfig) -> list[Any]:
+    """The scene file's key, fill and back lamps where it placed them, aimed at ``target``; no jitter (the
+    generator decides where lamps go). Lamps whose name names no role are lit like a fill."""
+    lights = []
+    for name, position in sorted(lamps.items()):
+        if not isinstance(position, (list, tuple)) or len(position) != 3:
+            continue
+        power, size = LAMP_ROLES[_lamp_role(name) or "fill"]
+        lights.append(_area_light(collection, str(name).lower(), np.asarray(position, dtype=float), target,
+                                  power * cfg.light_energy, size))
+    return lights
+
+
 def build_lights(collection: Any, centre: np.ndarray, radius: float, cfg: BlenderRendererConfig,
                  rng: np.random.Generator) -> list[Any]:
-    """Key, fill and back area lights aimed at the scene centre, jittered in position and power."""
+    """Key, fill and back area lights aimed at the scene centre, jittered in position and power (scenes
+    without ``lamp_params``)."""
     import bpy
     from mathutils import Vector
 

@@ -49,12 +49,15 @@ def build_world(scene: SceneGraph, arm_seed: int | None = None) -> tuple["mujoco
     """Compile the robot, table and the scene's objects; the arm is posed near its home pose."""
     import mujoco
     from robosuite.models.arenas import TableArena
+    from robosuite.models.bases import robot_base_factory
     from robosuite.models.grippers import gripper_factory
     from robosuite.models.objects import BallObject, BoxObject, CylinderObject
     from robosuite.models.robots import Panda
     from robosuite.models.tasks import ManipulationTask
 
     robot = Panda(idn=0)
+    # The environment's mount (muble.sim.world): without it the arm stands on the floor, under the table.
+    robot.add_base(base=robot_base_factory(robot.default_base, idn=0))
     robot.add_gripper(gripper_factory("PandaGripper", idn=0))
     robot.set_base_xpos(list(ROBOT_BASE))
     arena = TableArena(table_full_size=(0.8, 0.8, 0.05), table_offset=(0, 0, TABLE_TOP_Z))

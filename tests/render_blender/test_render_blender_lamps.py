@@ -1,0 +1,40 @@
+"""The scene file's lamps light the Blender scene where the file puts them, each with its role's power."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+LAMPS = {"Lamp_Key": [3.2, -2.1, 2.2], "Lamp_Back": [-1.8, 2.0, 2.3], "Lamp_Fill": [-2.4, -3.0, 2.5]}
+
+
+def test_lamp_params_place_key_fill_and_back():
+    import bpy
+    from mathutils import Vector
+
+    from muble_plugins.renderers.blender.config import BlenderRendererConfig
+    from muble_plugins.renderers.blender.stage import LAMP_ROLES, build_scene_lamps
+
+    scene = bpy.data.scenes.new("lamps_test")
+    try:
+        target = np.array([0.0, 0.0, 0.8])
+        lights = build_scene_lamps(scene.collection, LAMPS, target, BlenderRendererConfig())
+        by_name = {light.name: light for light in lights}
+        assert set(by_name) == {"muble_lamp_key", "muble_lamp_back", "muble_lamp_fill"}
+        for name, position in LAMPS.items():
+            light = by_name[f"muble_{name.lower()}"]
+            assert np.allclose(light.location, position)
+            aim = light.rotation_euler.to_matrix() @ Vector((0, 0, -1))
+            towards = (target - np.array(position)) / np.linalg.norm(target - np.array(position))
+            assert np.dot(np.array(aim), towards) > 0.999  # area lights shine down their -Z
+            role = name.split("_")[1].lower()
+            irradiance = light.data.energy / np.linalg.norm(target - np.array(position)) ** 2
+            assert irradiance == pytest.approx(LAMP_ROLES[role][0])
+        assert by_name["muble_lamp_key"].data.energy > by_name["muble_lamp_fill"].data.energy
+    finally:
+        for obj in list(scene.collection.objects):
+            data = obj.data
+            bpy.data.objects.remove(obj, do_unlink=True)
+            bpy.data.lights.remove(data)
+        bpy.data.scenes.remove(scene)
