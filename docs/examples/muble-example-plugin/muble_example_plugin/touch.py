@@ -54,23 +54,35 @@ class Touch(muble.Task):
         found = []
         for k in rng.permutation(len(unique)):
             obj = unique[int(k)]
+            # The step's input_value says which object in words an agent can match (its colour and category);
+            # its output, the object's id, is ground truth that only the judge sees.
             program = [{"type": "scene", "input": None, "input_value": None, "output": scene.ids},
-                       {"type": "touch", "input": [0], "input_value": None, "output": [obj.id]}]
+                       {"type": "touch", "input": [0], "input_value": [obj.colour, obj.name], "output": [obj.id]}]
             found.append(Instruction(f"Touch the {obj.colour} {obj.name}.", program, "touch", self.task_id,
                                      scene.image_filename, scene.image_index, scene.split))
         return found
 
     @staticmethod
     def target(instruction: Instruction) -> int:
+        """The object to touch as recorded at generation (ground truth: for judging)."""
         return int(instruction.program[-1]["output"][0])
 
+    @staticmethod
+    def described(instruction: Instruction, scene) -> int:
+        """The object the instruction describes, found in a scene by its visible colour and category."""
+        colour, name = instruction.program[-1]["input_value"]
+        (obj,) = [o for o in scene.objects if o.colour == colour and o.name == name]
+        return obj.id
+
     def ground_truth(self, instruction: Instruction, scene) -> list[ActionCall]:
-        return [ActionCall("tap", {"target": self.target(instruction)})]
+        return [ActionCall("tap", {"target": self.described(instruction, scene)})]
 
     def next_actions(self, instruction: Instruction, observation: Observation) -> list[ActionCall] | Answer:
+        # Planned from what an agent may know: the instruction's words and the observed scene.
+        target = self.described(instruction, observation.scene)
         done = observation.last_result is not None and observation.last_result.success \
-            and observation.last_result.info.get("tapped") == self.target(instruction)
-        return [] if done else self.ground_truth(instruction, observation.scene)
+            and observation.last_result.info.get("tapped") == target
+        return [] if done else [ActionCall("tap", {"target": target})]
 
     def judge(self, instruction: Instruction, episode) -> Outcome:
         target = self.target(instruction)
