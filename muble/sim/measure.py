@@ -106,12 +106,19 @@ def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float
     ids = env.gripper_actuator_ids
     saved = env.model.actuator_forcerange[ids].copy()
     saved_limited = env.model.actuator_forcelimited[ids].copy()
+    saved_ctrl_limited = env.model.actuator_ctrllimited[ids].copy()
+    # The finger servos are commanded a full stroke beyond "closed", so that the force limit, not the servo's
+    # position error, sets the squeezing force: on a narrow part (a thin glass, a handle, a stem) the fingers stop
+    # a few millimetres short of closed, where the servo alone pushes with only a few newtons at every level.
+    push = env.gripper_closed_ctrl + (env.gripper_closed_ctrl - env.gripper_open_ctrl)
     samples = []
     try:
+        env.model.actuator_ctrllimited[ids] = 0
         for level in forces:
             env.model.actuator_forcerange[ids] = (-level, level)
             env.model.actuator_forcelimited[ids] = 1
             env.close_gripper()
+            env.data.ctrl[ids] = push
             env.hold(settle)
             window_samples = []
 
@@ -124,6 +131,8 @@ def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float
     finally:
         env.model.actuator_forcerange[ids] = saved
         env.model.actuator_forcelimited[ids] = saved_limited
+        env.model.actuator_ctrllimited[ids] = saved_ctrl_limited
+        env.close_gripper()
     force, travel, weakest = np.array(samples).T
     if np.any(weakest <= 0):
         raise PhysicsError(f"the jaws do not both press object {obj_id} while squeezing; grasp it first")

@@ -53,3 +53,18 @@ def test_sim_squeeze_needs_an_object_between_the_fingers(squeezed):
         squeeze(env)
     with pytest.raises(PhysicsError, match="grasp it first"):
         squeeze(env, obj_id=0, forces=(5.0, 10.0), settle=0.1)
+
+
+@pytest.mark.parametrize("stiffness", [15_000.0, 80_000.0])
+def test_sim_squeeze_reads_narrow_parts_too(stiffness):
+    """A 6 mm rod (a stem, a handle): the fingers stop ~3.3 mm short of closed, where the
+    finger servos' own pull is below the squeeze's force levels; the levels must still be reached."""
+    from muble.sim.fixtures import simple_object_model, simple_scene
+
+    model = simple_object_model("cylinder", (0.006, 0.006, 0.10), 120.0, stiffness)
+    scene = simple_scene([(0.5, 0.0)], [model])
+    env = TabletopEnv(scene, {0: model})
+    pick(env, 0, 0.10)
+    assert env.held_object == 0
+    estimate = squeeze(env)
+    assert abs(estimate / model.stiffness - 1.0) < 0.05, (model.stiffness, estimate)
