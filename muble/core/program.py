@@ -6,9 +6,10 @@ final output of every chain before it (top of the stack first). ``filter_relate`
 turns the one object before it into the objects on that side of it (``related``). The recorded ``input`` field is informative
 only; execution always follows the chain.
 
-Weights are known only once measured: in ``"measured"`` mode a step that needs the weight of an object whose
-``weight`` is still ``None`` stops execution and reports those objects as measurement sub-goals. In
-``"ground_truth"`` mode weights come from ``weight_gt`` (generation, reference checks).
+Weights and stiffnesses are known only once measured: in ``"measured"`` mode a step that needs the weight of an
+object whose ``weight`` is still ``None`` (or the stiffness of one without ``extra["stiffness_measured"]``) stops
+execution and reports those objects as measurement sub-goals (weigh them, or squeeze them). In ``"ground_truth"``
+mode weights come from ``weight_gt`` and stiffnesses from ``stiffness`` (generation, reference checks).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from muble.core.errors import ConfigError, PlanningError, unknown_name
+from muble.core.observation import MEASURED_STIFFNESS  # extra key of a stiffness the agent measured (N/m)
 from muble.core.scene import SceneGraph, SceneObject
 # The table partition is defined once in muble.core.table (re-exported here for existing callers).
 from muble.core.table import OPPOSITE_PART, TABLE_CENTRE, TABLE_CENTRE_RADIUS, parts_at  # noqa: F401
@@ -31,6 +33,8 @@ ATTRIBUTE_FILTERS = {
 }
 WEIGHT_SUPERLATIVES = ("heaviest", "lightest")
 WEIGHT_ORDERS = ("ascending", "descending")
+STIFFNESS_SUPERLATIVES = ("hardest", "softest")
+STIFFNESS_ORDERS = WEIGHT_ORDERS  # ascending: softest first
 # Spatial relations of ``filter_relate`` (the original SHOP-VRB2 words) and the scene direction each one follows
 # (sign, direction name) when the scene has ``directions``; without them left is -y and front is +x, as the table
 # parts are named (``muble.core.table``).
@@ -65,24 +69,30 @@ def table_parts_of(obj: SceneObject, scene: SceneGraph | None = None) -> frozens
 class ProgramTrace:
     """The result of running a program: one output per executed step.
 
-    ``pending_weights`` lists the objects whose weight must be measured before the step at ``len(outputs)``
-    can run; it is empty when the program ran to the end.
+    ``pending_weights`` lists the objects whose weight must be measured (``pending_stiffness``: whose stiffness
+    must be measured) before the step at ``len(outputs)`` can run; both are empty when the program ran to the end.
     """
 
     outputs: list[Any] = field(default_factory=list)
     pending_weights: tuple[int, ...] = ()
     steps: int = 0
+    pending_stiffness: tuple[int, ...] = ()
 
     @property
     def complete(self) -> bool:
-        return not self.pending_weights and len(self.outputs) == self.steps
+        return not self.pending_weights and not self.pending_stiffness and len(self.outputs) == self.steps
 
     @property
     def final(self) -> Any:
-        if not self.complete:
+        if self.pending_weights:
             raise PlanningError(
                 f"program stopped at step {len(self.outputs)}: weigh objects {list(self.pending_weights)} first"
             )
+        if self.pending_stiffness:
+            raise PlanningError(f"program stopped at step {len(self.outputs)}: squeeze objects "
+                                f"{list(self.pending_stiffness)} first")
+        if not self.complete:
+            raise PlanningError(f"program stopped at step {len(self.outputs)} of {self.steps}")
         return self.outputs[-1]
 
 
@@ -93,15 +103,41 @@ class _NeedWeights(Exception):
         self.ids = tuple(ids)
 
 
+class _NeedStiffness(Exception):
+    """Internal: a step needs unmeasured stiffnesses."""
+
+    def __init__(self, ids: list[int]):
+        self.ids = tuple(ids)
+
+
 class _Context:
-    def __init__(self, scene: SceneGraph, weights: str, known: dict[int, float] | None):
+    def __init__(self, scene: SceneGraph, weights: str, known: dict[int, float] | None,
+                 known_stiffness: dict[int, float] | None = None):
         if weights not in WEIGHT_MODES:
             raise ConfigError(unknown_name("weight mode", weights, WEIGHT_MODES))
         self.scene = scene
         self.by_id = {o.id: o for o in scene.objects}
         self.ground_truth = weights == "ground_truth"
         self.known = known or {}
+        self.known_stiffness = known_stiffness or {}
         self.chains: list[Any] = []
+
+    def stiffnesses(self, ids: list[int]) -> list[float]:
+        if self.ground_truth:
+            missing = [i for i in ids if self.by_id[i].stiffness is None]
+            if missing:
+                raise PlanningError(f"objects {missing} have no ground-truth stiffness; a program that compares "
+                                    "stiffness needs a scene whose objects carry one")
+            return [self.by_id[i].stiffness for i in ids]
+        out, missing = [], []
+        for i in ids:
+            k = self.known_stiffness.get(i, self.by_id[i].extra.get(MEASURED_STIFFNESS))
+            if k is None:
+                missing.append(i)
+            out.append(k)
+        if missing:
+            raise _NeedStiffness(missing)
+        return out
 
     def weights(self, ids: list[int]) -> list[float]:
         if self.ground_truth:
@@ -178,6 +214,32 @@ def _step_query_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list
     return list(ctx.weights(_ids(prev, step, index)))
 
 
+def _step_filter_stiffness(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    ids = _ids(prev, step, index)
+    which = step.get("input_value")
+    if which not in STIFFNESS_SUPERLATIVES:
+        raise PlanningError(unknown_name("stiffness superlative", str(which), STIFFNESS_SUPERLATIVES))
+    if not ids:
+        return []
+    stiffness = ctx.stiffnesses(ids)
+    pick = max if which == "hardest" else min
+    return [ids[pick(range(len(ids)), key=lambda k: stiffness[k])]]
+
+
+def _step_order_stiffness(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+    ids = _ids(prev, step, index)
+    order = step.get("input_value")
+    if order not in STIFFNESS_ORDERS:
+        raise PlanningError(unknown_name("stiffness order", str(order), STIFFNESS_ORDERS))
+    stiffness = ctx.stiffnesses(ids)
+    ranked = sorted(range(len(ids)), key=lambda k: stiffness[k], reverse=order == "descending")
+    return [ids[k] for k in ranked]
+
+
+def _step_query_stiffness(ctx: _Context, step: dict, prev: Any, index: int) -> list[float]:
+    return list(ctx.stiffnesses(_ids(prev, step, index)))
+
+
 def _step_pass_targets(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
     # Action steps (pick_up, move_to) name their targets; the world changes only when the plan runs.
     # move_to may find nothing left to move (a "remove" that is done); pick_up always needs an object.
@@ -202,22 +264,28 @@ STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
     "filter_weight": _step_filter_weight,
     "order_weight": _step_order_weight,
     "query_weight": _step_query_weight,
+    "filter_stiffness": _step_filter_stiffness,
+    "order_stiffness": _step_order_stiffness,
+    "query_stiffness": _step_query_stiffness,
     "pick_up": _step_pass_targets,
     "move_to": _step_pass_targets,
     "stack": _step_stack,
 }
 WEIGHT_STEPS = frozenset({"filter_weight", "order_weight", "query_weight"})
+STIFFNESS_STEPS = frozenset({"filter_stiffness", "order_stiffness", "query_stiffness"})
 
 
 def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = "measured",
-            known_weights: dict[int, float] | None = None) -> ProgramTrace:
+            known_weights: dict[int, float] | None = None,
+            known_stiffness: dict[int, float] | None = None) -> ProgramTrace:
     """Run ``program`` on ``scene``.
 
-    ``known_weights`` adds measurements not yet written into the scene graph (object id -> grams).
+    ``known_weights`` adds measurements not yet written into the scene graph (object id -> grams);
+    ``known_stiffness`` likewise (object id -> N/m).
     Raises ``PlanningError`` when the program cannot run on this scene (unknown object, no target) and
     ``ConfigError`` for an unknown step type.
     """
-    ctx = _Context(scene, weights, known_weights)
+    ctx = _Context(scene, weights, known_weights, known_stiffness)
     trace = ProgramTrace(steps=len(program))
     prev: Any = None
     for index, step in enumerate(program):
@@ -231,6 +299,9 @@ def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = 
             out = run(ctx, step, prev, index)
         except _NeedWeights as need:
             trace.pending_weights = need.ids
+            return trace
+        except _NeedStiffness as need:
+            trace.pending_stiffness = need.ids
             return trace
         except KeyError as e:
             raise PlanningError(f"step {index} ({kind}) refers to object {e} that this scene lacks") from None

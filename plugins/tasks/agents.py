@@ -11,7 +11,9 @@ import numpy as np
 
 from muble import ActionCall, Agent, Answer, Instruction, Observation, Task, get_registry
 
-from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, WEIGH, ArmState
+from muble.core.observation import MEASURED_STIFFNESS
+
+from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH, ArmState
 
 log = logging.getLogger(__name__)
 
@@ -25,8 +27,9 @@ class OracleAgent(Agent):
     """Solves any task that plans towards its goal (``Task.next_actions``), closed loop.
 
     After every primitive it asks the instruction's task (the registered task named by its ``template_id``, or
-    the one it was built for) for the next primitives from the observed scene, with the weights it measured so
-    far (the scene's ``weight`` fields, which hold only what this agent measured, and ``weigh`` results), and
+    the one it was built for) for the next primitives from the observed scene, with the weights and stiffnesses it
+    measured so far (the scene's ``weight`` fields and ``extra["stiffness_measured"]``, which hold only what this
+    agent measured, and the ``weigh`` and ``squeeze`` results), and
     takes the first; so a slipped grasp or a displaced object is simply planned around. The gripper's state comes
     from the scene's flags (``in_hand``, ``raised``, ``approached``, ``gripper_over``), which the symbolic and the
     physical world both report; a world without the hover flags has them filled in from the last primitive.
@@ -40,12 +43,14 @@ class OracleAgent(Agent):
         self.task = task
         self.tasks: dict[str, Task] = {}
         self.measured: dict[int, float] = {}
+        self.stiffness: dict[int, float] = {}  # N/m, from this agent's squeeze results
         self.answered = False
         self.last: ActionCall | None = None
         self.failures: dict[object, int] = {}  # failed primitives per target (object id, table part or None)
 
     def reset(self, instruction: Instruction, observation: Observation) -> None:
         self.measured = {}
+        self.stiffness = {}
         self.answered = False
         self.last = None
         self.failures = {}
@@ -63,6 +68,8 @@ class OracleAgent(Agent):
         for o in scene.objects:
             if o.weight is None and o.id in self.measured:
                 o.weight = self.measured[o.id]
+            if MEASURED_STIFFNESS not in o.extra and o.id in self.stiffness:
+                o.extra[MEASURED_STIFFNESS] = self.stiffness[o.id]
         result, last = observation.last_result, self.last
         reported = any("gripper_over" in o.extra or "approached" in o.extra for o in scene.objects)
         if last is not None and result is not None and not result.success:
@@ -84,10 +91,11 @@ class OracleAgent(Agent):
                 key = self._target(self.last)
                 self.failures[key] = self.failures.get(key, 0) + 1
                 log.info("%s failed (%s); retrying differently", self.last, result.failure_reason)
-            elif self.last.name == WEIGH and isinstance(result.measurement, (int, float)):
+            elif self.last.name in (WEIGH, SQUEEZE) and isinstance(result.measurement, (int, float)):
                 held = ArmState.of(observation.scene).held
                 if held is not None:
-                    self.measured[held] = float(result.measurement)
+                    store = self.measured if self.last.name == WEIGH else self.stiffness
+                    store[held] = float(result.measurement)
         step = self._task(instruction).next_actions(instruction, self._known(observation))
         if isinstance(step, Answer):
             if self.answered:

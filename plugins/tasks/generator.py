@@ -16,7 +16,7 @@ from muble.core.errors import unknown_name
 from muble.core.program import execute
 
 from muble_plugins.tasks.descriptions import SceneIndex
-from muble_plugins.tasks.templates import TEMPLATES, OptionContext, Template
+from muble_plugins.tasks.templates import ALL_TEMPLATES, TEMPLATES, OptionContext, Template
 
 MIN_WORDS, MAX_WORDS = 5, 16
 
@@ -86,14 +86,15 @@ def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.
 def generate_instructions(scene: SceneGraph, rng: np.random.Generator, *, templates: list[str] | None = None,
                           per_template: int = 1, extra_steps: int = 0,
                           weight_margin: float = 2.0) -> list[Instruction]:
-    """Instructions of every template (or those named) for one scene, numbered in ``instruction_idx`` order."""
-    unknown = [n for n in templates or () if n not in TEMPLATES]
+    """Instructions of the ten SHOP-VRB2 templates (or of those named, the stiffness family's included) for one
+    scene, numbered in ``instruction_idx`` order."""
+    unknown = [n for n in templates or () if n not in ALL_TEMPLATES]
     if unknown:
-        raise ConfigError(unknown_name("template", unknown[0], list(TEMPLATES)))
+        raise ConfigError(unknown_name("template", unknown[0], list(ALL_TEMPLATES)))
     index = SceneIndex(scene, extra_steps)
     out: list[Instruction] = []
     for name in templates or list(TEMPLATES):
-        out += generate_for_template(TEMPLATES[name], scene, rng, count=per_template, index=index,
+        out += generate_for_template(ALL_TEMPLATES[name], scene, rng, count=per_template, index=index,
                                      weight_margin=weight_margin)
     for k, ins in enumerate(out):
         ins.extra["instruction_idx"] = k

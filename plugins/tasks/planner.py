@@ -1,10 +1,11 @@
 """Ground-truth action planning by backward chaining from the program's goal.
 
-The program, run on the observed scene with the weights measured so far, either asks for a measurement
-(a sub-goal: weigh those objects) or yields the goal: an answer, an object held up, objects on a table part,
-or a stack. Each goal expands backwards into the primitives whose preconditions lead to it: placing needs a
+The program, run on the observed scene with the weights and stiffnesses measured so far, either asks for a
+measurement (a sub-goal: weigh those objects, or squeeze them) or yields the goal: an answer, an object held
+up, objects on a table part, or a stack. Each goal expands backwards into the primitives whose preconditions lead to it: placing needs a
 lifted object, lifting needs grasping, grasping needs approaching, approaching needs the gripper over the
-object. Planning always starts from the observed state, so the oracle can replan after every primitive.
+object; weighing needs a lifted object, squeezing only a grasped one (it is squeezed where it stands and let go
+again). Planning always starts from the observed state, so the oracle can replan after every primitive.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from muble import ActionCall, Answer, PlanningError, SceneGraph
 from muble.core.program import execute, table_parts_of
 
 from muble_plugins.tasks.geometry import on_table_part, rests_on
-from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, WEIGH, ArmState
+from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH, ArmState
 
 ARRIVAL_TOLERANCE = 0.03  # metres between a carried object and its destination that count as arrived
 
@@ -36,6 +37,13 @@ def hold_up(obj_id: int, arm: ArmState) -> list[ActionCall]:
     """Primitives that leave ``obj_id`` grasped and lifted, starting from ``arm``."""
     if arm.held == obj_id:
         return [] if arm.raised else [ActionCall(LIFT)]
+    return grasp(obj_id, arm) + [ActionCall(LIFT)]
+
+
+def grasp(obj_id: int, arm: ArmState) -> list[ActionCall]:
+    """Primitives that leave ``obj_id`` grasped (lifted or not), starting from ``arm``."""
+    if arm.held == obj_id:
+        return []
     actions: list[ActionCall] = []
     over, approached = arm.over, arm.approached
     if arm.held is not None:
@@ -46,7 +54,7 @@ def hold_up(obj_id: int, arm: ArmState) -> list[ActionCall]:
         if over != obj_id:
             actions.append(ActionCall(MOVE, {"target": obj_id}))
         actions.append(ActionCall(APPROACH, {"target": obj_id}))
-    return actions + [ActionCall(GRASP, {"target": obj_id}), ActionCall(LIFT)]
+    return actions + [ActionCall(GRASP, {"target": obj_id})]
 
 
 def put_down(arm: ArmState) -> list[ActionCall]:
@@ -91,21 +99,26 @@ def stack_pairs(chains: list[list[int]]) -> list[tuple[int, int]]:
 
 
 def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, float] | None = None,
-              arm: ArmState | None = None) -> Plan:
+              arm: ArmState | None = None, known_stiffness: dict[int, float] | None = None) -> Plan:
     """The remaining primitives for ``program`` from the observed ``scene`` (empty when the goal holds).
 
     ``arm`` overrides the gripper state read from the scene's flags. Raises ``PlanningError`` when the program
     cannot run on the scene or the goal cannot be reached.
     """
     arm = arm or ArmState.of(scene)
-    trace = execute(program, scene, weights="measured", known_weights=known_weights)
+    trace = execute(program, scene, weights="measured", known_weights=known_weights,
+                    known_stiffness=known_stiffness)
     if trace.pending_weights:
         pending = trace.pending_weights
         target = arm.held if arm.held in pending else pending[0]
         return Plan(hold_up(target, arm) + [ActionCall(WEIGH)])
+    if trace.pending_stiffness:
+        pending = trace.pending_stiffness
+        target = arm.held if arm.held in pending else pending[0]
+        return Plan(grasp(target, arm) + [ActionCall(SQUEEZE)])
     final_step = program[-1]
     kind, result = final_step["type"], trace.final
-    if kind == "query_weight":
+    if kind in ("query_weight", "query_stiffness"):
         return Plan([], Answer(list(result)))
     if kind == "pick_up":
         return Plan(hold_up(result[0], arm))
@@ -121,5 +134,6 @@ def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, f
             if not rests_on(scene.object(top), scene.object(base)):
                 return Plan(place_on(scene, top, base, arm))
         return Plan(put_down(arm))
-    raise PlanningError(f"a program must end in query_weight, pick_up, move_to or stack, not '{kind}'")
+    raise PlanningError(f"a program must end in query_weight, query_stiffness, pick_up, move_to or stack, "
+                        f"not '{kind}'")
 

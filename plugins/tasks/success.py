@@ -19,6 +19,7 @@ log = logging.getLogger(__name__)
 
 WEIGHT_TOLERANCE_G = 2.0  # absolute slack on an answered weight …
 WEIGHT_TOLERANCE_REL = 0.02  # … or this fraction of it, whichever is larger
+STIFFNESS_TOLERANCE_REL = 0.05  # an answered stiffness within this fraction of the true one
 
 
 def recorded_final(instruction: Instruction, scene: SceneGraph) -> Any:
@@ -29,19 +30,29 @@ def recorded_final(instruction: Instruction, scene: SceneGraph) -> Any:
     return execute(instruction.program, scene, weights="ground_truth").final
 
 
-def _grams(value: Any) -> float | None:
+def _number(value: Any) -> float | None:
     if isinstance(value, bool):
         return None
     try:
-        grams = float(value)
+        number = float(value)
     except (TypeError, ValueError):
         return None
-    return grams if math.isfinite(grams) else None
+    return number if math.isfinite(number) else None
 
 
 def weights_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
     """The answer gives each queried object its weight: a list in the program's object order, or a mapping of
     object id to grams (``ids`` are the queried objects). A weight set against the wrong object fails."""
+    return _values_match(answer, expected, ids,
+                         lambda e: max(WEIGHT_TOLERANCE_G, WEIGHT_TOLERANCE_REL * e))
+
+
+def stiffness_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
+    """As ``weights_match``, for stiffnesses (N/m): each within ``STIFFNESS_TOLERANCE_REL`` of the true one."""
+    return _values_match(answer, expected, ids, lambda e: STIFFNESS_TOLERANCE_REL * abs(e))
+
+
+def _values_match(answer: Any, expected: list[float], ids: list[int] | None, tolerance) -> bool:
     values = answer.value if isinstance(answer, Answer) else answer
     if isinstance(values, dict):
         if ids is None:
@@ -59,14 +70,13 @@ def weights_match(answer: Any, expected: list[float], ids: list[int] | None = No
         values = [values]
     if not isinstance(values, (list, tuple)) or len(values) != len(expected):
         return False
-    got = [_grams(v) for v in values]
-    return all(g is not None and abs(g - e) <= max(WEIGHT_TOLERANCE_G, WEIGHT_TOLERANCE_REL * e)
-               for g, e in zip(got, expected))
+    got = [_number(v) for v in values]
+    return all(g is not None and abs(g - e) <= tolerance(e) for g, e in zip(got, expected))
 
 
 def queried_ids(instruction: Instruction, scene: SceneGraph) -> list[int] | None:
-    """The objects a ``query_weight`` program weighs, in its order: the recorded output of the step before, or
-    the program run on ``scene``."""
+    """The objects a ``query_weight`` (or ``query_stiffness``) program measures, in its order: the recorded output
+    of the step before, or the program run on ``scene``."""
     if len(instruction.program) < 2:
         return None
     before = instruction.program[-2].get("output")
@@ -89,8 +99,9 @@ def check(instruction: Instruction, scene: SceneGraph, answer: Answer | None) ->
         return Outcome.PROGRAM_FAILURE
     kind = instruction.program[-1]["type"]
     try:
-        if kind == "query_weight":
-            ok = answer is not None and weights_match(answer, target, queried_ids(instruction, scene))
+        if kind in ("query_weight", "query_stiffness"):
+            match = weights_match if kind == "query_weight" else stiffness_match
+            ok = answer is not None and match(answer, target, queried_ids(instruction, scene))
             return Outcome.SUCCESS if ok else Outcome.INCORRECT_ANSWER
         if kind == "pick_up":
             obj = scene.object(target[0])

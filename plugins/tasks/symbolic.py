@@ -1,10 +1,11 @@
 """Primitive names and a symbolic world that applies their preconditions and effects to a scene graph.
 
 The symbolic world is what ground-truth plans are rolled out against: it checks every precondition a real
-primitive has (grasping needs approaching, weighing needs a lifted object …), reveals a weight only when
-``weigh`` runs, and moves objects where ``lower`` would put them; like the physical ``lower``, it lets go of the
-object (``open_gripper`` is needed only to drop an object that was grasped but not lifted). The flags it keeps in ``SceneObject.extra``
-(``in_hand``, ``raised``, ``approached``, ``gripper_over``) are the ones the physical environment reports.
+primitive has (grasping needs approaching, weighing needs a lifted object, squeezing a grasped one …), reveals
+a weight only when ``weigh`` runs and a stiffness only when ``squeeze`` does, and moves objects where ``lower``
+would put them; like the physical ``lower``, it lets go of the object (``open_gripper`` is needed only to drop
+an object that was grasped but not lifted). The flags it keeps in ``SceneObject.extra`` (``in_hand``,
+``raised``, ``approached``, ``gripper_over``) are the ones the physical environment reports.
 """
 from __future__ import annotations
 
@@ -12,14 +13,14 @@ import copy
 from dataclasses import dataclass
 
 from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject, get_registry
-from muble.core.observation import agent_view
+from muble.core.observation import MEASURED_STIFFNESS, agent_view
 
 from muble_plugins.tasks.geometry import TABLE, free_spot, height
 
 # The primitive plugins' registry names (plugins/primitives): grasping and releasing are the gripper primitives.
 MOVE, APPROACH, LIFT, WEIGH, LOWER = "move", "approach", "lift", "weigh", "lower"
-GRASP, RELEASE = "close_gripper", "open_gripper"
-PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE)
+GRASP, RELEASE, SQUEEZE = "close_gripper", "open_gripper", "squeeze"
+PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE)
 FLAGS = ("in_hand", "raised", "approached", "gripper_over")
 LIFT_HEIGHT = 0.1  # metres above the resting pose while raised
 
@@ -50,7 +51,8 @@ class ArmState:
 class SymbolicWorld:
     """Applies primitive calls to a private copy of a scene graph; failed preconditions fail the action.
 
-    Agents observe ``agent_view`` of it: weights only once they weighed them, no ground truth. Objects put down
+    Agents observe ``agent_view`` of it: weights and stiffnesses only once they weighed or squeezed them, no
+    ground truth. Objects put down
     record what they stand on in ``extra["touching"]``, as the physical world reports contacts. Primitives other
     than the built-in ones act through their ``PrimitiveAction.symbolic_effect``.
     """
@@ -59,6 +61,7 @@ class SymbolicWorld:
         self.scene = copy.deepcopy(scene)
         for o in self.scene.objects:
             o.weight = None
+            o.extra.pop(MEASURED_STIFFNESS, None)
             for flag in FLAGS:
                 o.extra[flag] = False
         self.measured: dict[int, dict[str, float]] = {}  # what the agent measured this episode
@@ -136,6 +139,15 @@ class SymbolicWorld:
             held.weight = held.weight_gt
             self.measured.setdefault(held.id, {})["weight"] = held.weight_gt
             return ActionResult(True, measurement=held.weight_gt)
+        if call.name == SQUEEZE:
+            # As the physical primitive: any grasped object, lifted or still standing on its support.
+            if held is None:
+                return fail("nothing between the fingers to squeeze: grasp an object first")
+            if held.stiffness is None:
+                return fail(f"object {held.id} has no stiffness to measure")
+            held.extra[MEASURED_STIFFNESS] = held.stiffness  # as the physical world's scene graph records it
+            self.measured.setdefault(held.id, {})["stiffness"] = held.stiffness
+            return ActionResult(True, measurement=held.stiffness)
         if call.name == LOWER:
             if held is None or not state.raised:
                 return fail("lowering needs a lifted object")

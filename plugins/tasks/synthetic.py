@@ -1,7 +1,7 @@
 """Symbolic SHOP-VRB2 scenes sampled from the attribute vocabulary, for generator statistics and tests.
 
-No physics: objects get attributes, flags, a ground-truth weight, a bounding box and a non-overlapping spot on
-the table, which is all instruction generation and symbolic planning read.
+No physics: objects get attributes, flags, a ground-truth weight and stiffness, a bounding box and a
+non-overlapping spot on the table, which is all instruction generation and symbolic planning read.
 """
 from __future__ import annotations
 
@@ -38,13 +38,21 @@ CATEGORIES: dict[str, tuple] = {
                    (95, 115), (0.08, 0.08, 0.18)),
 }
 
+# Ground-truth stiffness ranges (N/m) by material, those of the SHOP-VRB2 object set; drawn log-uniformly from a
+# stream of their own, so adding them changed nothing else a seed gives.
+STIFFNESS_RANGE = {"rubber": (4_000.0, 8_000.0), "plastic": (9_000.0, 20_000.0), "metal": (25_000.0, 50_000.0),
+                   "wooden": (40_000.0, 70_000.0), "glass": (70_000.0, 110_000.0),
+                   "ceramic": (70_000.0, 110_000.0)}
+
 
 def _pick(rng: np.random.Generator, items: tuple) -> str:
     return items[int(rng.integers(len(items)))]
 
 
-def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6)) -> SceneGraph:
-    """A scene of ``n_objects`` (inclusive range) objects placed without overlap on the table."""
+def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6),
+                 stiffness_rng: np.random.Generator | None = None) -> SceneGraph:
+    """A scene of ``n_objects`` (inclusive range) objects placed without overlap on the table; stiffnesses come from
+    ``stiffness_rng`` (none without it)."""
     n = int(rng.integers(n_objects[0], n_objects[1] + 1))
     names = list(CATEGORIES)
     objects: list[SceneObject] = []
@@ -71,10 +79,15 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
             weight_gt=round(float(rng.uniform(w0, w1)), 1), stackable=flags[0], stack_base=flags[1],
             pickupable=flags[2], rotation=math.degrees(yaw), bbox={"x": ex, "y": ey, "z": ez},
         ))
+    if stiffness_rng is not None:
+        for o in objects:
+            low, high = STIFFNESS_RANGE[o.material]
+            o.stiffness = round(float(np.exp(stiffness_rng.uniform(np.log(low), np.log(high)))), 1)
     return SceneGraph(objects=objects, split="synthetic", image_index=index,
                       image_filename=f"SHOP_VRB2_synthetic_{index:06d}.png")
 
 
 def sample_scenes(seed: int, count: int) -> list[SceneGraph]:
     """``count`` scenes, scene ``i`` deterministic from ``(seed, i)``."""
-    return [sample_scene(np.random.default_rng([seed, i]), i) for i in range(count)]
+    return [sample_scene(np.random.default_rng([seed, i]), i, stiffness_rng=np.random.default_rng([seed, i, 5]))
+            for i in range(count)]

@@ -1,4 +1,5 @@
-"""The ten SHOP-VRB2 Task plugins: one class per template, sharing generation, planning and checking."""
+"""The ten SHOP-VRB2 Task plugins and the stiffness family: one class per template, sharing generation, planning
+and checking."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,7 +16,7 @@ from muble_plugins.tasks.generator import generate_for_template
 from muble_plugins.tasks.planner import plan_next
 from muble_plugins.tasks.descriptions import SceneIndex
 from muble_plugins.tasks.success import check
-from muble_plugins.tasks.templates import TEMPLATES, Template, load_templates
+from muble_plugins.tasks.templates import ALL_TEMPLATES, STIFFNESS_TEMPLATES, Template, load_templates
 
 MAX_PLAN_STEPS = 100
 
@@ -53,8 +54,9 @@ class ShopVrb2Task(Task):
         return check(instruction, scene, answer)
 
     def next_actions(self, instruction: Instruction, observation: Observation) -> list[ActionCall] | Answer:
-        """Backward chaining from the program's goal on the observed scene (its ``weight`` fields hold what the
-        agent measured; the gripper's state comes from the scene's flags)."""
+        """Backward chaining from the program's goal on the observed scene (its ``weight`` fields and
+        ``extra["stiffness_measured"]`` hold what the agent measured; the gripper's state comes from the scene's
+        flags)."""
         plan = plan_next(instruction.program, observation.scene)
         return plan.answer if plan.answer is not None else plan.actions
 
@@ -72,7 +74,7 @@ def template_file_tasks(path: str | Path) -> dict[str, type[ShopVrb2Task]]:
 
 
 def _task_class(template_id: str, class_name: str) -> type[ShopVrb2Task]:
-    return task_class(TEMPLATES[template_id], class_name)
+    return task_class(ALL_TEMPLATES[template_id], class_name)
 
 
 MeasureWeightSingle = _task_class("measure_weight_single", "MeasureWeightSingle")
@@ -86,6 +88,10 @@ StackByWeight = _task_class("stack_weight", "StackByWeight")
 StackThree = _task_class("stack_three", "StackThree")
 StackOrder = _task_class("stack_order", "StackOrder")
 
-TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {cls.template.template_id: cls for cls in (
+# The stiffness family (stiffness_templates.yaml): registered, but not in the default SHOP-VRB2 mix.
+STIFFNESS_TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {name: task_class(t) for name, t in
+                                                         STIFFNESS_TEMPLATES.items()}
+
+TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {**{cls.template.template_id: cls for cls in (
     MeasureWeightSingle, MeasureWeightMulti, PickUpByWeight, MoveSingle, RemoveFromPart, MoveByWeight,
-    StackSimple, StackByWeight, StackThree, StackOrder)}
+    StackSimple, StackByWeight, StackThree, StackOrder)}, **STIFFNESS_TASK_CLASSES}

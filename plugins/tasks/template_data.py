@@ -26,7 +26,9 @@ Constraint types: ``is`` (an object, or every object of a set, has ``property``)
 ``not_tp``, ``tp_set`` (the set's objects in the part: at least one, all with ``property``), ``weight_extreme``,
 ``weight_order``, ``stack_order`` (heaviest first: all but the last are stack bases, all but the first
 stackable), ``related`` (``[A, REL, B]``: B is REL of A), their stiffness counterparts ``stiffness_extreme``,
-``stiffness_order``, ``stiffness_stack_order``, and the dear ``room`` (``[movers, part]``). A mistake in a file is
+``stiffness_order``, ``stiffness_stack_order``, ``among`` (an object, or every object of a set, has an attribute
+``property`` among ``values``: ``{type: among, target: O1s, property: model, values: [mug1, glass2]}``), and the
+dear ``room`` (``[movers, part]``). A mistake in a file is
 a ``ConfigError`` naming the file, the template and the field.
 """
 from __future__ import annotations
@@ -199,6 +201,14 @@ def _ranked(method, stack):
     return make
 
 
+def _among(k):
+    (t,), prop, values = _targets(k, 1), _attribute(k), frozenset(_values(k))
+
+    def check(b, c):
+        return all(getattr(c.obj(i), prop) in values for i in _members(t(b, c)))
+    return check
+
+
 def _related(k):
     anchor, relation, other = _targets(k, 3)
     return lambda b, c: other(b, c) in related(c.index.scene, anchor(b, c), relation(b, c))
@@ -224,6 +234,7 @@ CONSTRAINTS: dict[str, Callable[[dict], Ref]] = {
     "stiffness_order": _ranked("by_stiffness", stack=False),
     "stiffness_stack_order": _ranked("by_stiffness", stack=True),
     "related": _related,
+    "among": _among,
 }
 DEAR_CONSTRAINTS: dict[str, Callable[[dict], Ref]] = {"room": _room}
 
@@ -233,6 +244,20 @@ DEAR_CONSTRAINTS: dict[str, Callable[[dict], Ref]] = {"room": _room}
 # plain nested loops (Python source built from the validated entry: parameter names are identifiers, words are
 # repr()'d literals, properties one of PROPERTIES), as fast as hand-written ones.
 PROPERTIES = ("pickupable", "stackable", "stack_base")
+ATTRIBUTES = ("model", "name", "shape", "size", "material", "colour")  # what ``among`` may look at
+
+
+def _attribute(k: dict) -> str:
+    if k.get("property") not in ATTRIBUTES:
+        raise ConfigError(unknown_name("attribute", str(k.get("property")), ATTRIBUTES))
+    return k["property"]
+
+
+def _values(k: dict) -> list[str]:
+    values = k.get("values")
+    if not isinstance(values, list) or not values or not all(isinstance(v, str) for v in values):
+        raise ConfigError(f"constraint among needs values: a non-empty list of words, got {values!r}")
+    return values
 
 
 def _is_any(c: Any, value: Any, prop: str) -> bool:
@@ -280,7 +305,7 @@ def _condition(k: dict, kinds: dict[str, str]) -> str:
     e = [_expr(t, kinds) for t in targets]
     needs = {"is": 1, "max_count": 1, "min_count": 1, "weight_order": 1, "stack_order": 1, "stiffness_order": 1,
              "stiffness_stack_order": 1, "distinct": 2, "not_tp": 2, "tp_set": 2, "weight_extreme": 2,
-             "stiffness_extreme": 2, "room": 2, "related": 3}[kind]
+             "stiffness_extreme": 2, "room": 2, "related": 3, "among": 1}[kind]
     if len(e) != needs:
         raise ConfigError(f"constraint {kind} needs a target of {needs} reference(s), got {target!r}")
     if kind in ("is", "tp_set") and k.get("property") not in PROPERTIES:
@@ -292,6 +317,9 @@ def _condition(k: dict, kinds: dict[str, str]) -> str:
         if plain:
             return f"all(c.obj(i).{k['property']} for i in {e[0]})"
         return f"_is_any(c, {e[0]}, {k['property']!r})"
+    if kind == "among":
+        values = repr(frozenset(_values(k)))
+        return f"all(c.obj(i).{_attribute(k)} in {values} for i in _members({e[0]}))"
     if kind in ("max_count", "min_count"):
         return f"len({e[0]}) {'<=' if kind == 'max_count' else '>='} {int(k['value'])}"
     if kind == "distinct":

@@ -1,6 +1,7 @@
 """SHOP-VRB2 task templates: phrasings, scene constraints and program skeletons, read from template files.
 
-The ten built-in templates are data (``shopvrb2_templates.yaml``, format in ``template_data``). Each template
+The ten built-in templates are data (``shopvrb2_templates.yaml``, format in ``template_data``), and so is the
+stiffness family (``stiffness_templates.yaml``), which instructions get only when asked for by name. Each template
 enumerates its *options* for a scene: the object-level choices (which objects, which table part, which weight
 superlative) that satisfy its constraints. Options are cheap tuples; the generator samples some and only then
 picks descriptions and a phrasing. Weight-dependent constraints use the ground-truth weights, with a margin so
@@ -133,4 +134,7 @@ def load_templates(path: str | Path) -> dict[str, Template]:
 
 
 BUILTIN_FILE = Path(__file__).with_name("shopvrb2_templates.yaml")
-TEMPLATES: dict[str, Template] = load_templates(BUILTIN_FILE)
+TEMPLATES: dict[str, Template] = load_templates(BUILTIN_FILE)  # the SHOP-VRB2 ten: the default mix
+STIFFNESS_FILE = Path(__file__).with_name("stiffness_templates.yaml")
+STIFFNESS_TEMPLATES: dict[str, Template] = load_templates(STIFFNESS_FILE)  # chosen by name only
+ALL_TEMPLATES: dict[str, Template] = {**TEMPLATES, **STIFFNESS_TEMPLATES}

@@ -132,8 +132,9 @@ def test_compiled_options_agree_with_the_interpreted_constraints(tmp_path):
 
     path = tmp_path / "beside.yaml"
     path.write_text(RELATED_WEIGHTS)
-    specs = read_template_file(path) + read_template_file(
-        __import__("muble_plugins.tasks.templates", fromlist=["BUILTIN_FILE"]).BUILTIN_FILE)
+    builtin = __import__("muble_plugins.tasks.templates", fromlist=["BUILTIN_FILE"])
+    specs = read_template_file(path) + read_template_file(builtin.BUILTIN_FILE) + \
+        read_template_file(builtin.STIFFNESS_FILE)
     for scene in sample_scenes(5, 25):
         index = SceneIndex(scene)
         for spec in specs:
