@@ -70,6 +70,12 @@ class EpisodeFactory:
     def templates(self) -> list[str]:
         return list(self.registry.names("task"))
 
+    @property
+    def mix(self) -> list[str]:
+        """The templates an episode is drawn from when none are named: the configured mix (``dataset.templates``,
+        the ten SHOP-VRB2 templates unless changed; the stiffness family only when named)."""
+        return list(self.cfg.dataset.templates)
+
     def runner(self):
         """A runner of its own (its own renderer): one per episode, so episodes never share a GL context."""
         from muble.app.run import episode_runner
@@ -95,7 +101,7 @@ class EpisodeFactory:
         from muble.episode.runner import choose_instruction, instruction_rng
 
         seed = int(self.cfg.seed)
-        templates = list(templates or self.templates)
+        templates = list(templates or self.mix)
         tasks = [self.task(t) for t in templates]
         scene = self.generator().generate(int(scene_index))
         source = {"kind": "generated", "seed": seed, "scene_index": int(scene_index)}

@@ -70,8 +70,8 @@ class ShopVRB2Env(gym.Env):
     """A SHOP-VRB2 episode through the same action loop as ``muble run``/``muble eval`` (``run_episode``).
 
     Configure with ``config`` (a Hydra-composed MuBlE config) and/or ``overrides`` (``["renderer.width=640",
-    "robot=UR5e", "episode.max_steps=60"]``); ``templates`` (default: all registered) and ``template_weights``
-    choose the instruction mix; ``render=False`` leaves the images out (faster, no GL).
+    "robot=UR5e", "episode.max_steps=60"]``); ``templates`` (default: the configured mix, ``dataset.templates``)
+    and ``template_weights`` choose the instruction mix; ``render=False`` leaves the images out (faster, no GL).
 
     ``reset(seed=s)`` draws the scene index from the seeded generator (same seed, same scene and instruction);
     ``reset(options=...)`` picks an episode: ``{"scene_index": i, "template": t}`` (a generated scene),
@@ -91,7 +91,7 @@ class ShopVRB2Env(gym.Env):
             raise ConfigError("render_mode='rgb_array' needs render=True (the images are what it shows)")
         self.cfg = environment_config(config, overrides, DEFAULT_OVERRIDES)
         self.factory = EpisodeFactory(self.cfg, render=render)
-        self.templates = list(templates) if templates else self.factory.templates
+        self.templates = list(templates) if templates else self.factory.mix
         for t in self.templates:
             self.factory.task(t)  # an unknown template fails here, listing the valid ones
         self.template_weights = list(template_weights) if template_weights else None

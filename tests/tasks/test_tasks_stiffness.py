@@ -147,3 +147,14 @@ def test_only_measurable_objects_take_part(tmp_path):
     named = [scene.object(ins.program[-2]["output"][0]).name for scene in sample_scenes(14, 60)
              for ins in task.generate(scene, np.random.default_rng(0))]
     assert named and set(named) == {"mug"}
+
+
+def test_episode_sources_draw_from_the_configured_mix():
+    """Gymnasium and ``muble serve`` episodes come from ``dataset.templates`` unless templates are named."""
+    from muble.app.config import SHOPVRB2_TEMPLATES, compose
+    from muble.episode.sources import EpisodeFactory
+
+    factory = EpisodeFactory(compose("run", []), render=False)
+    assert factory.mix == list(SHOPVRB2_TEMPLATES) and set(STIFFNESS) <= set(factory.templates)
+    chosen = EpisodeFactory(compose("run", ["dataset.templates=[pick_up_stiffness]"]), render=False)
+    assert chosen.mix == ["pick_up_stiffness"]
