@@ -29,10 +29,10 @@ class OracleAgent(Agent):
     After every primitive it asks the instruction's task (the registered task named by its ``template_id``, or
     the one it was built for) for the next primitives from the observed scene, with the weights and stiffnesses it
     measured so far (the scene's ``weight`` fields and ``extra["stiffness_measured"]``, which hold only what this
-    agent measured, and the ``weigh`` and ``squeeze`` results), and
-    takes the first; so a slipped grasp or a displaced object is simply planned around. The gripper's state comes
-    from the scene's flags (``in_hand``, ``raised``, ``approached``, ``gripper_over``), which the symbolic and the
-    physical world both report; a world without the hover flags has them filled in from the last primitive.
+    agent measured, and the ``weigh`` and ``squeeze`` results), and takes the first; so a slipped grasp or a
+    displaced object is simply planned around. The gripper's state comes from the scene's flags (``in_hand``,
+    ``raised``, ``approached``, ``gripper_over``), which the symbolic and the physical world both report; a world
+    without the hover flags has them filled in from the last primitive.
 
     After a failed primitive it starts that object's part of the plan over (the hover and grasp-pose flags
     forgotten) and retries differently: primitives that take an ``attempt`` get the number of failures so far on

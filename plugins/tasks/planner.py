@@ -2,10 +2,11 @@
 
 The program, run on the observed scene with the weights and stiffnesses measured so far, either asks for a
 measurement (a sub-goal: weigh those objects, or squeeze them) or yields the goal: an answer, an object held
-up, objects on a table part, or a stack. Each goal expands backwards into the primitives whose preconditions lead to it: placing needs a
-lifted object, lifting needs grasping, grasping needs approaching, approaching needs the gripper over the
-object; weighing needs a lifted object, squeezing only a grasped one (it is squeezed where it stands and let go
-again). Planning always starts from the observed state, so the oracle can replan after every primitive.
+up, objects on a table part, or a stack. Each goal expands backwards into the primitives whose preconditions
+lead to it: placing needs a lifted object, lifting needs grasping, grasping needs approaching, approaching needs
+the gripper over the object; weighing needs a lifted object, squeezing only a grasped one (it is squeezed where
+it stands and let go again). Planning always starts from the observed state, so the oracle can replan after
+every primitive.
 """
 from __future__ import annotations
 
