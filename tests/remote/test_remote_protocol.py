@@ -7,6 +7,7 @@ import random
 
 import pytest
 
+from muble.app.config import SHOPVRB2_TEMPLATES
 from muble.remote import PROTOCOL, RemoteClient, RemoteError
 
 from tests.remote.server import ServerProcess
@@ -99,7 +100,8 @@ def test_malformed_messages_get_error_replies_and_the_server_keeps_serving(serve
     assert {"bad_request", "unsupported_protocol", "too_large", "unknown_session"} <= set(codes), codes
     with RemoteClient(server.endpoint, timeout=120) as client:
         hello = client.hello()
-        assert hello["protocol"] == PROTOCOL and len(hello["templates"]) == 10
+        assert hello["protocol"] == PROTOCOL and set(SHOPVRB2_TEMPLATES) <= set(hello["templates"])
+        assert "stack_stiffness_order" in hello["templates"]  # every registered task may be asked for
         with pytest.raises(RemoteError) as e:
             client.request("act", session="f" * 32, action={"stop": True})
         assert e.value.code == "unknown_session"
