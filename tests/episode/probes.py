@@ -7,7 +7,8 @@ from muble.core.observation import leaks
 
 
 class Snoop(Agent):
-    """Wraps an agent and checks each observation it gets: no ground truth, no weight it did not measure."""
+    """Wraps an agent and checks each observation it gets: no ground truth, no weight or stiffness it did not
+    measure."""
 
     def __init__(self, inner: Agent):
         self.inner = inner
@@ -20,8 +21,9 @@ class Snoop(Agent):
 
     def _inspect(self, observation) -> None:
         result = observation.last_result
-        if self.last is not None and self.last.name == "weigh" and result is not None and result.success:
-            self.measured.setdefault(self.held, {})["weight"] = float(result.measurement)
+        measures = {"weigh": "weight", "squeeze": "stiffness"}
+        if self.last is not None and self.last.name in measures and result is not None and result.success:
+            self.measured.setdefault(self.held, {})[measures[self.last.name]] = float(result.measurement)
         self.held = next((o.id for o in observation.scene.objects if o.extra.get("in_hand")), None)
         self.seen += 1
         self.weights_seen += sum(o.weight is not None for o in observation.scene.objects)
