@@ -9,12 +9,11 @@ import logging
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from muble.core.errors import MubleError, PhysicsError, SceneValidationError, unknown_name
 from muble.core.types import Outcome
 from muble.dataset.layout import DatasetLayout
 from muble.dataset.production import IndexJob, cached_components
+from muble.episode.plain import plain
 from muble.evaluation.report import UNKNOWN
 
 log = logging.getLogger(__name__)
@@ -27,21 +26,6 @@ def build_components(config: dict[str, Any]) -> dict[str, Any]:
     """The configured plugins, once per process and config; no renderer unless ``evaluation.render``, and no task
     (each instruction names its own template)."""
     return cached_components(config, renderer=bool(config["evaluation"]["render"]), task=False)
-
-
-def plain(value: Any) -> Any:
-    """JSON-ready data from answers and measurements (numpy scalars and arrays included)."""
-    if isinstance(value, dict):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    return str(value)
 
 
 def _record(job: EvalJob) -> dict[str, Any]:
