@@ -13,10 +13,6 @@ from typing import Any
 import numpy as np
 
 
-TABLE_PARTS = ("left", "right", "front", "back", "centre")
-RELATIONS = ("behind", "front", "left", "right")
-
-
 @dataclass
 class RLE:
     """A COCO run-length-encoded mask, kept as data (``size`` = [height, width])."""

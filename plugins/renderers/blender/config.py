@@ -8,7 +8,6 @@ from muble import bounded
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("CPU", "GPU", "auto")
 DENOISER_QUALITIES = ("FAST", "BALANCED", "HIGH")
-VIEW_TRANSFORMS = ("Standard",)
 
 
 @dataclass

@@ -15,9 +15,6 @@ from muble.core.objects import MATERIAL_CLASSES
 
 log = logging.getLogger(__name__)
 
-# Classes beyond the object classes, for the robot's paint and plain coloured geoms.
-EXTRA_CLASSES = ("painted",)
-
 # SHOP-VRB2 material words that map onto a class under another name.
 MATERIAL_ALIASES = {"wooden": "wood", "metallic": "metal", "porcelain": "ceramic", "steel": "metal",
                     "aluminium": "metal", "aluminum": "metal", "rubbery": "rubber"}
