@@ -15,19 +15,11 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
 from muble.core.ranges import bounded
+from muble.episode.components import GROUP_OF_KIND
 from muble.plugins.registry import Registry
 
 HYDRA_VERSION_BASE = "1.3"
 CONFIG_MODULE = "muble_conf"
-
-# Plugin kind -> config group that selects it.
-GROUP_OF_KIND = {
-    "renderer": "renderer",
-    "planner": "planner",
-    "task": "task",
-    "object_set": "objects",
-    "agent": "agent",
-}
 
 
 @dataclass

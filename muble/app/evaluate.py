@@ -25,11 +25,11 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
+from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError
+from muble.core.layout import DatasetLayout
 from muble.core.manifest import make_manifest, sha256_file
-from muble.dataset.atomic import write_bytes_atomic
 from muble.dataset.executors import run_all
-from muble.dataset.layout import DatasetLayout
 from muble.dataset.production import cached_components
 from muble.evaluation.episodes import EvalJob, evaluate_index
 from muble.evaluation.files import check_files, uses_files

@@ -22,8 +22,8 @@ def main(argv: list[str]) -> int:
         import pyarrow  # noqa: F401
     except ImportError:
         parser.error("the LeRobot export needs pyarrow: pip install 'muble[export]'")
-    from muble.dataset.atomic import staged_folder
-    from muble.dataset.layout import check_split_name
+    from muble.core.atomic import staged_folder
+    from muble.core.layout import check_split_name
     from muble.dataset.lerobot import export_lerobot
 
     check_split_name(args.split, "--split")

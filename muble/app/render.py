@@ -129,9 +129,9 @@ def _check_name(registry: Any, kind: str, name: str, flag: str) -> None:
 
 
 def main(argv: list[str]) -> int:
+    from muble.core.atomic import check_output_folder, staged_folder
     from muble.core.keyframe_states import read_keyframe_states
     from muble.core.scene_io import load_scene
-    from muble.dataset.atomic import check_output_folder, staged_folder
     from muble.plugins.registry import get_registry, validate_params
 
     args = _parser().parse_args(argv)

@@ -15,12 +15,12 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from muble.app.config import GROUP_OF_KIND
 from muble.app.hydra_app import run_hydra_job
 from muble.core.interfaces import Renderer
 from muble.core.manifest import make_manifest
 from muble.core.scene_io import write_json_atomic
-from muble.plugins.registry import get_registry
+# Where they are built; imported here too, where they used to live.
+from muble.episode.components import build_components, episode_runner, scene_generator  # noqa: F401
 
 log = logging.getLogger(__name__)
 
@@ -69,40 +69,6 @@ def format_answer(value: Any, instruction: Any = None) -> str:
     return one(value)
 
 
-def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) -> dict[str, object]:
-    """Instantiate every configured plugin through the registry (a typo in any option fails here, early).
-
-    ``renderer=False`` leaves the renderer out (None); ``task=False`` the task (when each instruction names its own).
-    """
-    registry = get_registry()
-    components: dict[str, object] = {}
-    for kind, group in GROUP_OF_KIND.items():
-        if (kind == "renderer" and not renderer) or (kind == "task" and not task):
-            components[kind] = None
-            continue
-        node = cfg[group]
-        components[kind] = registry.create(kind, node.name, node)
-    components["sensors"] = {name: registry.create("sensor", name, options or {})
-                             for name, options in cfg.sensors.enabled.items()}
-    return components
-
-
-def episode_runner(cfg: DictConfig, components: dict[str, object]):
-    from muble.episode.runner import EpisodeRunner
-
-    robot = OmegaConf.to_container(cfg.robot, resolve=True)
-    return EpisodeRunner(get_registry(), robot, components["planner"], components["agent"],
-                         components["object_set"], cfg.objects.name, components["sensors"], components["renderer"],
-                         tuple(cfg.episode.cameras), cfg.episode.max_steps)
-
-
-def scene_generator(cfg: DictConfig, object_set: object):
-    from muble.generation.generator import SceneGenerator
-
-    options = OmegaConf.to_container(cfg.generator, resolve=True)
-    return SceneGenerator(options, seed=cfg.seed, object_set=object_set)
-
-
 def job(cfg: DictConfig) -> dict:
     from muble.episode.runner import choose_instruction, write_episode
 
@@ -148,8 +114,8 @@ def job(cfg: DictConfig) -> dict:
 def _write_keyframe_states(cfg: DictConfig, recorder: KeyframeStateRecorder, output: Any, out_dir: Path,
                            stem: str) -> dict[str, str]:
     """``keyframes/<stem>_states.npz``: one MuJoCo state per keyframe, for ``muble render --keyframes``."""
+    from muble.core.atomic import write_bytes_atomic
     from muble.core.keyframe_states import KeyframeStates, keyframe_states_bytes
-    from muble.dataset.atomic import write_bytes_atomic
 
     if not recorder.states or len(recorder.states) != len(output.keyframes):
         log.warning("keyframe states not written: %d states for %d keyframes", len(recorder.states),

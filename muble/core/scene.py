@@ -84,9 +84,3 @@ class SceneGraph:
     @property
     def ids(self) -> list[int]:
         return [o.id for o in self.objects]
-
-    def validate(self) -> None:
-        """Raise ``SceneValidationError`` if the scene breaks the schema (round-trips through the loader)."""
-        from muble.core.scene_io import scene_from_dict, scene_to_dict
-
-        scene_from_dict(scene_to_dict(self))

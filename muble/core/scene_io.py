@@ -9,6 +9,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import SceneValidationError
 from muble.core.scene import RLE, SceneGraph, SceneObject
 
@@ -257,6 +258,11 @@ class _NonFiniteConstant(ValueError):
     pass
 
 
+def validate_scene(scene: SceneGraph) -> None:
+    """Raise ``SceneValidationError`` if ``scene`` breaks the schema (it round-trips through the loader)."""
+    scene_from_dict(scene_to_dict(scene))
+
+
 def _reject_constant(name: str) -> Any:
     raise _NonFiniteConstant(name)
 
@@ -354,8 +360,6 @@ def load_scenes(path: str | Path) -> tuple[dict[str, Any], list[SceneGraph]]:
 
 def write_json_atomic(path: str | Path, data: Any, **dump_kwargs: Any) -> None:
     """Write JSON to ``path`` through a temporary file and a rename: readers never see a partial file."""
-    from muble.dataset.atomic import write_bytes_atomic
-
     write_bytes_atomic(path, json.dumps(data, **dump_kwargs).encode("utf-8"))
 
 

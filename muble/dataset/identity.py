@@ -8,8 +8,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError
-from muble.dataset.atomic import write_bytes_atomic
 
 IDENTITY_FILE = "dataset_config.json"
 

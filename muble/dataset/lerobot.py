@@ -15,9 +15,9 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError, SceneValidationError
-from muble.dataset.atomic import write_bytes_atomic
-from muble.dataset.layout import DatasetLayout
+from muble.core.layout import DatasetLayout
 
 CODEBASE_VERSION = "v2.1"
 IMAGE_KEY = "observation.images.front"

@@ -18,9 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from muble.dataset.atomic import write_bytes_atomic
-from muble.dataset.layout import DatasetLayout
+from muble.core.atomic import write_bytes_atomic
+from muble.core.layout import DatasetLayout
 from muble.generation.ground_truth import apply_masks
+# Drawing an instruction from a template mix lives with the mix; imported here too, where it used to live.
+from muble.generation.task_mix import choose_from_mix as choose_instruction  # noqa: F401
 
 log = logging.getLogger(__name__)
 
@@ -47,31 +49,17 @@ def cached_components(config: dict[str, Any], renderer: bool = True, task: bool 
     if key not in _components_cache:
         from omegaconf import OmegaConf
 
-        from muble.app.run import build_components
+        from muble.episode.components import build_components
 
         _components_cache.clear()
         _components_cache[key] = build_components(OmegaConf.create(config), renderer=renderer, task=task)
     return _components_cache[key]
 
 
-def choose_instruction(tasks: list[Any], weights: np.ndarray, scene: Any, rng: np.random.Generator):
-    """An instruction for a given scene from a template mix: a template drawn by weight, then the others in drawn
-    order. (``produce_index`` goes the other way: the template first, then a scene that suits it.)
-
-    Returns (None, None) when no template of the mix applies to the scene (e.g. a weight comparison in a scene
-    with a single object of each kind)."""
-    order = rng.choice(len(tasks), size=len(tasks), replace=False, p=weights)
-    for k in order:
-        candidates = tasks[int(k)].generate(scene, rng)
-        if candidates:
-            return tasks[int(k)], candidates[0]
-    return None, None
-
-
 def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     """Generate and write everything of one scene index; returns (index, {relative path: sha256})."""
-    from muble.core.scene_io import scene_to_dict
     from muble.core.instructions_io import instruction_to_dict
+    from muble.core.scene_io import scene_to_dict
     from muble.episode.runner import instruction_rng, png_bytes, write_episode
     from muble.generation.generator import SceneGenerator
     from muble.generation.task_mix import suited_scene, template_weights
@@ -97,7 +85,7 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     instruction.image_filename = scene.image_filename
     written: dict[str, str] = {}
 
-    from muble.app.run import episode_runner
+    from muble.episode.components import episode_runner
     from omegaconf import OmegaConf
 
     runner = episode_runner(OmegaConf.create(cfg), components)

@@ -16,11 +16,11 @@ from typing import Any
 
 import numpy as np
 
+from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.interfaces import Instruction, MotionPlanner, Renderer, Task
 from muble.core.scene import SceneGraph
 from muble.core.scene_io import scene_to_dict
-from muble.dataset.atomic import write_bytes_atomic
 from muble.core.types import Frame
 from muble.episode.loop import EpisodeResult, StepRecord, run_episode
 from muble.episode.physical import PhysicalWorld

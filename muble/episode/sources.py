@@ -56,7 +56,7 @@ class EpisodeFactory:
     def __init__(self, cfg: Any, render: bool = True):
         from omegaconf import OmegaConf
 
-        from muble.app.run import build_components
+        from muble.episode.components import build_components
         from muble.plugins.registry import get_registry
 
         self.cfg = cfg
@@ -78,7 +78,7 @@ class EpisodeFactory:
 
     def runner(self):
         """A runner of its own (its own renderer): one per episode, so episodes never share a GL context."""
-        from muble.app.run import episode_runner
+        from muble.episode.components import episode_runner
 
         components = dict(self.components)
         if self.render:
@@ -97,8 +97,8 @@ class EpisodeFactory:
         """Scene ``scene_index`` of the configured generator and seed with an instruction of ``templates``: the
         one template's first instruction (as ``muble run``), or one drawn from the mix (as ``muble generate``).
         None when no template applies to the scene."""
-        from muble.dataset.production import choose_instruction as choose_from_mix
         from muble.episode.runner import choose_instruction, instruction_rng
+        from muble.generation.task_mix import choose_from_mix
 
         seed = int(self.cfg.seed)
         templates = list(templates or self.mix)
@@ -122,8 +122,8 @@ class EpisodeFactory:
     def stored(self, split: str, index: int, root: str | Path | None = None) -> EpisodeSpec:
         """The stored scene and instruction of ``split``/``index`` under ``root`` (default ``dataset.root``)."""
         from muble.core.instructions_io import load_instruction
+        from muble.core.layout import DatasetLayout
         from muble.core.scene_io import load_scene
-        from muble.dataset.layout import DatasetLayout
 
         if not isinstance(split, str) or not _SPLIT_NAME.match(split):
             raise ConfigError(f"split must be a plain name (letters, digits, '_', '-'), got {split!r:.40}")
@@ -151,7 +151,7 @@ class EpisodeFactory:
     # --------------------------------------------------------------------------------------------- resources
     def generator(self):
         if self._generator is None:
-            from muble.app.run import scene_generator
+            from muble.episode.components import scene_generator
 
             self._generator = scene_generator(self.cfg, self.components["object_set"])
         return self._generator

@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from muble.core.errors import MubleError, PhysicsError, SceneValidationError, unknown_name
+from muble.core.layout import DatasetLayout
 from muble.core.types import Outcome
-from muble.dataset.layout import DatasetLayout
 from muble.dataset.production import IndexJob, cached_components
 from muble.episode.plain import plain
 from muble.evaluation.report import UNKNOWN
@@ -64,7 +64,7 @@ def evaluate_index(job: EvalJob) -> dict[str, Any]:
 def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     from omegaconf import OmegaConf
 
-    from muble.app.run import episode_runner
+    from muble.episode.components import episode_runner
     from muble.evaluation.files import uses_files
     from muble.plugins.registry import get_registry
 
@@ -86,8 +86,8 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     result = output.result
     written = []
     if cfg["evaluation"]["render"] and cfg["evaluation"]["keyframes"] and output.keyframes:
+        from muble.core.atomic import write_bytes_atomic
         from muble.episode.runner import png_bytes
-        from muble.dataset.atomic import write_bytes_atomic
 
         folder = Path(cfg["output"]["dir"]) / "keyframes" / layout.stem(job.index)
         for i, rgb in enumerate(output.keyframes):

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from muble.core.errors import ConfigError, MubleError
-from muble.dataset.layout import PREFIX, DatasetLayout
+from muble.core.layout import PREFIX, DatasetLayout
 
 log = logging.getLogger(__name__)
 

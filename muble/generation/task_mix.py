@@ -134,3 +134,17 @@ def suited_scene(generator: Any, tasks: dict[str, Task], weights: Sequence[float
         f"scene {index}: no scene sample with {count} objects suits template '{template}' in {max_samples} "
         f"samples ({detail}); lower its share in dataset.template_weights, raise generator.scene_samples, or "
         "use an object set with the objects the template needs", index=index, reasons=reasons)
+
+
+def choose_from_mix(tasks: list[Any], weights: np.ndarray, scene: Any, rng: np.random.Generator):
+    """An instruction for a given scene from a template mix: a template drawn by weight, then the others in drawn
+    order. (``suited_scene`` goes the other way: the template first, then a scene that suits it.)
+
+    Returns (None, None) when no template of the mix applies to the scene (e.g. a weight comparison in a scene
+    with a single object of each kind)."""
+    order = rng.choice(len(tasks), size=len(tasks), replace=False, p=weights)
+    for k in order:
+        candidates = tasks[int(k)].generate(scene, rng)
+        if candidates:
+            return tasks[int(k)], candidates[0]
+    return None, None

@@ -53,7 +53,7 @@ class TabletopGymEnv(gym.Env):
             raise ConfigError(f"unknown render_mode {render_mode!r}; valid: {self.metadata['render_modes']}")
         from omegaconf import OmegaConf
 
-        from muble.app.run import build_components, scene_generator
+        from muble.episode.components import build_components, scene_generator
         from muble.plugins.registry import get_registry
 
         self.cfg = environment_config(config, overrides, DEFAULT_OVERRIDES)

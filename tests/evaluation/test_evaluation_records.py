@@ -146,7 +146,7 @@ class _Runner:
     (SceneValidationError("MuJoCo cannot compile the scene"), "invalid_data", "MuJoCo cannot compile"),
 ])
 def test_any_error_in_an_episode_becomes_its_outcome(tmp_path, monkeypatch, error, outcome, says):
-    import muble.app.run
+    import muble.episode.components
     import muble.evaluation.episodes as episodes
     from tests.core.test_core_data_files import INSTRUCTION, SCENE
 
@@ -155,7 +155,7 @@ def test_any_error_in_an_episode_becomes_its_outcome(tmp_path, monkeypatch, erro
         (layout.split_dir / rel).parent.mkdir(parents=True, exist_ok=True)
         (layout.split_dir / rel).write_text(json.dumps(data))
     monkeypatch.setattr(episodes, "build_components", lambda config: {})
-    monkeypatch.setattr(muble.app.run, "episode_runner", lambda cfg, components: _Runner(error))
+    monkeypatch.setattr(muble.episode.components, "episode_runner", lambda cfg, components: _Runner(error))
     config = {"dataset": {"root": str(tmp_path)}, "evaluation": {"render": False, "keyframes": False}}
     record = episodes.evaluate_index(episodes.EvalJob(config, "val", 0))
     assert record["outcome"] == outcome and says in record["error"], record

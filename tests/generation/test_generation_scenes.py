@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from muble import ConfigError, SEG_TABLE, get_registry
-from muble.core.scene_io import scene_from_dict, scene_to_dict
+from muble.core.scene_io import scene_from_dict, scene_to_dict, validate_scene
 from muble.generation import SceneGenerator
 from muble.generation.checks import settle
 from muble.generation.ground_truth import decode_mask
@@ -60,7 +60,7 @@ def test_scenes_meet_every_acceptance_rule(generator, object_set):
         assert moved.max() <= 0.005
         weights = sorted(o.weight_gt for o in scene.objects)
         assert min(np.diff(weights)) >= cfg.min_weight_gap
-        scene.validate()
+        validate_scene(scene)
 
 
 def test_relationships_follow_the_camera(generator):

@@ -1,0 +1,53 @@
+"""An episode's parts built from one composed config: the configured plugins, the runner, the scene generator.
+
+``muble run``, ``muble generate``, ``muble eval``, the Gymnasium environments and the remote server all build them
+here, so every entry point turns the same config into the same objects.
+"""
+from __future__ import annotations
+
+from omegaconf import DictConfig, OmegaConf
+
+from muble.plugins.registry import get_registry
+
+# Plugin kind -> config group that selects it.
+GROUP_OF_KIND = {
+    "renderer": "renderer",
+    "planner": "planner",
+    "task": "task",
+    "object_set": "objects",
+    "agent": "agent",
+}
+
+
+def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) -> dict[str, object]:
+    """Instantiate every configured plugin through the registry (a typo in any option fails here, early).
+
+    ``renderer=False`` leaves the renderer out (None); ``task=False`` the task (when each instruction names its own).
+    """
+    registry = get_registry()
+    components: dict[str, object] = {}
+    for kind, group in GROUP_OF_KIND.items():
+        if (kind == "renderer" and not renderer) or (kind == "task" and not task):
+            components[kind] = None
+            continue
+        node = cfg[group]
+        components[kind] = registry.create(kind, node.name, node)
+    components["sensors"] = {name: registry.create("sensor", name, options or {})
+                             for name, options in cfg.sensors.enabled.items()}
+    return components
+
+
+def episode_runner(cfg: DictConfig, components: dict[str, object]):
+    from muble.episode.runner import EpisodeRunner
+
+    robot = OmegaConf.to_container(cfg.robot, resolve=True)
+    return EpisodeRunner(get_registry(), robot, components["planner"], components["agent"],
+                         components["object_set"], cfg.objects.name, components["sensors"], components["renderer"],
+                         tuple(cfg.episode.cameras), cfg.episode.max_steps)
+
+
+def scene_generator(cfg: DictConfig, object_set: object):
+    from muble.generation.generator import SceneGenerator
+
+    options = OmegaConf.to_container(cfg.generator, resolve=True)
+    return SceneGenerator(options, seed=cfg.seed, object_set=object_set)
