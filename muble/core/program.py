@@ -19,8 +19,7 @@ from typing import Any, Callable
 from muble.core.errors import ConfigError, PlanningError, unknown_name
 from muble.core.observation import MEASURED_STIFFNESS  # extra key of a stiffness the agent measured (N/m)
 from muble.core.scene import SceneGraph, SceneObject
-# The table partition is defined once in muble.core.table (re-exported here for existing callers).
-from muble.core.table import OPPOSITE_PART, TABLE_CENTRE, TABLE_CENTRE_RADIUS, parts_at  # noqa: F401
+from muble.core.table import TABLE_PARTS, parts_at
 
 WEIGHT_MODES = ("measured", "ground_truth")
 # Attribute filters: step type -> SceneObject field.
@@ -96,17 +95,11 @@ class ProgramTrace:
         return self.outputs[-1]
 
 
-class _NeedWeights(Exception):
-    """Internal: a step needs unmeasured weights."""
+class _NeedMeasurement(Exception):
+    """Internal: a step needs unmeasured values; ``pending`` names the ``ProgramTrace`` field that lists them."""
 
-    def __init__(self, ids: list[int]):
-        self.ids = tuple(ids)
-
-
-class _NeedStiffness(Exception):
-    """Internal: a step needs unmeasured stiffnesses."""
-
-    def __init__(self, ids: list[int]):
+    def __init__(self, pending: str, ids: list[int]):
+        self.pending = pending
         self.ids = tuple(ids)
 
 
@@ -129,28 +122,22 @@ class _Context:
                 raise PlanningError(f"objects {missing} have no ground-truth stiffness; a program that compares "
                                     "stiffness needs a scene whose objects carry one")
             return [self.by_id[i].stiffness for i in ids]
-        out, missing = [], []
-        for i in ids:
-            k = self.known_stiffness.get(i, self.by_id[i].extra.get(MEASURED_STIFFNESS))
-            if k is None:
-                missing.append(i)
-            out.append(k)
-        if missing:
-            raise _NeedStiffness(missing)
-        return out
+        return _measured(ids, lambda i: self.known_stiffness.get(i, self.by_id[i].extra.get(MEASURED_STIFFNESS)),
+                         "pending_stiffness")
 
     def weights(self, ids: list[int]) -> list[float]:
         if self.ground_truth:
             return [self.by_id[i].weight_gt for i in ids]
-        out, missing = [], []
-        for i in ids:
-            w = self.known.get(i, self.by_id[i].weight)
-            if w is None:
-                missing.append(i)
-            out.append(w)
-        if missing:
-            raise _NeedWeights(missing)
-        return out
+        return _measured(ids, lambda i: self.known.get(i, self.by_id[i].weight), "pending_weights")
+
+
+def _measured(ids: list[int], read: Callable[[int], float | None], pending: str) -> list[float]:
+    """The values ``read`` gives for ``ids``; raises ``_NeedMeasurement`` naming those not measured yet."""
+    out = [read(i) for i in ids]
+    missing = [i for i, v in zip(ids, out) if v is None]
+    if missing:
+        raise _NeedMeasurement(pending, missing)
+    return out
 
 
 def _ids(value: Any, step: dict[str, Any], index: int) -> list[int]:
@@ -174,8 +161,8 @@ def _attribute_filter(attribute: str) -> Callable:
 
 def _step_filter_table_part(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
     part = step.get("input_value")
-    if part not in OPPOSITE_PART and part != "centre":
-        raise PlanningError(unknown_name("table part", str(part), [*OPPOSITE_PART, "centre"]))
+    if part not in TABLE_PARTS:
+        raise PlanningError(unknown_name("table part", str(part), TABLE_PARTS))
     return [i for i in _ids(prev, step, index) if part in table_parts_of(ctx.by_id[i], ctx.scene)]
 
 
@@ -187,57 +174,39 @@ def _step_filter_relate(ctx: _Context, step: dict, prev: Any, index: int) -> lis
     return related(ctx.scene, ids[0], step.get("input_value"))
 
 
-def _step_filter_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
-    ids = _ids(prev, step, index)
-    which = step.get("input_value")
-    if which not in WEIGHT_SUPERLATIVES:
-        raise PlanningError(unknown_name("weight superlative", str(which), WEIGHT_SUPERLATIVES))
-    if not ids:
-        return []
-    weights = ctx.weights(ids)
-    pick = max if which == "heaviest" else min
-    best = pick(range(len(ids)), key=lambda k: weights[k])
-    return [ids[best]]
+def _measured_steps(quantity: str, values: str, superlatives: tuple[str, str],
+                    orders: tuple[str, ...]) -> dict[str, Callable]:
+    """The filter, order and query steps of a measured quantity (``values``: the ``_Context`` method that reads
+    it); the first superlative picks the largest value."""
+
+    def filter_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+        ids = _ids(prev, step, index)
+        which = step.get("input_value")
+        if which not in superlatives:
+            raise PlanningError(unknown_name(f"{quantity} superlative", str(which), superlatives))
+        if not ids:
+            return []
+        measured = getattr(ctx, values)(ids)
+        pick = max if which == superlatives[0] else min
+        return [ids[pick(range(len(ids)), key=lambda k: measured[k])]]
+
+    def order_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
+        ids = _ids(prev, step, index)
+        order = step.get("input_value")
+        if order not in orders:
+            raise PlanningError(unknown_name(f"{quantity} order", str(order), orders))
+        measured = getattr(ctx, values)(ids)
+        ranked = sorted(range(len(ids)), key=lambda k: measured[k], reverse=order == "descending")
+        return [ids[k] for k in ranked]
+
+    def query_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[float]:
+        return list(getattr(ctx, values)(_ids(prev, step, index)))
+
+    return {f"filter_{quantity}": filter_step, f"order_{quantity}": order_step, f"query_{quantity}": query_step}
 
 
-def _step_order_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
-    ids = _ids(prev, step, index)
-    order = step.get("input_value")
-    if order not in WEIGHT_ORDERS:
-        raise PlanningError(unknown_name("weight order", str(order), WEIGHT_ORDERS))
-    weights = ctx.weights(ids)
-    ranked = sorted(range(len(ids)), key=lambda k: weights[k], reverse=order == "descending")
-    return [ids[k] for k in ranked]
-
-
-def _step_query_weight(ctx: _Context, step: dict, prev: Any, index: int) -> list[float]:
-    return list(ctx.weights(_ids(prev, step, index)))
-
-
-def _step_filter_stiffness(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
-    ids = _ids(prev, step, index)
-    which = step.get("input_value")
-    if which not in STIFFNESS_SUPERLATIVES:
-        raise PlanningError(unknown_name("stiffness superlative", str(which), STIFFNESS_SUPERLATIVES))
-    if not ids:
-        return []
-    stiffness = ctx.stiffnesses(ids)
-    pick = max if which == "hardest" else min
-    return [ids[pick(range(len(ids)), key=lambda k: stiffness[k])]]
-
-
-def _step_order_stiffness(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
-    ids = _ids(prev, step, index)
-    order = step.get("input_value")
-    if order not in STIFFNESS_ORDERS:
-        raise PlanningError(unknown_name("stiffness order", str(order), STIFFNESS_ORDERS))
-    stiffness = ctx.stiffnesses(ids)
-    ranked = sorted(range(len(ids)), key=lambda k: stiffness[k], reverse=order == "descending")
-    return [ids[k] for k in ranked]
-
-
-def _step_query_stiffness(ctx: _Context, step: dict, prev: Any, index: int) -> list[float]:
-    return list(ctx.stiffnesses(_ids(prev, step, index)))
+_WEIGHT_STEP_TYPES = _measured_steps("weight", "weights", WEIGHT_SUPERLATIVES, WEIGHT_ORDERS)
+_STIFFNESS_STEP_TYPES = _measured_steps("stiffness", "stiffnesses", STIFFNESS_SUPERLATIVES, STIFFNESS_ORDERS)
 
 
 def _step_pass_targets(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
@@ -261,18 +230,13 @@ STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
     **{name: _attribute_filter(attr) for name, attr in ATTRIBUTE_FILTERS.items()},
     "filter_table_part": _step_filter_table_part,
     "filter_relate": _step_filter_relate,
-    "filter_weight": _step_filter_weight,
-    "order_weight": _step_order_weight,
-    "query_weight": _step_query_weight,
-    "filter_stiffness": _step_filter_stiffness,
-    "order_stiffness": _step_order_stiffness,
-    "query_stiffness": _step_query_stiffness,
+    **_WEIGHT_STEP_TYPES,
+    **_STIFFNESS_STEP_TYPES,
     "pick_up": _step_pass_targets,
     "move_to": _step_pass_targets,
     "stack": _step_stack,
 }
-WEIGHT_STEPS = frozenset({"filter_weight", "order_weight", "query_weight"})
-STIFFNESS_STEPS = frozenset({"filter_stiffness", "order_stiffness", "query_stiffness"})
+STIFFNESS_STEPS = frozenset(_STIFFNESS_STEP_TYPES)
 
 
 def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = "measured",
@@ -297,11 +261,8 @@ def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = 
             ctx.chains.append(prev)
         try:
             out = run(ctx, step, prev, index)
-        except _NeedWeights as need:
-            trace.pending_weights = need.ids
-            return trace
-        except _NeedStiffness as need:
-            trace.pending_stiffness = need.ids
+        except _NeedMeasurement as need:
+            setattr(trace, need.pending, need.ids)
             return trace
         except KeyError as e:
             raise PlanningError(f"step {index} ({kind}) refers to object {e} that this scene lacks") from None

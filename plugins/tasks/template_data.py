@@ -43,14 +43,13 @@ from typing import Any, Callable, Iterator
 from muble import ConfigError
 from muble.core.errors import unknown_name
 from muble.core.instructions_io import program_step
-from muble.core.program import OPPOSITE_PART, RELATIONS, related
+from muble.core.program import RELATIONS, STIFFNESS_SUPERLATIVES, WEIGHT_SUPERLATIVES, related
+from muble.core.table import OPPOSITE_PART
 
 from muble_plugins.tasks.vocabulary import ATTRIBUTE_STEP, describe
 
-TABLE_PARTS = ("left", "right", "front", "back")
-SUPERLATIVES = ("heaviest", "lightest")
-STIFFNESS_SUPERLATIVES = ("hardest", "softest")
-WORD_DOMAINS = {"table_part": TABLE_PARTS, "weight_superlative": SUPERLATIVES,
+# Templates name the four sides of the table, never "centre".
+WORD_DOMAINS = {"table_part": tuple(OPPOSITE_PART), "weight_superlative": WEIGHT_SUPERLATIVES,
                 "stiffness_superlative": STIFFNESS_SUPERLATIVES, "relation": tuple(RELATIONS)}
 PARAMETER_TYPES = ("object", "objects", *WORD_DOMAINS)
 _TOKEN = re.compile(r"<([A-Za-z0-9_]+)>")

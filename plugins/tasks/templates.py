@@ -18,8 +18,7 @@ from muble.core.program import table_parts_of
 
 from muble_plugins.tasks.descriptions import SceneIndex
 from muble_plugins.tasks.geometry import room_on_part
-from muble_plugins.tasks.template_data import (SUPERLATIVES, TABLE_PARTS, DataTemplate,  # noqa: F401
-                                               read_template_file)
+from muble_plugins.tasks.template_data import DataTemplate, read_template_file
 
 MAX_STACK = 4  # objects in one "stack all" tower (the built-in templates' max_count)
 MAX_COMPARED = 5  # objects weighed to find a heaviest/lightest one (keeps plans within 46 primitives)
