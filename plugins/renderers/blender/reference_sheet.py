@@ -18,7 +18,7 @@ def render_sheet(path: Path, width: int = 640, height: int = 480, samples: int =
     import mujoco
     from PIL import Image
 
-    from muble.app.render import contact_sheet
+    from muble.core.image_grid import contact_sheet
 
     from .renderer import BlenderRenderer
     from .testing import build_world, material_rig, random_scene
