@@ -26,6 +26,7 @@ TABLE_CENTRE_RADIUS = 0.08  # m; objects this close to the centre are also in "c
 # included, has room beside the objects already standing in it.
 PLACE_REGION = ((0.28, 0.74), (-0.40, 0.26))
 SPLIT_MARGIN = 0.04  # m between a placed object's centre and a split line
+BELOW_TABLE = 0.05  # m: an object whose origin is this far below the table top has fallen off
 TABLE_PARTS = ("left", "right", "front", "back", "centre")
 OPPOSITE_PART = {"left": "right", "right": "left", "front": "back", "back": "front"}
 _ALIASES = {"center": "centre"}

@@ -7,9 +7,9 @@ import mujoco
 import numpy as np
 
 from muble.core.errors import PhysicsError
+from muble.core.table import BELOW_TABLE
 
 MAX_SPEED = 50.0  # m/s or rad/s in any degree of freedom: nothing on a tabletop moves this fast
-BELOW_TABLE = 0.05  # m: an object whose origin is this far below the table top has fallen off
 
 
 class FaultDetector:

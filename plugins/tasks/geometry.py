@@ -8,7 +8,7 @@ import numpy as np
 
 from muble import SceneGraph, SceneObject
 from muble.core.program import table_parts_of
-from muble.core.table import part_region
+from muble.core.table import BELOW_TABLE, part_region
 
 # Where SHOP-VRB2 scenes stand objects (world x, y in metres; synthetic scenes sample it). The table parts and
 # where the robot places objects are defined in muble.core.table.
@@ -19,7 +19,6 @@ DEFAULT_HEIGHT = 0.06
 # what is put on it only its bottom's thickness (a few mm) above the table, while an object beside the base
 # stands level with it.
 RAISED_BY_BASE = 0.002
-BROKEN_BELOW_Z = -0.05  # an object this far below the table top has fallen off
 # Judging the end state (docs/tasks.md): a put-down object counts only when it rests upright.
 UPRIGHT_DEG = 20.0  # degrees an object's axis may lean from the vertical and still stand upright
 RESTING_SPEED = 0.05  # m/s below which an object counts as resting
@@ -178,4 +177,4 @@ def on_table_part(obj: SceneObject, part: str, scene: SceneGraph) -> bool:
 def broken(scene: SceneGraph) -> list[int]:
     """Ids of objects that left the world: non-finite pose or fallen below the table top."""
     return [o.id for o in scene.objects
-            if not np.all(np.isfinite(o.position)) or o.position[2] < BROKEN_BELOW_Z]
+            if not np.all(np.isfinite(o.position)) or o.position[2] < -BELOW_TABLE]
