@@ -23,6 +23,7 @@ import numpy as np
 from muble import MubleError, get_registry
 from muble.generation.generator import SceneGenerator
 from muble.sim.build import env_from_object_set
+from muble_conf import group_defaults
 
 
 def act(env, name, **params):
@@ -31,7 +32,7 @@ def act(env, name, **params):
 
 def run(scenes: int, seed: int, categories: list[str] | None = None, robot: str = "Panda",
         gripper: str | None = None) -> dict:
-    options = {"masks": False}
+    options = {**group_defaults("generator", "shopvrb2"), "object_set": "shopvrb2", "masks": False}
     if categories:
         options["object_set_options"] = {"categories": categories}
     generator = SceneGenerator(options, seed=seed)

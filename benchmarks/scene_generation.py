@@ -23,6 +23,7 @@ from muble.generation.checks import settle  # noqa: E402
 from muble.generation.contact_sheet import models_from_scene, placements_from_scene  # noqa: E402
 from muble.generation.ground_truth import decode_mask  # noqa: E402
 from muble.generation.placement import CollisionMesh, min_pairwise_distance  # noqa: E402
+from muble_conf import group_defaults  # noqa: E402
 
 
 def rate(generator: SceneGenerator, start: int, count: int) -> dict:
@@ -66,12 +67,13 @@ def main() -> None:
     parser.add_argument("--validate", type=int, default=0, help="scenes re-verified against the acceptance rules")
     args = parser.parse_args()
 
-    fast = SceneGenerator({"stability": False}, seed=0)
+    builtin = {**group_defaults("generator", "shopvrb2"), "object_set": "shopvrb2"}
+    fast = SceneGenerator({**builtin, "stability": False}, seed=0)
     rate(fast, 0, args.warmup)
     without = rate(fast, 1_000, args.scenes)
-    full = SceneGenerator({"stability": True}, seed=0, object_set=fast.object_set, renderer=fast.renderer)
+    full = SceneGenerator({**builtin, "stability": True}, seed=0, object_set=fast.object_set, renderer=fast.renderer)
     with_stability = rate(full, 2_000, args.scenes)
-    no_masks = SceneGenerator({"stability": False, "masks": False, "occlusion_scale": 0.5}, seed=0,
+    no_masks = SceneGenerator({**builtin, "stability": False, "masks": False, "occlusion_scale": 0.5}, seed=0,
                               object_set=fast.object_set)
     rate(no_masks, 0, 10)
     half_res = rate(no_masks, 3_000, args.scenes)

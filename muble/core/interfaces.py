@@ -97,6 +97,13 @@ class PrimitiveAction(ABC):
     """
 
     params: ClassVar[tuple["str | Param", ...]] = ()
+    # Where a successful call leaves the hand with respect to its ``target`` object, for the flags the physical
+    # world reports: "over" (hovering above it, ``gripper_over``), "grasp" (open, in its grasp pose,
+    # ``approached``) or None (neither).
+    hand_at_target: ClassVar[str | None] = None
+    # What a successful call's ``ActionResult.measurement`` is: a measured property of the held object ("weight" in
+    # g, "stiffness" in N/m, as in ``env.measurements``) or None. Sequence files record the last weight.
+    measures: ClassVar[str | None] = None
 
     def __init__(self, **params: Any) -> None:
         from muble.core.params import specs

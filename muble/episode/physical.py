@@ -3,8 +3,9 @@
 Besides poses, the observed scene graph carries the gripper flags of the symbolic world, so an agent plans the
 same way in both: ``in_hand`` (welded to the hand), ``raised`` (held and touching neither the table nor another
 object, read from the contacts), ``approached`` (the hand is in the grasp pose of that object: the last
-primitive was a successful ``approach``) and ``gripper_over`` (the hand hovers over that object: a successful
-``move`` to it, or the object just set down, which the hand retreats straight up from).
+primitive succeeded and declares ``PrimitiveAction.hand_at_target = "grasp"``) and ``gripper_over`` (the hand
+hovers over that object: a successful primitive that declares ``"over"`` for it, or the object just let go of,
+which the hand retreats straight up from).
 """
 from __future__ import annotations
 
@@ -20,8 +21,18 @@ from muble.sim.sync import is_lifted
 
 log = logging.getLogger(__name__)
 
-# Primitive names (the built-in primitive plugins') whose success sets the hand's symbolic position.
-MOVE, APPROACH, LOWER, RELEASE = "move", "approach", "lower", "open_gripper"
+# What the built-in primitives declare through ``PrimitiveAction.hand_at_target`` and ``measures``, by registry
+# name, until their classes declare it themselves (their modules are being reworked); remove then.
+UNDECLARED: dict[str, dict[str, str]] = {
+    "move": {"hand_at_target": "over"}, "approach": {"hand_at_target": "grasp"},
+    "weigh": {"measures": "weight"}, "squeeze": {"measures": "stiffness"},
+}
+
+
+def declared(primitive: Any, name: str, attribute: str) -> str | None:
+    """The primitive's (class or instance) ``hand_at_target`` or ``measures`` declaration."""
+    value = getattr(primitive, attribute, None)
+    return value if value is not None else UNDECLARED.get(name, {}).get(attribute)
 
 
 class PhysicalWorld:
@@ -72,19 +83,19 @@ class PhysicalWorld:
             log.info("%s failed to plan: %s", action, e)
             return ActionResult(False, failure_reason=f"planning: {e}")
         if result.success:
-            self._track(action, held)
+            self._track(action, declared(primitive, action.name, "hand_at_target"), held)
         return result
 
-    def _track(self, action: ActionCall, held_before: int | None) -> None:
+    def _track(self, action: ActionCall, hand_at: str | None, held_before: int | None) -> None:
         """Where the hand is, symbolically, after a successful primitive."""
         target = action.params.get("target")
         obj = int(target) if isinstance(target, int) or (isinstance(target, str) and target.isdigit()) else None
         released = held_before is not None and self.env.held_object is None
-        if action.name == MOVE:
+        if hand_at == "over":
             self.approached, self.over = None, obj
-        elif action.name == APPROACH:
+        elif hand_at == "grasp":
             self.approached, self.over = obj, None
-        elif released and action.name in (LOWER, RELEASE):
+        elif released:  # set down or let go of: the hand rises straight up from it
             self.approached, self.over = None, held_before
         elif self.env.held_object != held_before:  # grasped something (or lost it)
             self.approached, self.over = None, None

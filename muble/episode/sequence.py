@@ -57,20 +57,38 @@ def _robot(observation: Observation, action: ActionCall | None, weight: float | 
     }
 
 
+def _measures(registry: Any, name: str) -> str | None:
+    """What the primitive registered as ``name`` measures (``PrimitiveAction.measures``); None if unknown."""
+    from muble.core.errors import PluginError
+    from muble.episode.physical import declared
+
+    try:
+        factory = registry.get("primitive", name).record.factory
+    except PluginError:
+        factory = None
+    return declared(factory, name, "measures")
+
+
 def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths: list[str],
-                  camera: str = "front", action_names: str = "registry") -> dict[str, Any]:
+                  camera: str = "front", action_names: str = "registry", registry: Any = None) -> dict[str, Any]:
     """The sequence file: ``observations`` as the agent saw them, ``observations_gt`` with ground truth too.
 
     ``action_names="original"`` writes the original release's primitive names (``muble.core.action_names``).
+    ``registry`` (default: the plugin registry) tells which primitives measure a weight.
     """
+    if registry is None:
+        from muble.plugins.registry import get_registry
+
+        registry = get_registry()
     check_style(action_names)
     observations, observations_gt = [], []
     weight = None
     steps = [(None, episode.initial, episode.initial_gt)] + [(s.action, s.observation, s.scene_gt)
                                                               for s in episode.steps]
     for i, (action, observation, scene_gt) in enumerate(steps):
-        if i and episode.steps[i - 1].result.measurement is not None and action.name == "weigh":
-            weight = episode.steps[i - 1].result.measurement
+        measured = episode.steps[i - 1].result.measurement if i else None
+        if measured is not None and _measures(registry, action.name) == "weight":
+            weight = measured
         robot = _robot(observation, action, weight, action_names)
         # What the agent saw (its measurements only) and, apart, the ground truth at the same moment.
         observations.append({"robot": robot, "objects": _objects(observation.scene, observation, camera)})

@@ -16,11 +16,16 @@ class GeneratorConfig:
     scenes hold 4 objects, 52.7% hold 5). Objects are placed with their base centre inside ``reach_x`` x
     ``reach_y`` (the arm's reachable part of the table, metres in the robot frame) and their whole footprint on
     the table; ``margin`` is the least mesh-to-mesh distance between objects. ``min_visible_pixels`` is counted
-    on the full-size image; the check renders at ``occlusion_scale`` of it.
+    on the full-size image; the check renders at ``occlusion_scale`` of it. The plugins it uses are named here
+    (``conf/generator/*.yaml`` names them): ``object_set``, the ``renderer`` that draws the segmentation for the
+    visibility checks and the masks (it gets ``width`` and ``height`` besides ``renderer_options`` and is set up
+    with MuJoCo models), and the ``reach_primitive`` asked whether each object can be grasped.
     """
 
-    object_set: str = "shopvrb2"
+    object_set: str = ""
     object_set_options: dict[str, Any] = field(default_factory=dict)
+    renderer: str = ""
+    renderer_options: dict[str, Any] = field(default_factory=dict)
     split: str = "train"
     min_objects: int = 4
     count_probabilities: list[float] = field(default_factory=lambda: [0.473, 0.527])
@@ -42,6 +47,7 @@ class GeneratorConfig:
     # put it down again (``muble.generation.reachability``).
     reach_check: bool = True
     robot: dict[str, Any] = field(default_factory=dict)
+    reach_primitive: str = ""
     placement_tries: int = 60  # positions tried per object before the layout is restarted
     layout_tries: int = 25  # layouts (fresh samples) tried per scene before giving up
     scene_samples: int = 200  # scene samples (of layout_tries layouts each) tried per index to suit its template

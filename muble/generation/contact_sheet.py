@@ -1,4 +1,4 @@
-"""A contact sheet: generated scenes drawn by the MuJoCo renderer from the task camera, tiled into one PNG."""
+"""A contact sheet: generated scenes drawn by a renderer from the task camera, tiled into one PNG."""
 from __future__ import annotations
 
 import math
@@ -28,9 +28,13 @@ def placements_from_scene(scene: SceneGraph) -> list[Placement]:
     return [Placement(float(o.position[0]), float(o.position[1]), float(o.yaw)) for o in scene.objects]
 
 
-def write_contact_sheet(path: str | Path, scenes: list[SceneGraph], object_set, columns: int = 4,
-                        scale: float = 0.5, table_x=(0.0, 0.9), table_y=(-0.6, 0.6)) -> Path:
-    """Draw ``scenes`` at ``scale`` of their camera's size and save them as one PNG grid; returns the path."""
+def write_contact_sheet(path: str | Path, scenes: list[SceneGraph], object_set, renderer: str,
+                        renderer_options: dict | None = None, columns: int = 4, scale: float = 0.5,
+                        table_x=(0.0, 0.9), table_y=(-0.6, 0.6)) -> Path:
+    """Draw ``scenes`` at ``scale`` of their camera's size and save them as one PNG grid; returns the path.
+
+    ``renderer`` is the registry name of a renderer that draws MuJoCo models (``renderer_options`` its options
+    besides the size), e.g. the generator config's."""
     from PIL import Image, ImageDraw
 
     from muble.plugins.registry import get_registry
@@ -38,8 +42,8 @@ def write_contact_sheet(path: str | Path, scenes: list[SceneGraph], object_set, 
     if not scenes:
         raise ValueError("no scenes to draw")
     camera = CameraParams.from_scene_params(scenes[0].camera_params).scaled(scale)
-    renderer = get_registry().create("renderer", "mujoco", {"width": camera.width, "height": camera.height,
-                                                           "depth": False, "segmentation": False})
+    renderer = get_registry().create("renderer", renderer, {**(renderer_options or {}), "width": camera.width,
+                                                           "height": camera.height})
     rows = math.ceil(len(scenes) / columns)
     sheet = Image.new("RGB", (columns * camera.width, rows * camera.height), (255, 255, 255))
     try:

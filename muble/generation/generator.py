@@ -11,6 +11,7 @@ import dataclasses
 import logging
 import math
 import time
+import weakref
 from typing import Any, Callable
 
 import numpy as np
@@ -30,6 +31,17 @@ log = logging.getLogger(__name__)
 # Key, back and fill lamps (metres, robot frame) that the Blender renderer lights the table with.
 LAMPS = {"Lamp_Key": [3.2, -2.1, 2.2], "Lamp_Back": [-1.8, 2.0, 2.3], "Lamp_Fill": [-2.4, -3.0, 2.5]}
 WEIGHT_RESAMPLES = 30
+
+
+# The view model each renderer was last set up with (renderers may be shared between generators).
+_set_up: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _named(name: str, option: str) -> str:
+    if not name:
+        raise ConfigError(f"generator.{option} is not set: name the plugin (conf/generator/*.yaml names the "
+                          "built-in one)")
+    return name
 
 
 def _config(config: GeneratorConfig | dict | DictConfig | None) -> GeneratorConfig:
@@ -55,7 +67,8 @@ class SceneGenerator:
         if object_set is None:
             from muble.plugins.registry import get_registry
 
-            object_set = get_registry().create("object_set", cfg.object_set, cfg.object_set_options)
+            object_set = get_registry().create("object_set", _named(cfg.object_set, "object_set"),
+                                               cfg.object_set_options)
         self.object_set = object_set
         self.camera = CameraParams(np.array(cfg.camera_position, float), euler_xyz_to_matrix(cfg.camera_rotation),
                                    cfg.image_width, cfg.image_height, cfg.lens_mm)
@@ -70,7 +83,7 @@ class SceneGenerator:
         if reach_check is None and cfg.reach_check:
             from muble.generation.reachability import ReachCheck
 
-            reach_check = ReachCheck(cfg.robot)
+            reach_check = ReachCheck(cfg.robot, _named(cfg.reach_primitive, "reach_primitive"))
         # (scene, models) -> None, or why the robot cannot grasp and put down some object: the last check.
         self.reach_check = reach_check
         self.failures: collections.Counter[str] = collections.Counter()  # why layouts were rejected, all scenes
@@ -96,16 +109,15 @@ class SceneGenerator:
     def _renderer_for(self, camera: CameraParams):
         from muble.plugins.registry import get_registry
 
-        # The view model holds every mesh itself, so the renderer's mesh atlas would only duplicate it.
-        return get_registry().create("renderer", "mujoco", {"width": camera.width, "height": camera.height,
-                                                            "rgb": False, "depth": False, "segmentation": True,
-                                                            "reuse_meshes": False})
+        options = {**self.config.renderer_options, "width": camera.width, "height": camera.height}
+        return get_registry().create("renderer", _named(self.config.renderer, "renderer"), options)
 
     def _draw(self, renderer, models, placements):
         """Segmentation of a layout: the shared view model is re-posed, and set up again only when it changed."""
         view, data = self._view.pose(models, placements)
-        if getattr(renderer, "model", None) is not view:  # a renderer may be shared with another generator
+        if _set_up.get(renderer) is not view:  # a renderer may be shared with another generator
             renderer.setup(None, view)
+            _set_up[renderer] = view
         return renderer.render(data, checks.CAMERA_NAME)
 
     @property

@@ -28,7 +28,7 @@ class ReachCheck:
     registry name of the grasping primitive asked.
     """
 
-    def __init__(self, robot: dict[str, Any] | None = None, primitive: str = "approach"):
+    def __init__(self, robot: dict[str, Any] | None, primitive: str):
         self.robot = dict(robot or {}) or None
         self.primitive = primitive
 

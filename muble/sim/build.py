@@ -109,7 +109,7 @@ def object_models(scene: SceneGraph, object_set: Any, set_name: str = "") -> dic
     return models
 
 
-def env_from_object_set(scene: SceneGraph, object_set: Any = "shopvrb2", robot: Any = None,
+def env_from_object_set(scene: SceneGraph, object_set: Any, robot: Any = None,
                         sensors: list[str] | tuple[str, ...] = (), **overrides: Any):
     """A ``TabletopEnv`` for ``scene`` whose objects come from ``object_set`` (an ``ObjectSet`` or its registry
     name) and whose sensors are the named sensor plugins."""

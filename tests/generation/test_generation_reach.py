@@ -24,14 +24,14 @@ def object_set():
 
 def test_a_scene_whose_objects_are_all_within_reach_passes(object_set):
     scene = load_scene(SCENE)
-    assert ReachCheck()(scene, object_models(scene, object_set)) is None
+    assert ReachCheck(None, "approach")(scene, object_models(scene, object_set)) is None
 
 
 def test_an_object_beyond_the_arms_reach_is_named(object_set):
     scene = copy.deepcopy(load_scene(SCENE))
     far = next(o for o in scene.objects if o.pickupable)
     far.position = np.array([0.86, -0.56, 0.0])
-    reason = ReachCheck()(scene, object_models(scene, object_set))
+    reason = ReachCheck(None, "approach")(scene, object_models(scene, object_set))
     assert reason is not None and reason.startswith(f"object {far.id} ({far.name}) at (0.86, -0.56)")
 
 

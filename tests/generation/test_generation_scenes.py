@@ -13,6 +13,7 @@ from muble.generation import SceneGenerator
 from muble.generation.checks import settle
 from muble.generation.ground_truth import decode_mask
 from muble.generation.placement import CollisionMesh, Placement, min_pairwise_distance
+from tests.generation.builtin import BUILTIN
 
 pytestmark = pytest.mark.gl
 
@@ -24,7 +25,7 @@ def object_set():
 
 @pytest.fixture(scope="module")
 def generator(object_set):
-    g = SceneGenerator({}, seed=7, object_set=object_set)
+    g = SceneGenerator(BUILTIN, seed=7, object_set=object_set)
     yield g
     g.close()
 
@@ -75,7 +76,7 @@ def test_relationships_follow_the_camera(generator):
 
 
 def test_same_seed_and_index_give_identical_bytes(object_set):
-    cfg = {"stability": False}
+    cfg = {**BUILTIN, "stability": False}
     a = SceneGenerator(cfg, seed=3, object_set=object_set)
     b = SceneGenerator(cfg, seed=3, object_set=object_set)
     try:
@@ -90,7 +91,7 @@ def test_same_seed_and_index_give_identical_bytes(object_set):
 
 
 def test_twenty_large_objects_fail_clearly_in_bounded_time(object_set):
-    g = SceneGenerator({"min_objects": 20, "count_probabilities": [1.0], "stability": False, "layout_tries": 5,
+    g = SceneGenerator({**BUILTIN, "min_objects": 20, "count_probabilities": [1.0], "stability": False, "layout_tries": 5,
                         "placement_tries": 40}, object_set=object_set)
     start = time.perf_counter()
     with pytest.raises(ConfigError, match="no valid layout in 5 tries.*placement"):

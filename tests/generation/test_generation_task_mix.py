@@ -12,6 +12,7 @@ from muble.core.errors import SceneGenerationError
 from muble.core.scene_io import scene_to_dict
 from muble.generation import SceneGenerator
 from muble.generation.task_mix import balanced_choice, suited_scene, template_weights
+from tests.generation.builtin import BUILTIN
 
 TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
              "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order"]
@@ -45,7 +46,7 @@ def test_bad_weights_are_refused_with_what_to_change():
 @pytest.fixture(scope="module")
 def generator():
     objects = get_registry().create("object_set", "shopvrb2")
-    g = SceneGenerator({"stability": False, "reach_check": False, "masks": False}, seed=11, object_set=objects)
+    g = SceneGenerator({**BUILTIN, "stability": False, "reach_check": False, "masks": False}, seed=11, object_set=objects)
     yield g
     g.close()
 

@@ -8,13 +8,14 @@ from muble import get_registry
 from muble.generation import SceneGenerator, checks
 from muble.generation.contact_sheet import models_from_scene, placements_from_scene
 from muble.generation.placement import CollisionMesh, min_pairwise_distance, shared_collision_meshes
+from tests.generation.builtin import BUILTIN
 
 pytestmark = pytest.mark.gl
 
 
 def test_reposed_view_matches_a_freshly_compiled_one():
     object_set = get_registry().create("object_set", "shopvrb2")
-    gen = SceneGenerator({"stability": False}, seed=5, object_set=object_set)
+    gen = SceneGenerator({**BUILTIN, "stability": False}, seed=5, object_set=object_set)
     fresh = get_registry().create("renderer", "mujoco", {"width": 848, "height": 480, "rgb": False,
                                                          "depth": False, "segmentation": True})
     try:

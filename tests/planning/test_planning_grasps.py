@@ -11,6 +11,7 @@ from muble.core.types import Pose
 from muble_plugins.objects.catalogue import SIZE_SCALES
 from muble_plugins.objects.shopvrb2 import CATALOGUE
 from muble_plugins.primitives.grasping import grasp_candidates, measure_grip
+from tests.generation.builtin import BUILTIN
 
 PANDA_GAP = 0.0768  # m between the open Panda pads
 # Gap between the open pads' inner faces: Panda hand 80 mm stroke, Robotiq 2F-85 85 mm, Rethink electric gripper
@@ -78,8 +79,8 @@ def test_planning_pick_and_weigh_wine_glasses_mugs_and_glasses_in_a_generated_sc
     from muble.generation.generator import SceneGenerator
     from muble.sim.build import env_from_object_set
 
-    generator = SceneGenerator({"masks": False, "object_set_options": {"categories": ["wine glass", "mug", "glass"]}},
-                               seed=3)
+    generator = SceneGenerator({**BUILTIN, "masks": False, "object_set": "shopvrb2",
+                                "object_set_options": {"categories": ["wine glass", "mug", "glass"]}}, seed=3)
     scene = generator.generate(0)
     env = env_from_object_set(scene, "shopvrb2")
     try:
