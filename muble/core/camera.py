@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from muble.core.errors import ConfigError
 
@@ -31,41 +32,17 @@ DEFAULT_SENSOR_MM = 36.0
 
 def euler_xyz_to_matrix(angles_deg: tuple[float, float, float] | np.ndarray) -> np.ndarray:
     """Blender ``EulerXYZ`` angles (degrees) to a 3x3 rotation matrix (``Rz @ Ry @ Rx``)."""
-    ax, ay, az = np.radians(np.asarray(angles_deg, dtype=float))
-    cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
-    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return rz @ ry @ rx
+    return Rotation.from_euler("xyz", np.asarray(angles_deg, dtype=float), degrees=True).as_matrix()
 
 
 def matrix_to_euler_xyz(rotation: np.ndarray) -> np.ndarray:
     """Inverse of ``euler_xyz_to_matrix`` (degrees; y in [-90, 90])."""
-    r = np.asarray(rotation, dtype=float)
-    ay = math.asin(max(-1.0, min(1.0, -r[2, 0])))
-    ax = math.atan2(r[2, 1], r[2, 2])
-    az = math.atan2(r[1, 0], r[0, 0])
-    return np.degrees([ax, ay, az])
+    return Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_euler("xyz", degrees=True)
 
 
 def matrix_to_quat(rotation: np.ndarray) -> np.ndarray:
     """Rotation matrix to a unit quaternion (w, x, y, z) with w >= 0."""
-    r = np.asarray(rotation, dtype=float)
-    trace = r[0, 0] + r[1, 1] + r[2, 2]
-    if trace > 0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        q = [0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s]
-    else:
-        i = int(np.argmax([r[0, 0], r[1, 1], r[2, 2]]))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
-        q = [0.0, 0.0, 0.0, 0.0]
-        q[0] = (r[k, j] - r[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (r[j, i] + r[i, j]) / s
-        q[1 + k] = (r[k, i] + r[i, k]) / s
-    quat = np.array(q)
-    quat /= np.linalg.norm(quat)
+    quat = Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_quat(scalar_first=True)
     return -quat if quat[0] < 0 else quat
 
 

@@ -12,18 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from muble.core.geometry import hull_2d, yaw_matrix, yaw_quat
 from muble.core.objects import ObjectModel
 from muble.generation.mesh_keys import mesh_key
-
-
-def yaw_quat(yaw: float) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation by ``yaw`` radians about world z."""
-    return np.array([math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)])
-
-
-def yaw_matrix(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 @dataclass
@@ -62,7 +53,7 @@ class CollisionMesh:
         self.vertices = v
         self.radius = float(np.linalg.norm(v[:, :2], axis=1).max())  # about the base centre's vertical axis
         # The footprint's extremes in any direction lie on its convex hull, so the table test needs only those.
-        self.footprint = _hull_2d(v[:, :2])
+        self.footprint = hull_2d(v[:, :2])
 
     def fits(self, placement: Placement, x_range, y_range) -> bool:
         """Whether the whole footprint at ``placement`` lies within ``x_range`` x ``y_range``."""
@@ -90,16 +81,6 @@ class CollisionMesh:
         import fcl
 
         return fcl.CollisionObject(self.geometry, fcl.Transform(yaw_matrix(placement.yaw), placement.position))
-
-
-def _hull_2d(points: np.ndarray) -> np.ndarray:
-    """Vertices of the convex hull of 2-D ``points`` (all points when they are degenerate)."""
-    from scipy.spatial import ConvexHull, QhullError
-
-    try:
-        return np.ascontiguousarray(points[ConvexHull(points).vertices])
-    except (QhullError, ValueError):
-        return np.ascontiguousarray(points)
 
 
 class CollisionMeshCache:

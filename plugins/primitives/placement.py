@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 
 from muble import PlanningError, Pose, PoseGoal, Trajectory
+from muble.core.geometry import hull_2d, yaw_quat
 from muble_plugins.primitives import context as ctx
 
 logger = logging.getLogger(__name__)
@@ -69,7 +70,7 @@ def turned(env, yaw: float) -> tuple[np.ndarray, np.ndarray]:
     ``yaw`` about the vertical, the object turning with it."""
     c, s = np.cos(yaw), np.sin(yaw)
     quat = np.empty(4)
-    mujoco.mju_mulQuat(quat, np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]), env.ee_pose().quat)
+    mujoco.mju_mulQuat(quat, yaw_quat(yaw), env.ee_pose().quat)
     return np.array([[c, -s], [s, c]]) @ held_offset(env), quat
 
 
@@ -125,16 +126,7 @@ def footprint(env, body: int) -> np.ndarray:
             points.append(pos[:2] + m.geom_rbound[g] * _DISC)
     if not points:
         return d.xpos[body][:2][None].copy()
-    return _hull(np.vstack(points))
-
-
-def _hull(points: np.ndarray) -> np.ndarray:
-    from scipy.spatial import ConvexHull, QhullError
-
-    try:
-        return points[ConvexHull(points).vertices]
-    except (QhullError, ValueError):  # degenerate (a point or a line): keep the points themselves
-        return points
+    return hull_2d(np.vstack(points))
 
 
 def _forbidden(obstacle: np.ndarray, held: np.ndarray, gap: float) -> np.ndarray:
@@ -143,7 +135,7 @@ def _forbidden(obstacle: np.ndarray, held: np.ndarray, gap: float) -> np.ndarray
     from scipy.spatial import ConvexHull
 
     grown = (obstacle[:, None, :] - held[None, :, :]).reshape(-1, 2)
-    grown = (_hull(grown)[:, None, :] + gap * _DISC[None]).reshape(-1, 2)
+    grown = (hull_2d(grown)[:, None, :] + gap * _DISC[None]).reshape(-1, 2)
     return ConvexHull(grown).equations
 
 

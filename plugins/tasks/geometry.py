@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from muble import SceneGraph, SceneObject
+from muble.core.geometry import tilt_deg
 from muble.core.program import table_parts_of
 from muble.core.table import BELOW_TABLE, part_region
 
@@ -141,8 +142,7 @@ def tilt(obj: SceneObject) -> float:
     """Degrees between the object's z axis and the vertical (the world's record, else from its quaternion)."""
     if "tilt_deg" in obj.extra:
         return float(obj.extra["tilt_deg"])
-    w, x, y, z = (float(v) for v in obj.orientation)
-    return math.degrees(math.acos(min(1.0, max(-1.0, 1.0 - 2.0 * (x * x + y * y)))))
+    return tilt_deg(obj.orientation)
 
 
 def upright(obj: SceneObject) -> bool:

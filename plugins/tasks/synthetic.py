@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from muble import SceneGraph, SceneObject
+from muble.core.geometry import yaw_quat
 
 from muble_plugins.tasks.geometry import TABLE_REGION
 
@@ -75,7 +76,7 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
         objects.append(SceneObject(
             id=len(objects), model=name.replace(" ", "_") + "1", name=name, shape=_pick(rng, shapes), size=size,
             material=material, colour="transparent" if material == "glass" else _pick(rng, COLOURS),
-            position=np.array([x, y, 0.0]), orientation=np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]),
+            position=np.array([x, y, 0.0]), orientation=yaw_quat(yaw),
             weight_gt=round(float(rng.uniform(w0, w1)), 1), stackable=flags[0], stack_base=flags[1],
             pickupable=flags[2], rotation=math.degrees(yaw), bbox={"x": ex, "y": ey, "z": ez},
         ))

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from muble.core.geometry import yaw_quat
 from muble.core.scene import SceneGraph, SceneObject
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -39,7 +40,7 @@ def random_scene(rng: np.random.Generator, n_objects: int = 4, image_index: int 
             id=len(objects), model=f"{shape}_primitive", name="block", shape=shape, size="medium-sized",
             material=str(rng.choice(MATERIALS)), colour=str(rng.choice(list(COLOURS))),
             position=np.array([xy[0], xy[1], 0.0]),
-            orientation=np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]),
+            orientation=yaw_quat(yaw),
             weight_gt=100.0, stackable=False, stack_base=False, pickupable=True,
             bbox={"x": float(2 * half[0]), "y": float(2 * half[1]), "z": float(2 * half[2])}))
     return SceneGraph(objects=objects, split="test", image_index=image_index)
