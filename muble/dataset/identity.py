@@ -28,19 +28,30 @@ def dataset_identity(config: dict[str, Any]) -> dict[str, Any]:
     return identity
 
 
-def _differences(stored: Any, requested: Any, path: str = "") -> list[str]:
-    if isinstance(stored, dict) and isinstance(requested, dict):
-        out: list[str] = []
-        for key in sorted(set(stored) | set(requested), key=str):
-            sub = f"{path}.{key}" if path else str(key)
-            if key not in stored:
-                out.append(f"{sub}: not stored, requested {json.dumps(requested[key])}")
-            elif key not in requested:
-                out.append(f"{sub}: stored {json.dumps(stored[key])}, not requested")
+ABSENT = object()  # what ``setting_differences`` gives for a key that one side lacks
+
+
+def setting_differences(stored: Any, current: Any, where: str = "") -> list[tuple[str, Any, Any]]:
+    """(dotted key, stored value, current value) of each setting that differs between two nested dicts, in key
+    order; ``ABSENT`` stands for a key that one side lacks."""
+    if isinstance(stored, dict) and isinstance(current, dict):
+        out: list[tuple[str, Any, Any]] = []
+        for key in sorted(set(stored) | set(current), key=str):
+            sub = f"{where}.{key}" if where else str(key)
+            if key not in stored or key not in current:
+                out.append((sub, stored.get(key, ABSENT), current.get(key, ABSENT)))
             else:
-                out.extend(_differences(stored[key], requested[key], sub))
+                out.extend(setting_differences(stored[key], current[key], sub))
         return out
-    return [] if stored == requested else [f"{path}: stored {json.dumps(stored)}, requested {json.dumps(requested)}"]
+    return [] if stored == current else [(where, stored, current)]
+
+
+def _difference(key: str, stored: Any, requested: Any) -> str:
+    if stored is ABSENT:
+        return f"{key}: not stored, requested {json.dumps(requested)}"
+    if requested is ABSENT:
+        return f"{key}: stored {json.dumps(stored)}, not requested"
+    return f"{key}: stored {json.dumps(stored)}, requested {json.dumps(requested)}"
 
 
 def check_or_store_identity(root: Path, config: dict[str, Any]) -> None:
@@ -56,7 +67,7 @@ def check_or_store_identity(root: Path, config: dict[str, Any]) -> None:
     if stored is None:
         write_bytes_atomic(path, json.dumps(requested, indent=2, sort_keys=True).encode())
         return
-    differences = _differences(stored, requested)
+    differences = [_difference(*d) for d in setting_differences(stored, requested)]
     if differences:
         shown = "; ".join(differences[:8]) + (f"; and {len(differences) - 8} more" if len(differences) > 8 else "")
         raise ConfigError(f"dataset.root {root} holds a dataset made with other settings ({shown}). To resume or "

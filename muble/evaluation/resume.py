@@ -17,6 +17,7 @@ from typing import IO, Any
 from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError
 from muble.core.types import Outcome
+from muble.dataset.identity import ABSENT, setting_differences
 
 log = logging.getLogger(__name__)
 
@@ -51,18 +52,10 @@ def run_settings(config: dict[str, Any], dataset_manifest_sha256: str | None) ->
 
 def differences(stored: Any, current: Any, where: str = "") -> list[str]:
     """Each setting that differs, as ``key: stored -> now``."""
-    if isinstance(stored, dict) and isinstance(current, dict):
-        out = []
-        for key in sorted(set(stored) | set(current), key=str):
-            name = f"{where}.{key}" if where else str(key)
-            if key not in stored:
-                out.append(f"{name}: (absent) -> {current[key]!r:.80}")
-            elif key not in current:
-                out.append(f"{name}: {stored[key]!r:.80} -> (absent)")
-            else:
-                out += differences(stored[key], current[key], name)
-        return out
-    return [] if stored == current else [f"{where}: {stored!r:.80} -> {current!r:.80}"]
+    def show(value: Any) -> str:
+        return "(absent)" if value is ABSENT else f"{value!r:.80}"
+
+    return [f"{key}: {show(a)} -> {show(b)}" for key, a, b in setting_differences(stored, current, where)]
 
 
 def claim_folder(out_dir: Path, settings: dict[str, Any], splits: list[str]) -> bool:
