@@ -47,10 +47,8 @@ def _tipped(scene, object_set, degrees=15.0):
 
     obj = scene.object(THERMOS)
     model = object_models(scene, object_set)[THERMOS]
-    w, x, y, z = obj.orientation
-    turn = Rotation.from_quat([x, y, z, w]) * Rotation.from_euler("x", degrees, degrees=True)
-    qx, qy, qz, qw = turn.as_quat()
-    obj.orientation = np.array([qw, qx, qy, qz])
+    turn = Rotation.from_quat(obj.orientation, scalar_first=True) * Rotation.from_euler("x", degrees, degrees=True)
+    obj.orientation = turn.as_quat(scalar_first=True)
     verts = np.concatenate([p.vertices for p in model.collision_parts])
     obj.position = obj.position + [0.0, 0.0, -float(turn.apply(verts)[:, 2].min())]
 
