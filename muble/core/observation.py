@@ -26,6 +26,7 @@ from muble.core.scene import SceneGraph, SceneObject
 
 # Keys of ``SceneObject.extra`` an agent may see: the gripper's flags and the physical contact state.
 VISIBLE_EXTRA = ("in_hand", "raised", "approached", "gripper_over", "touching", "tilt_deg", "speed")
+TOUCHING_TABLE = "table"  # what ``extra["touching"]`` names the table (beside object ids)
 # Fields of ``SceneObject`` that carry ground truth and never reach an agent.
 GROUND_TRUTH_FIELDS = ("weight_gt", "stiffness")
 MEASURED_STIFFNESS = "stiffness_measured"

@@ -8,6 +8,7 @@ import numpy as np
 
 from muble import SceneGraph, SceneObject
 from muble.core.geometry import tilt_deg
+from muble.core.observation import TOUCHING_TABLE
 from muble.core.program import table_parts_of
 from muble.core.table import BELOW_TABLE, part_region
 
@@ -23,7 +24,6 @@ RAISED_BY_BASE = 0.002
 # Judging the end state (docs/tasks.md): a put-down object counts only when it rests upright.
 UPRIGHT_DEG = 20.0  # degrees an object's axis may lean from the vertical and still stand upright
 RESTING_SPEED = 0.05  # m/s below which an object counts as resting
-TABLE = "table"  # what ``extra["touching"]`` names the table
 # Room on a table part for an object to be put there: the placing primitives keep 15 mm between real footprints
 # on a 1 cm grid; here bboxes (centred on the object's origin, so a mug's handle side may reach a little past
 # them) stand in for footprints, with a wider gap.
@@ -171,7 +171,7 @@ def rests_on(top: SceneObject, base: SceneObject) -> bool:
 
 def on_table_part(obj: SceneObject, part: str, scene: SceneGraph) -> bool:
     """``obj`` rests upright on the table top itself, in ``part``."""
-    return resting(obj) and touches(obj, TABLE) and upright(obj) and part in table_parts_of(obj, scene)
+    return resting(obj) and touches(obj, TOUCHING_TABLE) and upright(obj) and part in table_parts_of(obj, scene)
 
 
 def broken(scene: SceneGraph) -> list[int]:

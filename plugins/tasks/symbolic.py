@@ -13,9 +13,9 @@ import copy
 from dataclasses import dataclass
 
 from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject, get_registry
-from muble.core.observation import MEASURED_STIFFNESS, agent_view
+from muble.core.observation import MEASURED_STIFFNESS, TOUCHING_TABLE, agent_view
 
-from muble_plugins.tasks.geometry import TABLE, free_spot, height
+from muble_plugins.tasks.geometry import free_spot, height
 
 # The primitive plugins' registry names (plugins/primitives): grasping and releasing are the gripper primitives.
 MOVE, APPROACH, LIFT, WEIGH, LOWER = "move", "approach", "lift", "weigh", "lower"
@@ -180,7 +180,7 @@ class SymbolicWorld:
             held.position = held.position.copy()
             held.position[:2] = self.destination[:2]
             held.position[2] = self.destination[2]
-            held.extra["touching"] = [TABLE]
+            held.extra["touching"] = [TOUCHING_TABLE]
         else:
             held.position = held.position - [0.0, 0.0, LIFT_HEIGHT]
             held.extra.pop("touching", None)  # back where it stood, on what it stood on
