@@ -39,12 +39,6 @@ CATEGORIES: dict[str, tuple] = {
                    (95, 115), (0.08, 0.08, 0.18)),
 }
 
-# Ground-truth stiffness ranges (N/m) by material, those of the SHOP-VRB2 object set; drawn log-uniformly from a
-# stream of their own, so adding them changed nothing else a seed gives.
-STIFFNESS_RANGE = {"rubber": (4_000.0, 8_000.0), "plastic": (9_000.0, 20_000.0), "metal": (25_000.0, 50_000.0),
-                   "wooden": (40_000.0, 70_000.0), "glass": (70_000.0, 110_000.0),
-                   "ceramic": (70_000.0, 110_000.0)}
-
 
 def _pick(rng: np.random.Generator, items: tuple) -> str:
     return items[int(rng.integers(len(items)))]
@@ -81,6 +75,10 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
             pickupable=flags[2], rotation=math.degrees(yaw), bbox={"x": ex, "y": ey, "z": ez},
         ))
     if stiffness_rng is not None:
+        # The SHOP-VRB2 object set's ground-truth stiffness ranges (N/m) by material, drawn log-uniformly from a
+        # stream of their own, so adding them changed nothing else a seed gives.
+        from muble_plugins.objects.catalogue import STIFFNESS_RANGE
+
         for o in objects:
             low, high = STIFFNESS_RANGE[o.material]
             o.stiffness = round(float(np.exp(stiffness_rng.uniform(np.log(low), np.log(high)))), 1)
