@@ -18,7 +18,7 @@ import numpy as np
 
 from muble import JointGoal, PlanningError, Pose, PoseGoal
 from muble_plugins.planners.ompl_planner import OmplPlanner
-from muble_plugins.planners.tabletop import build_tabletop
+from muble.sim.tabletop import build_tabletop
 
 
 def random_boxes(rng: np.random.Generator, table_z: float) -> list:

@@ -9,6 +9,7 @@ from muble.core.errors import (
     RenderError,
     SceneValidationError,
 )
+from muble.core.environment import Environment, EnvironmentNames, TableTop
 from muble.core.interfaces import (
     Agent,
     CollisionWorld,
@@ -44,8 +45,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     "SEG_BACKGROUND", "SEG_ROBOT", "SEG_TABLE", "ActionCall", "ActionResult", "Agent", "Answer", "CollisionWorld",
-    "ConfigError", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
+    "ConfigError", "Environment", "EnvironmentNames", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
     "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
     "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
-    "Sensor", "Task", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
+    "Sensor", "TableTop", "Task", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
 ]

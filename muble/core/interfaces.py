@@ -1,7 +1,7 @@
 """The seven plugin interfaces. Implementations live in plugins and reach the core only by registry name.
 
 Every optional hook has a documented no-op default, so a plugin overrides only what it needs.
-The environment type is referred to by name (``"Environment"``) to keep this module free of MuJoCo imports.
+The environment they receive is ``muble.core.environment.Environment``, the one interface plugins may rely on.
 """
 from __future__ import annotations
 
@@ -20,13 +20,18 @@ from muble.core.types import (
     JointGoal,
     Observation,
     Outcome,
+    Pose,
     PoseGoal,
     Trajectory,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from collections.abc import Iterable, Sequence
+
     import mujoco
 
+    from muble.core.environment import Environment
+    from muble.core.objects import ObjectModel, ObjectSpec
     from muble.core.params import Param
     from muble.core.scene import SceneGraph
 
@@ -50,7 +55,21 @@ class Renderer(ABC):
 
 
 class CollisionWorld(ABC):
-    """What a motion planner needs to know about the world: limits, validity, IK."""
+    """What a motion planner needs to know about the world: limits, validity, IK.
+
+    The abstract methods are what every planner needs; the optional ones have defaults that planners can rely on
+    (``last_contacts`` for messages, ``joint_names`` for trajectories, ``ee_pose`` and
+    ``local_inverse_kinematics`` for Cartesian planners). ``hold``, ``allow_contact`` and ``contacts`` are what
+    primitives use on the environment's collision world (``Environment.collision_world``).
+    """
+
+    # Body-name pairs in contact found by the last check that failed (for error messages); empty when unknown.
+    last_contacts: "Sequence[tuple[str, str]]" = ()
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of the planned joints, in the order of a configuration ``q``. Optional; default: none given."""
+        return ()
 
     @property
     @abstractmethod
@@ -68,6 +87,27 @@ class CollisionWorld(ABC):
     def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
         """End-effector position (3,) at ``q``. Optional (Cartesian planners use it)."""
         raise NotImplementedError(f"{type(self).__name__} does not provide forward kinematics")
+
+    def ee_pose(self, q: np.ndarray) -> Pose:
+        """End-effector pose at ``q``. Optional (Cartesian planners need it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not provide the end-effector pose")
+
+    def local_inverse_kinematics(self, goal: PoseGoal, seed: np.ndarray) -> np.ndarray:
+        """A valid configuration reaching ``goal`` on the branch of ``seed`` (small steps along a path). Optional;
+        the default is ``inverse_kinematics`` seeded with ``seed`` alone."""
+        return self.inverse_kinematics(goal, seeds=np.asarray(seed, dtype=float)[None])
+
+    def contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
+        """Body-name pairs in contact at ``q``. Optional; the default reports none."""
+        return []
+
+    def hold(self, body: "str | int | None") -> None:
+        """Carry ``body`` with the hand from now on (None: nothing). Optional for worlds nothing is grasped in."""
+        raise NotImplementedError(f"{type(self).__name__} cannot carry an object with the hand")
+
+    def allow_contact(self, bodies: "Iterable[str | int]") -> None:
+        """Contacts with ``bodies`` no longer make a configuration invalid (empty: none excused). Optional."""
+        raise NotImplementedError(f"{type(self).__name__} cannot excuse contacts")
 
     def resting_at(self, q: np.ndarray) -> "contextlib.AbstractContextManager[bool]":
         """A context manager for planning from ``q``: within it, contacts present at ``q`` between what the arm
@@ -119,9 +159,9 @@ class PrimitiveAction(ABC):
         self.arguments = dict(params)
 
     @abstractmethod
-    def execute(self, env: "Environment") -> ActionResult: ...  # noqa: F821
+    def execute(self, env: "Environment") -> ActionResult: ...
 
-    def feasible(self, env: "Environment") -> None:  # noqa: F821
+    def feasible(self, env: "Environment") -> None:
         """Raise ``PlanningError`` when this primitive could not succeed from the environment's current state,
         without moving anything (the scene generator asks ``approach`` whether every object can be grasped).
         Optional; the default raises nothing (no check)."""
@@ -139,12 +179,12 @@ class Sensor(ABC):
     """Reads the simulation. ``read`` is called on demand; ``on_step`` after every control step."""
 
     @abstractmethod
-    def read(self, env: "Environment") -> dict[str, Any]: ...  # noqa: F821
+    def read(self, env: "Environment") -> dict[str, Any]: ...
 
-    def reset(self, env: "Environment") -> None:  # noqa: F821
+    def reset(self, env: "Environment") -> None:
         """Called after every environment reset. Optional; default does nothing."""
 
-    def on_step(self, env: "Environment") -> None:  # noqa: F821
+    def on_step(self, env: "Environment") -> None:
         """Called after every control step. Optional; default does nothing. Keep it cheap."""
 
 
@@ -212,11 +252,11 @@ class ObjectSet(ABC):
     def categories(self) -> list[str]: ...
 
     @abstractmethod
-    def sample(self, rng: np.random.Generator, category: str | None = None) -> Any:
+    def sample(self, rng: np.random.Generator, category: str | None = None) -> "ObjectSpec":
         """A random object description (model, attributes, weight, stiffness) from the catalogue."""
 
     @abstractmethod
-    def build(self, spec: Any) -> Any:
+    def build(self, spec: "ObjectSpec") -> "ObjectModel":
         """The model for ``spec``: visual mesh, convex collision parts, mass, inertia, friction, grasp frames."""
 
     def default_stiffness(self, material: str) -> float | None:

@@ -21,18 +21,11 @@ from muble.sim.sync import is_lifted
 
 log = logging.getLogger(__name__)
 
-# What the built-in primitives declare through ``PrimitiveAction.hand_at_target`` and ``measures``, by registry
-# name, until their classes declare it themselves (their modules are being reworked); remove then.
-UNDECLARED: dict[str, dict[str, str]] = {
-    "move": {"hand_at_target": "over"}, "approach": {"hand_at_target": "grasp"},
-    "weigh": {"measures": "weight"}, "squeeze": {"measures": "stiffness"},
-}
-
 
 def declared(primitive: Any, name: str, attribute: str) -> str | None:
-    """The primitive's (class or instance) ``hand_at_target`` or ``measures`` declaration."""
-    value = getattr(primitive, attribute, None)
-    return value if value is not None else UNDECLARED.get(name, {}).get(attribute)
+    """The ``hand_at_target`` or ``measures`` declaration of a primitive (class or instance) registered as
+    ``name``; None when it declares none."""
+    return getattr(primitive, attribute, None)
 
 
 class PhysicalWorld:

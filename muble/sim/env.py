@@ -11,10 +11,13 @@ import mujoco
 import numpy as np
 
 from muble.core.errors import ConfigError, PhysicsError, unknown_name
-from muble.core.interfaces import Sensor
+from muble.core.environment import TableTop
+from muble.core.interfaces import MotionPlanner, Sensor
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
 from muble.core.types import Outcome, Pose, Trajectory
+from muble.sim import measure, sync
+from muble.sim.collision_world import MujocoCollisionWorld
 from muble.sim.control import OSC_OUTPUT_MAX, ArmServos, OperationalSpace, gripper_endpoints
 from muble.sim.faults import FaultDetector
 from muble.sim.grasp import GRASP_MODES, GraspModel
@@ -24,7 +27,6 @@ from muble.sim.world import build_world
 logger = logging.getLogger(__name__)
 
 CONTROLLERS = ("OSC_POSE",)
-GRAVITY = 9.81
 
 
 @dataclass
@@ -72,7 +74,8 @@ def home_configuration(model: mujoco.MjModel, names: Any, height: float = HOME_H
 
 
 class TabletopEnv:
-    """A robosuite tabletop with one arm, built from a scene graph and one ``ObjectModel`` per scene object.
+    """A robosuite tabletop with one arm, built from a scene graph and one ``ObjectModel`` per scene object; the
+    implementation of ``muble.core.environment.Environment``, the interface plugins use.
 
     ``robot`` is a ``muble.app.config.RobotConfig`` (or anything with the same attributes); keyword overrides
     replace its fields (``TabletopEnv(scene, models, name="Sawyer", grasp="friction")``).
@@ -122,6 +125,9 @@ class TabletopEnv:
         self.tare_force: np.ndarray | None = None
         # Measured values per scene id ({"weight": g, "stiffness": N/m}), filled by muble.sim.measure.
         self.measurements: dict[int, dict[str, float]] = {}
+        self.planner: MotionPlanner | None = None  # the run's planner for long moves (the episode runner sets it)
+        self.cache: dict[str, Any] = {}  # what plugins compute once per environment (Environment.cache)
+        self._collision_world: MujocoCollisionWorld | None = None
         self.steps = 0
         self.broken: str | None = None
         self.reset()
@@ -241,6 +247,11 @@ class TabletopEnv:
         """Keep the arm at its current set-point for ``duration`` seconds of simulated time."""
         self.advance(duration)
 
+    def set_arm_target(self, q: np.ndarray, qd: np.ndarray | None = None, data: mujoco.MjData | None = None) -> None:
+        """Set the arm servos' set-points (joint positions, optional velocity feed-forward) in ``data``: the live
+        simulation's by default, or a copy's."""
+        self.servos.command(self.data if data is None else data, q, qd)
+
     # ---------------------------------------------------------------------------------------------- gripper
     def set_gripper(self, command: float) -> None:
         """Gripper command in [-1 (open), 1 (closed)], applied at the next physics step."""
@@ -303,6 +314,80 @@ class TabletopEnv:
         b = self.grasp.body_of[obj_id]
         return Pose(self.data.xpos[b].copy(), self.data.xquat[b].copy())
 
+    @property
+    def object_ids(self) -> list[int]:
+        """Scene ids of the scene's objects."""
+        return sorted(self.names.objects)
+
+    def table(self) -> TableTop:
+        """The table top as the model has it (centre, half extents, top height, body id)."""
+        g = self.model.geom(self.names.table_geom).id
+        pos, size = self.data.geom_xpos[g], self.model.geom_size[g]
+        return TableTop(pos[:2].copy(), size[:2].copy(), float(pos[2] + size[2]), int(self.model.geom_bodyid[g]))
+
+    def object_top(self, obj_id: int) -> float:
+        """World z of the object's highest point, from its collision geometry as it stands now."""
+        m, d = self.model, self.data
+        b = m.body(self.names.objects[obj_id]).id
+        tops = []
+        for g in np.flatnonzero(m.geom_bodyid == b):
+            if m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0:
+                continue
+            tops.append(d.geom_xpos[g][2] + m.geom_rbound[g])
+            if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+                mesh = m.geom_dataid[g]
+                start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+                verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
+                tops[-1] = float(verts[:, 2].max())
+        return float(max(tops)) if tops else float(d.xpos[b][2])
+
+    def object_bbox(self, obj_id: int) -> dict[str, float]:
+        """Extents {"x", "y", "z"} (m) of the object's world-axis-aligned bounding box."""
+        return sync.world_bbox(self, obj_id)
+
+    def touches_support(self, obj_id: int, tolerance: float = 0.001) -> bool:
+        """The object touches the table or another object (live contacts within ``tolerance`` m)."""
+        return sync.touches_support(self, obj_id, tolerance)
+
+    def is_lifted(self, obj_id: int) -> bool:
+        """Held, clear of every support and above where it was grasped: what weighing needs."""
+        return sync.is_lifted(self, obj_id)
+
+    def is_raised(self, obj_id: int) -> bool:
+        """More than ``muble.sim.sync.RAISED_HEIGHT`` above where the scene put it."""
+        return sync.is_raised(self, obj_id)
+
+    def top_down(self, yaw: float = 0.0) -> np.ndarray:
+        """The grip-site orientation pointing the hand straight down (the rest pose's, which points down for every
+        supported arm), turned by ``yaw`` (rad) about the vertical: the frame of a top-down grasp."""
+        rest = self.collision_world().ee_pose(self.names.init_qpos).quat
+        turn = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+        out = np.empty(4)
+        mujoco.mju_mulQuat(out, turn, rest)
+        return out
+
+    def collision_world(self) -> MujocoCollisionWorld:
+        """This environment's collision world (a model copy, built on first use), synced with the current state:
+        the held object moves with the hand and no contact is excused."""
+        world = self._collision_world
+        if world is None:
+            world = self._collision_world = MujocoCollisionWorld(
+                self.model, self.data, self.arm_joint_names, self.ee_site, "robot0_base", self.names.hand_body)
+        world.hold(None)
+        world.allow_contact([])
+        world.sync(self.data)
+        if self.held_object is not None:
+            world.hold(self.names.objects[self.held_object])
+        return world
+
+    def weigh(self) -> float:
+        """Weight in grams of the object in the hand (``muble.sim.measure.weigh``); needs a tare."""
+        return measure.weigh(self)
+
+    def squeeze(self) -> float:
+        """Stiffness (N/m) of the object between the fingers (``muble.sim.measure.squeeze``)."""
+        return measure.squeeze(self)
+
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
         """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame."""
         rot = self.data.site_xmat[self.ft_site_id].reshape(3, 3)
@@ -363,12 +448,14 @@ class TabletopEnv:
         """Nothing to release (no GL context is opened here); kept for symmetry with renderers."""
 
 
-def _robot_settings(robot: Any, overrides: dict[str, Any]) -> dict[str, Any]:
-    from muble.app.config import RobotConfig
+# The robot settings used where none are given: the defaults of the ``robot`` config schema (muble.app.config).
+ROBOT_DEFAULTS: dict[str, Any] = {"name": "Panda", "gripper": None, "controller": "OSC_POSE", "control_freq": 20.0,
+                                  "timestep": 0.002, "grasp": "weld"}
 
-    fields = ("name", "gripper", "controller", "control_freq", "timestep", "grasp")
-    base = RobotConfig(name="Panda")
-    cfg = {f: getattr(base, f) for f in fields}
+
+def _robot_settings(robot: Any, overrides: dict[str, Any]) -> dict[str, Any]:
+    fields = tuple(ROBOT_DEFAULTS)
+    cfg = dict(ROBOT_DEFAULTS)
     if robot is not None:
         for f in fields:
             value = robot.get(f, cfg[f]) if isinstance(robot, dict) or hasattr(robot, "get") else getattr(robot, f, cfg[f])

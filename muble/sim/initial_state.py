@@ -23,7 +23,8 @@ import mujoco
 import numpy as np
 
 from muble.core.errors import InitialStateError, PhysicsError
-from muble.sim.faults import BELOW_TABLE
+from muble.core.table import BELOW_TABLE
+from muble.sim.world import TABLE_GEOM
 
 SETTLE_TIME = 0.5  # s of physics before the check: a 5 cm drop lands in 0.1 s, a tipping object is well under way
 MAX_DISPLACEMENT = 0.005  # m an object's origin or centre of mass may move while settling (generator: same figure)
@@ -33,7 +34,6 @@ SUPPORT_GAP = 0.002  # m between an object and its support that still counts as 
 FLOATING_SEARCH = 0.2  # m: how far below an unsupported object its support is looked for, to say how high it floats
 MASS_RANGE_G = (1.0, 10_000.0)  # g: a tabletop household object the arm works with weighs between these
 
-TABLE_GEOM = "table_collision"
 
 
 @dataclass

@@ -56,29 +56,27 @@ natural period ``1/sqrt(k)`` stays above two 2 ms physics steps; the stiffness a
 """
 from __future__ import annotations
 
-import math
-import re
 from dataclasses import dataclass
 
 import numpy as np
 
+from muble.core.object_physics import (  # noqa: F401  (re-exported: the names and contact law live in the core)
+    CONTACT_IMPEDANCE,
+    CONTACT_SOLMIX,
+    MAX_ACCEL_STIFFNESS,
+    MIN_TIME_CONSTANT,
+    contact_solref,
+    object_body_name,
+    object_id_from_name,
+    realised_damping,
+    realised_stiffness,
+    stiffness_of_solref,
+)
 from muble.core.objects import ObjectModel
-
-# Constant impedance: stiffness must not depend on penetration depth, or squeeze would see a non-linear spring.
-CONTACT_IMPEDANCE = 0.95
-# Weight of the object's solimp when MuJoCo mixes it with the other geom's (robosuite's fingers and table use a
-# depth-dependent 0.9-0.95 impedance): 1e6 : 1 leaves the object's constant impedance within 5e-8.
-CONTACT_SOLMIX = 1.0e6
-# Time constant floor of 2 physics steps (2 ms each, robosuite's default), MuJoCo's stability rule of thumb.
-MIN_TIME_CONSTANT = 0.004
-MAX_ACCEL_STIFFNESS = 1.0 / MIN_TIME_CONSTANT**2
 
 COLLISION_GROUP = 3
 VISUAL_GROUP = 2
 SITE_GROUP = 4
-
-_NAME_RE = re.compile(r"^obj(\d+)(?:_|$)")
-
 
 @dataclass
 class ObjectMjcf:
@@ -88,50 +86,6 @@ class ObjectMjcf:
     body_xml: str  # the <body> element for <worldbody>
     body_name: str
     geom_names: list[str]  # collision geoms first, visual geom last
-
-
-def object_body_name(object_id: int) -> str:
-    return f"obj{object_id}"
-
-
-def object_id_from_name(name: str | None) -> int | None:
-    """The object id encoded in an MJCF name (``obj3_col2`` → 3), or ``None`` for anything else."""
-    if not name:
-        return None
-    match = _NAME_RE.match(name)
-    return int(match.group(1)) if match else None
-
-
-def contact_solref(stiffness: float, damping_ratio: float, mass: float) -> tuple[tuple[float, float], tuple]:
-    """Direct-mode ``solref`` and constant ``solimp`` that make one contact point of the object with an immovable
-    surface a spring of ``stiffness`` (the base law; jaw contacts are rescaled at run time, see module doc).
-
-    ``stiffness`` in N/m, ``mass`` in kg (the object's), ``damping_ratio`` 1 = critically damped.
-    """
-    d = CONTACT_IMPEDANCE
-    k = stiffness * (1.0 - d) / mass
-    k = min(k, MAX_ACCEL_STIFFNESS)
-    b = 2.0 * damping_ratio * math.sqrt(k)
-    solimp = (d, d, 0.001, 0.5, 2.0)
-    return (-k, -b), solimp
-
-
-def realised_stiffness(stiffness: float, mass: float) -> float:
-    """The stiffness (N/m) ``contact_solref`` actually realises for an object of ``mass`` (after the cap)."""
-    (k, _), _ = contact_solref(stiffness, 1.0, mass)
-    return stiffness_of_solref(-k, mass)
-
-
-def realised_damping(stiffness: float, damping_ratio: float, mass: float) -> float:
-    """The contact damping (N·s/m) that goes with ``contact_solref`` for an object of ``mass``."""
-    (_, b), _ = contact_solref(stiffness, damping_ratio, mass)
-    return stiffness_of_solref(-b, mass)
-
-
-def stiffness_of_solref(k: float, mass: float) -> float:
-    """The point stiffness (N/m) of direct-mode ``k`` (= -solref[0]) against an immovable surface: at rest
-    ``f/r = k / ((1-d)·A)`` with ``A = 1/mass``; the same map turns ``b`` into a damping in N·s/m."""
-    return k * mass / (1.0 - CONTACT_IMPEDANCE)
 
 
 def _floats(values) -> str:

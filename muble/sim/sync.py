@@ -6,6 +6,8 @@ import copy
 import mujoco
 import numpy as np
 
+from muble.core.geometry import tilt_deg
+from muble.core.observation import TOUCHING_TABLE
 from muble.core.scene import SceneGraph
 
 RAISED_HEIGHT = 0.01  # m above its resting height counts as raised
@@ -22,6 +24,12 @@ def world_bbox(env, obj_id: int) -> dict[str, float]:
     return {"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])}
 
 
+def is_raised(env, obj_id: int) -> bool:
+    """More than ``RAISED_HEIGHT`` above where the scene put it (its body's initial height)."""
+    rest_z = float(env.model.body_pos[env.grasp.body_of[obj_id]][2])
+    return bool(env.object_pose(obj_id).pos[2] > rest_z + RAISED_HEIGHT)
+
+
 LIFT_CLEARANCE = 0.005  # m above the height at which it was grasped that a held object must be to count as lifted
 
 
@@ -29,7 +37,7 @@ def touches_support(env, obj_id: int, tolerance: float = 0.001) -> bool:
     """The object touches the table or another object (contacts of the live physics, within ``tolerance``)."""
     m, d = env.model, env.data
     body = env.grasp.body_of[obj_id]
-    supports = {int(m.geom_bodyid[m.geom("table_collision").id])}
+    supports = {int(m.geom_bodyid[m.geom(env.names.table_geom).id])}
     supports |= {int(b) for i, b in env.grasp.body_of.items() if i != obj_id}
     for c in d.contact[: d.ncon]:
         if c.dist > tolerance:
@@ -49,14 +57,14 @@ def is_lifted(env, obj_id: int) -> bool:
 
 
 TOUCH_DISTANCE = 0.001  # m between two geoms that counts as touching
-TABLE = "table"
+TABLE = TOUCHING_TABLE
 
 
 def touching(env) -> dict[int, set]:
     """What each object touches now, from the live contacts: other objects' scene ids and ``"table"``."""
     m, d = env.model, env.data
     body_to_id = {int(b): i for i, b in env.grasp.body_of.items()}
-    table = int(m.geom_bodyid[m.geom("table_collision").id])
+    table = int(m.geom_bodyid[m.geom(env.names.table_geom).id])
     out: dict[int, set] = {i: set() for i in env.grasp.body_of}
     for c in d.contact[: d.ncon]:
         if c.dist > TOUCH_DISTANCE:
@@ -71,13 +79,6 @@ def touching(env) -> dict[int, set]:
     return out
 
 
-def tilt_deg(quat: np.ndarray) -> float:
-    """Angle (degrees) between the object's z axis and the world's vertical, from a quaternion (w, x, y, z)."""
-    w, x, y, z = (float(v) for v in quat)
-    cos = 1.0 - 2.0 * (x * x + y * y)
-    return float(np.degrees(np.arccos(min(1.0, max(-1.0, cos)))))
-
-
 def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
     """A copy of ``previous`` with every object's pose, bbox, flags and physical state taken from the simulation
     now: ``extra["touching"]`` (sorted object ids, then ``"table"``), ``extra["tilt_deg"]`` and
@@ -86,14 +87,13 @@ def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
     contacts = touching(env)
     for obj in scene.objects:
         pose = env.object_pose(obj.id)
-        rest_z = float(env.model.body_pos[env.grasp.body_of[obj.id]][2])
         obj.position = pose.pos
         obj.orientation = pose.quat
         obj.rotation = float(np.degrees(obj.yaw))
         obj.bbox = world_bbox(env, obj.id)
         in_hand = env.held_object == obj.id
         obj.extra["in_hand"] = in_hand
-        obj.extra["raised"] = bool(pose.pos[2] > rest_z + RAISED_HEIGHT)
+        obj.extra["raised"] = is_raised(env, obj.id)
         touched = contacts.get(obj.id, set())
         obj.extra["touching"] = sorted(t for t in touched if t != TABLE) + ([TABLE] if TABLE in touched else [])
         obj.extra["tilt_deg"] = round(tilt_deg(pose.quat), 2)

@@ -29,6 +29,9 @@ FRONT_CAMERA = "front"
 WRIST_CAMERA = "wrist"
 
 
+TABLE_GEOM = "table_collision"  # robosuite's TableArena names its top's collision geom so
+
+
 def object_weld_name(obj_id: int) -> str:
     return f"grasp_object{obj_id}"
 
@@ -49,6 +52,7 @@ class WorldNames:
     left_pads: list[str]  # finger pad geoms
     right_pads: list[str]
     robot_geom_prefixes: tuple[str, ...]
+    table_geom: str = TABLE_GEOM  # the table top's collision geom
     objects: dict[int, str] = field(default_factory=dict)  # scene id -> body name
     welds: dict[int, str] = field(default_factory=dict)  # scene id -> weld equality name
     cameras: dict[str, str] = field(default_factory=dict)  # role -> MuJoCo camera name

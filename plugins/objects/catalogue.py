@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 from muble import ConfigError, ObjectSet
 from muble.core.errors import unknown_name
 from muble.core.objects import GraspFrame, MeshPart, ObjectModel, ObjectSpec
-from muble.sim.object_mjcf import realised_damping, realised_stiffness
+from muble.core.object_physics import realised_damping, realised_stiffness
 
 from muble_plugins.objects.build_cache import built_geometry
 from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F401 - re-exported for callers
@@ -120,8 +120,7 @@ def grasp_quat(closing, approach) -> np.ndarray:
     x = np.asarray(closing, dtype=float)
     z = np.asarray(approach, dtype=float)
     x, z = x / np.linalg.norm(x), z / np.linalg.norm(z)
-    x_, y_, z_, w = Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])).as_quat()
-    return np.array([w, x_, y_, z_])
+    return Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])).as_quat(scalar_first=True)
 
 
 def top_down(position, yaw: float, width: float) -> GraspFrame:

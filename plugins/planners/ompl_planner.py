@@ -57,7 +57,7 @@ class OmplPlanner(MotionPlanner):
         if isinstance(goal, JointGoal):
             q = np.asarray(goal.q, dtype=float)
             if not world.is_valid(q):
-                contacts = getattr(world, "last_contacts", [])
+                contacts = world.last_contacts
                 raise PlanningError(f"goal configuration is in collision or outside the joint limits {contacts[:3]}; "
                                     "choose another goal")
             return q
@@ -68,7 +68,7 @@ class OmplPlanner(MotionPlanner):
         # A held object may start against what it rests on or leans on (not the arm): the path may leave it.
         with world.resting_at(start_q) as valid:
             if not valid:
-                contacts = getattr(world, "last_contacts", [])
+                contacts = world.last_contacts
                 raise PlanningError(f"start configuration is in collision {contacts[:3]}; move the arm clear "
                                     "first (e.g. a straight-line retreat) or allow the contact")
             return self._plan(start_q, goal, world)
@@ -84,7 +84,7 @@ class OmplPlanner(MotionPlanner):
             path = self._sample_path(start_q, goal_q, world)
         self.last_planning_time = time.perf_counter() - began
         logger.debug("planned %d waypoints in %.1f ms", len(path), self.last_planning_time * 1e3)
-        names = tuple(getattr(world, "joint_names", ()))
+        names = tuple(world.joint_names)
         return time_parameterise(path, self.config.max_velocity, self.config.max_acceleration,
                                  self.config.sample_period, names)
 

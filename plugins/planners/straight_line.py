@@ -61,7 +61,7 @@ class StraightLinePlanner(MotionPlanner):
         else:
             path, hand_distances = self._cartesian_line(start_q, goal, world)
         self.last_planning_time = time.perf_counter() - began
-        return self._timed(path, hand_distances, tuple(getattr(world, "joint_names", ())))
+        return self._timed(path, hand_distances, tuple(world.joint_names))
 
     def _joint_line(self, start_q: np.ndarray, goal_q: np.ndarray, world: CollisionWorld) -> np.ndarray:
         n = max(1, int(np.ceil(np.max(np.abs(goal_q - start_q)) / 0.02)))
@@ -72,11 +72,11 @@ class StraightLinePlanner(MotionPlanner):
         return path
 
     def _cartesian_line(self, start_q: np.ndarray, goal: PoseGoal, world: CollisionWorld):
-        ee_pose = getattr(world, "ee_pose", None)
-        if ee_pose is None:
+        try:
+            start: Pose = world.ee_pose(start_q)
+        except NotImplementedError:
             raise PlanningError(f"the straight-line planner needs a world with ee_pose(q); {type(world).__name__} "
-                                "has none: use the 'ompl' planner")
-        start: Pose = ee_pose(start_q)
+                                "has none: use the 'ompl' planner") from None
         distance = float(np.linalg.norm(goal.pose.pos - start.pos))
         if distance > self.config.max_distance:
             raise PlanningError(f"straight-line move of {distance:.2f} m exceeds max_distance "
@@ -84,8 +84,7 @@ class StraightLinePlanner(MotionPlanner):
         dot = min(1.0, abs(float(np.dot(start.quat, goal.pose.quat))))
         angle = 2.0 * np.arccos(dot)
         n = max(1, int(np.ceil(max(distance / self.config.step, angle / self.config.rotation_step))))
-        # A world that can solve IK from one seed only keeps the arm on its current branch.
-        local_ik = getattr(world, "local_inverse_kinematics", None)
+        # IK from the previous configuration alone keeps the arm on its current branch.
         path = [start_q]
         q = start_q
         for i in range(1, n + 1):
@@ -97,7 +96,7 @@ class StraightLinePlanner(MotionPlanner):
                 goal.orientation_tolerance if last else self.config.orientation_tolerance,
             )
             try:
-                q_next = local_ik(target, q) if local_ik else world.inverse_kinematics(target, seeds=q[None])
+                q_next = world.local_inverse_kinematics(target, q)
             except PlanningError as e:
                 raise PlanningError(f"straight line blocked at {f:.0%} of the way: {e}") from None
             jump = float(np.max(np.abs(q_next - q)))
@@ -110,7 +109,7 @@ class StraightLinePlanner(MotionPlanner):
 
     @staticmethod
     def _blocked(world: CollisionWorld, fraction: float) -> str:
-        contacts = getattr(world, "last_contacts", [])
+        contacts = world.last_contacts
         return f"straight line blocked at {fraction:.0%} of the way by contact {contacts[:3]}; use the 'ompl' planner"
 
     def _timed(self, path: np.ndarray, hand_distances: np.ndarray | None, names: tuple[str, ...]) -> Trajectory:

@@ -1,29 +1,23 @@
-"""What every primitive needs from the environment: a collision world kept in sync, planners, trajectory
-execution with contact counting, and the table's geometry.
+"""What the built-in primitives share on top of the environment API (``muble.core.environment.Environment``):
+the collision world, planners, trajectory execution with contact counting, and the table's geometry.
 
-The collision world is built once per environment (a model copy) and re-synced before every plan, so planning
-never writes to the live simulation.
+The collision world is the environment's own (a model copy, re-synced before every plan), so planning never
+writes to the live simulation.
 """
 from __future__ import annotations
 
 import logging
-import weakref
 from dataclasses import dataclass, field
 
-import mujoco
 import numpy as np
 
-from muble import MotionPlanner, PlanningError, Pose, PoseGoal, Trajectory
-from muble.core.table import part_region as table_part_region
-from muble.sim.collision_world import MujocoCollisionWorld
+from muble import CollisionWorld, MotionPlanner, PlanningError, Pose, PoseGoal, Trajectory
+from muble.core.environment import Environment, TableTop
 
 logger = logging.getLogger(__name__)
 
 HOVER = 0.12  # m between an object's top and the hand when moving above it
-TABLE_MARGIN = 0.08  # m kept free along the table's edges when choosing a place on it
 
-_worlds: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-_grips: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 _grips_by_kind: dict[tuple, object] = {}
 
 
@@ -36,26 +30,16 @@ class MotionReport:
     unintended_contacts: set[tuple[str, str]] = field(default_factory=set)
 
 
-def collision_world(env) -> MujocoCollisionWorld:
+def collision_world(env: Environment) -> CollisionWorld:
     """The environment's collision world, synced with its current state (held object included)."""
-    world = _worlds.get(env)
-    if world is None:
-        world = MujocoCollisionWorld(env.model, env.data, env.arm_joint_names, env.ee_site, "robot0_base",
-                                     env.names.hand_body)
-        _worlds[env] = world
-    world.hold(None)
-    world.allow_contact([])
-    world.sync(env.data)
-    if env.held_object is not None:
-        world.hold(env.names.objects[env.held_object])
-    return world
+    return env.collision_world()
 
 
-def grip_geometry(env):
+def grip_geometry(env: Environment):
     """The mounted gripper's pad geometry (``grasping.GripGeometry``), measured once per environment."""
     from muble_plugins.primitives.grasping import measure_grip
 
-    grip = _grips.get(env)
+    grip = env.cache.get("grip_geometry")
     if grip is None:
         # The pads' geometry depends on the gripper model alone: measured once per process for each kind.
         kind = (env.names.robot, type(env.names.gripper_format).__name__, tuple(env.names.left_pads),
@@ -63,7 +47,7 @@ def grip_geometry(env):
         grip = _grips_by_kind.get(kind)
         if grip is None:
             grip = _grips_by_kind[kind] = measure_grip(env)
-        _grips[env] = grip
+        env.cache["grip_geometry"] = grip
     return grip
 
 
@@ -76,9 +60,9 @@ def pad_gap(env) -> float:
     return pad_faces(env.model, env.data, env.model.site(env.ee_site).id, left, right)[2]
 
 
-def planner(env, name: str) -> MotionPlanner:
+def planner(env: Environment, name: str) -> MotionPlanner:
     """The environment's configured planner for long moves (``env.planner``) or a built-in one by name."""
-    configured = getattr(env, "planner", None)
+    configured = env.planner
     if name == "ompl" and isinstance(configured, MotionPlanner):
         return configured
     from muble import get_registry
@@ -108,7 +92,7 @@ def touching_bodies(env, bodies: set[int]) -> set[int]:
     return out
 
 
-def execute(env, trajectory: Trajectory, world: MujocoCollisionWorld, allowed: set[int] = frozenset(),
+def execute(env, trajectory: Trajectory, world: CollisionWorld, allowed: set[int] = frozenset(),
             settle: float = 0.2) -> MotionReport:
     """Track ``trajectory`` and count, in physics, contacts of the arm or held object with anything else.
 
@@ -143,67 +127,26 @@ def execute(env, trajectory: Trajectory, world: MujocoCollisionWorld, allowed: s
     return report
 
 
-def plan_to(env, world: MujocoCollisionWorld, goal: PoseGoal, how: str = "ompl") -> Trajectory:
-    return planner(env, how).plan(env.arm_q(), goal, world)
-
-
-def top_down(env, yaw: float = 0.0) -> np.ndarray:
+def top_down(env: Environment, yaw: float = 0.0) -> np.ndarray:
     """Grip-site orientation pointing straight down, turned by ``yaw`` about the vertical from the rest pose."""
-    rest = world_rest_quat(env)
-    turn = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
-    out = np.empty(4)
-    mujoco.mju_mulQuat(out, turn, rest)
-    return out
+    return env.top_down(yaw)
 
 
-def world_rest_quat(env) -> np.ndarray:
+def world_rest_quat(env: Environment) -> np.ndarray:
     """Grip-site orientation at the robot's rest posture (pointing down for every supported arm)."""
-    world = collision_world(env)
-    return world.ee_pose(env.names.init_qpos).quat
+    return env.top_down(0.0)
 
 
-@dataclass
-class Table:
-    centre: np.ndarray  # (x, y) of the top's centre
-    half: np.ndarray  # (hx, hy)
-    top_z: float
-    body: int
-
-    def part_region(self, part: str) -> tuple[np.ndarray, np.ndarray]:
-        """(low, high) corners in x, y where a placed object's centre goes to lie in a named part of the table.
-
-        The parts are those of ``muble.core.table`` (the one definition tasks and success checks use: seen from
-        the front camera, "left" is -y, "front" the far half), kept ``TABLE_MARGIN`` inside this table's top.
-        """
-        (x0, x1), (y0, y1) = table_part_region(part)
-        lo = np.maximum([x0, y0], self.centre - self.half + TABLE_MARGIN)
-        hi = np.minimum([x1, y1], self.centre + self.half - TABLE_MARGIN)
-        return lo, hi
+Table = TableTop  # the table top as ``table(env)`` gives it
 
 
-def table(env) -> Table:
-    m, d = env.model, env.data
-    g = m.geom("table_collision").id
-    pos = d.geom_xpos[g]
-    size = m.geom_size[g]
-    return Table(pos[:2].copy(), size[:2].copy(), float(pos[2] + size[2]), int(m.geom_bodyid[g]))
+def table(env: Environment) -> TableTop:
+    return env.table()
 
 
-def object_top(env, obj_id: int) -> float:
+def object_top(env: Environment, obj_id: int) -> float:
     """Height of an object's highest point (world z) from its current collision geometry."""
-    m, d = env.model, env.data
-    b = m.body(env.names.objects[obj_id]).id
-    tops = []
-    for g in np.flatnonzero(m.geom_bodyid == b):
-        if m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0:
-            continue
-        tops.append(d.geom_xpos[g][2] + m.geom_rbound[g])
-        if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
-            mesh = m.geom_dataid[g]
-            start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-            verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
-            tops[-1] = float(verts[:, 2].max())
-    return float(max(tops)) if tops else float(d.xpos[b][2])
+    return env.object_top(obj_id)
 
 
 def hover_pose(env, xy: np.ndarray, clear_z: float, quat: np.ndarray) -> PoseGoal:

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from muble import Pose
+from muble.core.geometry import yaw_quat
 
 TABLE_CLEARANCE = 0.004  # m the lowest fingertip stays above the table top in a grasp pose
 PRE_GRASP = 0.10  # m back along the approach from the grasp pose where the straight move in starts
@@ -111,13 +112,12 @@ def measure_grip(env) -> GripGeometry:
     site = m.site(env.ee_site).id
     left = [m.geom(n).id for n in env.names.left_pads]
     right = [m.geom(n).id for n in env.names.right_pads]
-    arm = env.servos
     ctrl_ids = env.gripper_actuator_ids
     states = {}
     for name, ctrl in (("open", env.gripper_open_ctrl), ("closed", env.gripper_closed_ctrl)):
         d.ctrl[:] = env.data.ctrl
         d.ctrl[ctrl_ids] = ctrl
-        arm.command(d, env.arm_q())
+        env.set_arm_target(env.arm_q(), data=d)
         for _ in range(int(FINGER_TRAVEL / m.opt.timestep)):
             mujoco.mj_step(m, d)
         mujoco.mj_forward(m, d)
@@ -160,9 +160,8 @@ def _compose(pose_pos, pose_quat, pos, quat) -> tuple[np.ndarray, np.ndarray]:
 
 def _turned(quat: np.ndarray, angle: float) -> np.ndarray:
     """``quat`` turned by ``angle`` about its own z axis (the approach direction)."""
-    turn = np.array([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)])
     out = np.empty(4)
-    mujoco.mju_mulQuat(out, quat, turn)
+    mujoco.mju_mulQuat(out, quat, yaw_quat(angle))
     return out
 
 
@@ -278,9 +277,8 @@ def _swept(frame, angle: float, stretch: float) -> tuple[np.ndarray, np.ndarray]
         return pos, np.asarray(frame.quat, dtype=float)
     c, s = np.cos(angle), np.sin(angle)
     pos = np.array([stretch * (c * pos[0] - s * pos[1]), stretch * (s * pos[0] + c * pos[1]), pos[2]])
-    spin = np.array([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)])
     out = np.empty(4)
-    mujoco.mju_mulQuat(out, spin, np.asarray(frame.quat, dtype=float))
+    mujoco.mju_mulQuat(out, yaw_quat(angle), np.asarray(frame.quat, dtype=float))
     return pos, out
 
 

@@ -53,17 +53,15 @@ class Weigh(PrimitiveAction):
     """Weight in grams of the object in hand, from the wrist force sensor minus the empty-hand tare."""
 
     params = ()
+    measures = "weight"
 
     def execute(self, env) -> ActionResult:
-        from muble.sim.measure import weigh
-        from muble.sim.sync import touches_support
-
         if env.held_object is None:
             return ActionResult(False, failure_reason="nothing in the hand to weigh: pick an object up first")
-        if touches_support(env, env.held_object):
+        if env.touches_support(env.held_object):
             # Whatever it rests on would carry part of its weight: the reading would be wrong, not just noisy.
             return ActionResult(False, failure_reason="the held object still touches its support: lift it first")
-        grams = weigh(env)
+        grams = env.weigh()
         return ActionResult(True, measurement=grams, info={"object": env.held_object, "unit": "g"})
 
 
@@ -71,15 +69,10 @@ class Squeeze(PrimitiveAction):
     """Stiffness (N/m) of the object between the fingers, from force against finger displacement."""
 
     params = ()
+    measures = "stiffness"
 
     def execute(self, env) -> ActionResult:
-        from muble.sim import measure
-
         if env.held_object is None:
             return ActionResult(False, failure_reason="nothing between the fingers to squeeze: grasp an object first")
-        squeeze = getattr(measure, "squeeze", None)
-        if squeeze is None:
-            return ActionResult(False, failure_reason="this environment has no stiffness measurement "
-                                "(muble.sim.measure.squeeze)")
-        stiffness = squeeze(env)
+        stiffness = env.squeeze()
         return ActionResult(True, measurement=stiffness, info={"object": env.held_object, "unit": "N/m"})

@@ -18,7 +18,6 @@ from muble_plugins.primitives.grasping import PAD_MARGIN, PRE_GRASP, grasp_appro
 
 logger = logging.getLogger(__name__)
 
-TABLE_PARTS = ("left", "right", "front", "back", "centre")
 # Clearance (m) the open hand keeps from the target in the grasp pose and on the way in: the fingers must
 # not already press on it, or closing would not pinch it between the pads.
 TARGET_TOUCH = 0.001
@@ -90,6 +89,7 @@ class Move(PrimitiveAction):
     """
 
     params = (TARGET_PLACE, ATTEMPT)
+    hand_at_target = "over"
 
     def execute(self, env) -> ActionResult:
         target = self.arguments.get("target")
@@ -185,6 +185,7 @@ class Approach(PrimitiveAction):
     """
 
     params = (Param("target", "object", required=True), ATTEMPT)
+    hand_at_target = "grasp"
 
     def execute(self, env) -> ActionResult:
         obj_id = int(self.arguments["target"])
@@ -489,10 +490,8 @@ class Lift(PrimitiveAction):
     @staticmethod
     def _checked(env, report: ctx.MotionReport, held: int | None, height: float) -> ActionResult:
         """Lifting an object succeeds only when it ends held and clear of every support."""
-        from muble.sim.sync import is_lifted
-
         result = _result(report, env, held, height=height)
-        if result.success and held is not None and not is_lifted(env, held):
+        if result.success and held is not None and not env.is_lifted(held):
             result.success = False
             result.failure_reason = f"object {held} is still supported after lifting (caught on something)"
         return result

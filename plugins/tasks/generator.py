@@ -12,10 +12,10 @@ from typing import Any, Callable
 import numpy as np
 
 from muble import ConfigError, Instruction, SceneGraph
+from muble.core.descriptions import SceneIndex
 from muble.core.errors import unknown_name
 from muble.core.program import execute
 
-from muble_plugins.tasks.descriptions import SceneIndex
 from muble_plugins.tasks.templates import ALL_TEMPLATES, TEMPLATES, OptionContext, Template
 
 MIN_WORDS, MAX_WORDS = 5, 16

@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
+from muble.core.descriptions import SceneIndex
 from muble.core.program import table_parts_of
 
-from muble_plugins.tasks.descriptions import SceneIndex
 from muble_plugins.tasks.geometry import room_on_part
 from muble_plugins.tasks.template_data import DataTemplate, read_template_file
 

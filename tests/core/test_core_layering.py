@@ -31,6 +31,8 @@ FORBIDDEN = [
     ("muble_plugins", "muble.dataset", "plugins do not write datasets; the core calls them"),
     ("muble_plugins", "muble.evaluation", "plugins do not run evaluations; the core calls them"),
     ("muble_plugins", "muble.generation", "plugins do not generate scenes; the core calls them"),
+    ("muble_plugins", "muble.sim", "plugins use the environment they are handed (muble.core.environment), not "
+                               "the simulation's modules"),
 ]
 
 # Imports allowed against the rules: (file, imported module) -> why it must stay.
@@ -39,13 +41,9 @@ EXCEPTIONS: dict[tuple[str, str], str] = {}
 # Plugin names that ``muble/`` may write as plugin names: (file, name) -> why.
 _ORIGINAL = ("the original MuBlE sequence files name these built-in primitives differently; the mapping is part of "
              "that file format (muble.core.action_names), and any other primitive keeps its registry name")
-_UNDECLARED = ("the built-in primitives' hand_at_target/measures declarations, kept by name until their own "
-               "classes (plugins/primitives, being reworked) declare them; remove with muble.episode.physical."
-               "UNDECLARED")
 NAME_EXCEPTIONS: dict[tuple[str, str], str] = {
     **{("muble/core/action_names.py", n): _ORIGINAL for n in ("approach", "close_gripper", "lift", "lower",
                                                               "open_gripper")},
-    **{("muble/episode/physical.py", n): _UNDECLARED for n in ("move", "approach", "weigh", "squeeze")},
 }
 
 

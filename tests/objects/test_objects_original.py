@@ -12,7 +12,7 @@ from muble.core.scene import SceneGraph, SceneObject
 from muble.core.scene_io import load_scenes
 from muble.sim.build import object_models
 from muble_plugins.objects.catalogue import FRICTION, default_stiffness
-from muble_plugins.objects.checks import drop
+from muble.sim.object_checks import drop
 from muble_plugins.objects.original import ORIGINAL_MODELS
 from muble_plugins.objects.shopvrb2 import CATALOGUE
 from muble_plugins.objects.testing import spec_of

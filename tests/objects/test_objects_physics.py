@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from muble_plugins.objects.checks import drop, settle, stack
+from muble.sim.object_checks import drop, settle, stack
 from muble_plugins.objects.shopvrb2 import CATALOGUE
 from muble_plugins.objects.ycb import CATALOGUE as YCB
 

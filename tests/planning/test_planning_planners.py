@@ -12,7 +12,7 @@ from muble import ConfigError, JointGoal, PlanningError, Pose, PoseGoal, get_reg
 from muble.plugins.registry import validate_params
 from muble_plugins.planners.ompl_planner import OmplPlanner
 from muble_plugins.planners.straight_line import StraightLinePlanner
-from muble_plugins.planners.tabletop import build_tabletop
+from muble.sim.tabletop import build_tabletop
 from muble_plugins.planners.timing import time_parameterise
 
 WALL = ((0.0, 0.0, 0.95), (0.04, 0.15, 0.15))  # a wall on the table between the hand's home and the far side

@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 from muble.core.program import execute, outputs_match
-from muble_plugins.tasks.descriptions import SceneIndex
+from muble.core.descriptions import SceneIndex
 from muble_plugins.tasks.generator import generate_for_template, generate_instructions
 from muble_plugins.tasks.geometry import room_on_part
 from muble_plugins.tasks.synthetic import sample_scenes
 from muble_plugins.tasks.templates import TEMPLATES, OptionContext
-from muble_plugins.tasks.vocabulary import ATTRIBUTE_STEP, describe
+from muble.core.descriptions import ATTRIBUTE_STEP, describe
 
 STEP_ATTRIBUTE = {step: attr for attr, step in ATTRIBUTE_STEP.items()}
 

@@ -126,7 +126,7 @@ def test_a_bad_template_file_names_template_and_field(tmp_path, change, says):
 
 
 def test_compiled_options_agree_with_the_interpreted_constraints(tmp_path):
-    from muble_plugins.tasks.descriptions import SceneIndex
+    from muble.core.descriptions import SceneIndex
     from muble_plugins.tasks.template_data import DataTemplate
     from muble_plugins.tasks.templates import OptionContext
 

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from muble.core.types import SEG_BACKGROUND, SEG_ROBOT, SEG_TABLE
-from muble.sim.object_mjcf import object_id_from_name
+from muble.core.object_physics import object_id_from_name
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
