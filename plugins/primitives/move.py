@@ -1,0 +1,128 @@
+"""The ``move`` primitive: the hand above an object or a table part, by a planned collision-free move."""
+from __future__ import annotations
+
+import itertools
+import logging
+
+import numpy as np
+
+from muble import ActionResult, JointGoal, PlanningError, PoseGoal, PrimitiveAction
+from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives import placement
+from muble_plugins.primitives.common import ATTEMPT, CARRY_TURNS, RELEASE_GAPS, TARGET_PLACE, checked_result, rotated
+
+logger = logging.getLogger(__name__)
+
+
+class Move(PrimitiveAction):
+    """Move the hand above an object (scene id) or a table part (left/right/front/back/centre).
+
+    Carrying an object to a table part, the hand goes over the free place ``lower`` will use: the first place
+    (nearest the part's centre) that the arm reaches and can descend to straight without touching anything.
+    """
+
+    params = (TARGET_PLACE, ATTEMPT)
+    hand_at_target = "over"
+
+    def execute(self, env) -> ActionResult:
+        target = self.arguments.get("target")
+        attempt = int(self.arguments.get("attempt", 0))
+        held = env.held_object
+        if isinstance(target, str):
+            ctx.table(env).part_region(target)  # an unknown part name fails before anything moves
+        else:
+            ctx.body_name(env, target)
+        snap = env.snapshot()
+        try:
+            rise = placement.clear_start(env, ctx.collision_world(env))  # off what the start touches, if anything
+            world = ctx.collision_world(env)
+            if isinstance(target, str) and env.held_object is not None:
+                goals = [JointGoal(over_free_place(env, world, target, attempt))]
+            else:
+                goals = rotated(hover_goals(env, target), attempt)
+            trajectory = first_planned(env, world, goals)
+        except PlanningError:
+            env.restore(snap)
+            raise
+        report = ctx.execute(env, trajectory, world)
+        return checked_result(placement.merge(rise, report), env, held, target=target)
+
+
+def first_planned(env, world, goals: list):
+    """The planned move to the first of ``goals`` that can be reached; the first goal's error when none can."""
+    reasons = []
+    for goal in goals:
+        world.allow_contact([])
+        try:
+            return ctx.planner(env, "ompl").plan(env.arm_q(), goal, world)
+        except PlanningError as e:
+            reasons.append(e)
+    raise reasons[0]
+
+
+# rad the empty hand may turn about the vertical to hover over an object, tried in this order: as it is, then a
+# quarter turn either way (the open fingers turned away from a tall neighbour), then the eighths between.
+HOVER_TURNS = tuple(np.radians([0, 90, -90, 45, -45]))
+
+
+def hover_goals(env, target) -> list[PoseGoal]:
+    """The hover poses over ``target`` to try in turn, the usual pose first, each once: the hand turned by each of
+    ``HOVER_TURNS`` (``CARRY_TURNS`` when it carries an object), first at the usual height, then above everything
+    standing near the target.
+
+    Over an object near the edge of the workspace the hand may have to turn about the vertical (a carried object
+    turning with it) to reach, and beside a tall neighbour rise above it or turn the open fingers away from it.
+    """
+    turns = CARRY_TURNS if env.held_object is not None else HOVER_TURNS
+    goals = []
+    for clear, yaw in itertools.product((False, True), turns):
+        goal = hover_goal(env, target, yaw, clear)
+        if not any(np.allclose(goal.pose.pos, g.pose.pos) and np.allclose(goal.pose.quat, g.pose.quat)
+                   for g in goals):
+            goals.append(goal)
+    return goals
+
+
+def hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
+    """Hover pose over ``target``: the hand turned by ``yaw`` about the vertical; with ``clear``, above
+    everything standing near it rather than above the target alone."""
+    table = ctx.table(env)
+    if isinstance(target, str):
+        lo, hi = table.part_region(target)
+        xy, top = 0.5 * (lo + hi), table.top_z
+    else:
+        xy, top = env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
+    quat = ctx.top_down(env, yaw)
+    if env.held_object is not None:
+        # Carrying: the hand keeps its orientation (the object stays as it was lifted, whatever the grasp)
+        # and the object's centre, not the hand, comes over the target, ready to be lowered onto it. Turned
+        # by ``yaw`` about the vertical, the object's offset from the hand turns too.
+        offset, quat = placement.turned(env, yaw)
+        xy = xy - offset
+    if isinstance(target, str) or clear:
+        top = max(top, placement.clear_top(env, xy, table.top_z, env.held_object))
+    return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat)
+
+
+def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
+    """The arm configuration ``ctx.HOVER`` over the first free place on ``part`` (rotated by ``attempt``) that the
+    held object can be lowered to straight, released at the first of ``RELEASE_GAPS``."""
+    table = ctx.table(env)
+    lo, hi = table.part_region(part)
+    places = placement.free_places(env, lo, hi, env.held_object)
+    if not places:
+        raise PlanningError(f"no free space on the {part} part of the table for object {env.held_object}; "
+                            "choose another part")
+    reasons = []
+    for xy in rotated(placement.spread(places), attempt):
+        place = placement.place_pose(env, xy, table.top_z, RELEASE_GAPS[0])
+        top = placement.clear_top(env, xy, table.top_z, env.held_object)
+        above = np.array([place.pos[0], place.pos[1], top + placement.held_depth(env) + ctx.HOVER])
+        try:
+            q_above, _ = placement.plan_descent(env, world, place, above, table.body)
+            return q_above
+        except PlanningError as e:
+            logger.debug("no descent to %s: %s", np.round(xy, 3).tolist(), e)
+            reasons.append(f"{np.round(xy, 3).tolist()}: {e}")
+    raise PlanningError(f"no free place on the {part} part of the table can be reached and descended to "
+                        f"({len(reasons)} tried): {reasons[0]}")
