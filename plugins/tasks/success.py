@@ -13,7 +13,7 @@ from muble import Answer, ConfigError, Instruction, Outcome, PlanningError, Scen
 from muble.core.program import execute
 
 from muble_plugins.tasks.geometry import broken, on_table_part, rests_on
-from muble_plugins.tasks.planner import stack_pairs
+from muble_plugins.tasks.task_planner import stack_pairs
 
 log = logging.getLogger(__name__)
 
