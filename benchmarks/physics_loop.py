@@ -2,7 +2,7 @@
 
 Figures: physics steps per second of (a) raw ``mj_step`` on the environment's model replaying the identical
 motion (the recorded controls; also at rest, where the solver has less to do), (b) ``TabletopEnv.follow``
-tracking a joint trajectory (primitive execution), (c) ``TabletopEnv.step`` with OSC_POSE actions (scripted
+tracking a joint trajectory (primitive execution), (c) ``TabletopEnv.step`` with IK_JOINT_SERVO actions (scripted
 control) against raw ``mj_step`` replaying that run's controls, and, as the reference, (d) robosuite's stock
 Lift + Panda OSC loop against raw ``mj_step`` on its model.
 
@@ -148,7 +148,7 @@ def main() -> None:
         raw.append(replay_rate(env, start_snap, ctrl))
     follow_ratio = float(np.median(np.array(follow) / np.array(raw)))
 
-    # (c) step (OSC_POSE) vs its replay; the replay must end in the very same state (same motion).
+    # (c) step (IK_JOINT_SERVO) vs its replay; the replay must end in the very same state (same motion).
     env.reset()
     step_snap = env.snapshot()
     actions = step_actions(env)
@@ -175,13 +175,13 @@ def main() -> None:
         reference = {"robosuite_ratio": None, "robosuite_error": f"robosuite Lift failed at reset with mujoco "
                      f"{mujoco.__version__}: AssertionError {e}".strip()}
     print(f"follow (primitives)          {follow_ratio:.3f} of raw mj_step on the same motion (goal {GOAL:.2f})")
-    print(f"step OSC_POSE (scripted)     {osc_ratio:.3f} of raw mj_step on the same motion (goal {GOAL:.2f}); "
+    print(f"step IK_JOINT_SERVO (scripted) {osc_ratio:.3f} of raw mj_step on the same motion (goal {GOAL:.2f}); "
           f"Python {python_us:.0f} us per control step of {env.n_substeps} physics steps")
     result = {
         "benchmark": "physics_loop", "metric": "follow_steps_per_s / raw_mj_step_steps_per_s (same motion)",
         "value": round(follow_ratio, 3), "unit": "ratio", "goal": GOAL,
         "osc_step_ratio": round(osc_ratio, 3), "osc_step_goal": GOAL,
-        "osc_step_metric": "env.step (OSC_POSE) steps_per_s / raw_mj_step_steps_per_s (same motion)",
+        "osc_step_metric": "env.step (IK_JOINT_SERVO) steps_per_s / raw_mj_step_steps_per_s (same motion)",
         "raw_steps_per_s": round(float(np.median(raw))), "raw_at_rest_steps_per_s": round(float(raw_rest)),
         "follow_ratio_vs_raw_at_rest": round(float(np.median(follow) / raw_rest), 3),
         "follow_steps_per_s": round(float(np.median(follow))),

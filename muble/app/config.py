@@ -28,7 +28,7 @@ class RobotConfig:
 
     name: str = MISSING  # robosuite robot name: Panda, Sawyer, UR5e, Kinova3, IIWA
     gripper: str | None = None  # robosuite gripper name; None = the robot's default
-    controller: str = "OSC_POSE"
+    controller: str = "IK_JOINT_SERVO"  # end-effector deltas by IK to joint servos; "OSC_POSE": its old name
     control_freq: float = bounded(20.0, gt=0)  # Hz
     timestep: float = bounded(0.002, gt=0)  # s, MuJoCo physics step
     grasp: str = "weld"  # "weld" (attach on contact of all pads) or "friction"

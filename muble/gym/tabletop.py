@@ -1,8 +1,8 @@
 """``MuBlE/Tabletop-v0``: continuous end-effector control of the arm with its gripper on a SHOP-VRB2 tabletop.
 
-Action: ``Box(-1, 1, (7,))`` = (dx, dy, dz, rx, ry, rz, gripper) of the ``OSC_POSE`` controller, one control step
-(``robot.control_freq``) per ``step``; the pose part is scaled to at most 5 cm / 0.5 rad, gripper -1 opens and 1
-closes (``TabletopEnv.step``). Observation: a camera image (``image``, the configured renderer at the configured
+Action: ``Box(-1, 1, (7,))`` = (dx, dy, dz, rx, ry, rz, gripper) of the ``IK_JOINT_SERVO`` controller, one control
+step (``robot.control_freq``) per ``step``; the pose part is scaled to at most 5 cm / 0.5 rad, gripper -1 opens and
+1 closes (``TabletopEnv.step``). Observation: a camera image (``image``, the configured renderer at the configured
 size) and the proprioception (end-effector pose, joint positions and velocities, gripper command and opening, a
 held flag). The environment has no reward of its own (0): wrap it with the reward of the skill being learned. A
 physics fault ends the episode (``terminated``, ``info["outcome"] == "broken_scene"``); the registered id truncates

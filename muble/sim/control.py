@@ -5,10 +5,10 @@ MuJoCo gravity compensation, so the joint impedance runs inside ``mj_step`` at e
 computes a new joint set-point once per control period; the physics then advances ``k`` substeps in one
 ``mj_step(model, data, nstep=k)`` call. This is what keeps Python out of the physics loop.
 
-The end-effector controller (``OSC_POSE``) is an operational-space law evaluated at the control rate: the task
-error (position and rotation vector) is mapped to joint space through the dynamically consistent inverse of the
-Jacobian, ``J̄ = M⁻¹Jᵀ(JM⁻¹Jᵀ + λI)⁻¹``, with a null-space pull towards the rest posture; the joint servos
-realise that displacement.
+The end-effector controller (``IK_JOINT_SERVO``, formerly ``OSC_POSE``) is inverse kinematics evaluated at the
+control rate, not an operational-space torque law: the task error (position and rotation vector) is mapped to joint
+space through the dynamically consistent inverse of the Jacobian, ``J̄ = M⁻¹Jᵀ(JM⁻¹Jᵀ + λI)⁻¹``, with a null-space
+pull towards the rest posture; the joint servos realise that displacement.
 """
 from __future__ import annotations
 
@@ -92,7 +92,7 @@ class ArmServos:
 
 
 class OperationalSpace:
-    """``OSC_POSE`` evaluated at the control rate: EE delta pose -> joint set-point.
+    """``IK_JOINT_SERVO`` evaluated at the control rate: EE delta pose -> joint set-point.
 
     The goal pose is the current pose moved by the delta (robosuite's delta semantics). A few Newton steps of the
     dynamically consistent inverse on a scratch ``MjData`` make the set-point reach the goal exactly even for

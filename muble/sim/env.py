@@ -26,7 +26,12 @@ from muble.sim.world import build_world
 
 logger = logging.getLogger(__name__)
 
-CONTROLLERS = ("OSC_POSE",)
+# ``IK_JOINT_SERVO``: an end-effector delta pose is solved to a joint set-point (inverse kinematics through the
+# dynamically consistent Jacobian inverse) and the joint servos track it; robosuite's delta-pose action.
+CONTROLLERS = ("IK_JOINT_SERVO",)
+# Former names still accepted in configs, mapped to the controller they named: ``OSC_POSE`` (the old name, after
+# robosuite's action, though no operational-space torque law runs).
+CONTROLLER_ALIASES = {"OSC_POSE": "IK_JOINT_SERVO"}
 
 
 @dataclass
@@ -84,6 +89,7 @@ class TabletopEnv:
     def __init__(self, scene: SceneGraph, models: dict[int, ObjectModel], robot: Any = None,
                  sensors: dict[str, Sensor] | None = None, **overrides: Any):
         cfg = _robot_settings(robot, overrides)
+        cfg["controller"] = CONTROLLER_ALIASES.get(cfg["controller"], cfg["controller"])
         if cfg["controller"] not in CONTROLLERS:
             raise ConfigError(unknown_name("controller", cfg["controller"], CONTROLLERS))
         if cfg["grasp"] not in GRASP_MODES:
@@ -158,7 +164,7 @@ class TabletopEnv:
         return self.observation(), {"outcome": None}
 
     def step(self, action: np.ndarray) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
-        """One control step of ``OSC_POSE``: ``action`` = (dx, dy, dz, rx, ry, rz, gripper) in [-1, 1].
+        """One control step of ``IK_JOINT_SERVO``: ``action`` = (dx, dy, dz, rx, ry, rz, gripper) in [-1, 1].
 
         The pose part is scaled to at most 5 cm / 0.5 rad per step (robosuite's defaults); gripper -1 opens,
         1 closes. A physics fault ends the episode: ``terminated`` is True and ``info["outcome"]`` is
@@ -449,8 +455,8 @@ class TabletopEnv:
 
 
 # The robot settings used where none are given: the defaults of the ``robot`` config schema (muble.app.config).
-ROBOT_DEFAULTS: dict[str, Any] = {"name": "Panda", "gripper": None, "controller": "OSC_POSE", "control_freq": 20.0,
-                                  "timestep": 0.002, "grasp": "weld"}
+ROBOT_DEFAULTS: dict[str, Any] = {"name": "Panda", "gripper": None, "controller": "IK_JOINT_SERVO",
+                                  "control_freq": 20.0, "timestep": 0.002, "grasp": "weld"}
 
 
 def _robot_settings(robot: Any, overrides: dict[str, Any]) -> dict[str, Any]:

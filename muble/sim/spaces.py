@@ -1,4 +1,4 @@
-"""The environment's Gymnasium spaces: the ``OSC_POSE`` control action and the proprioceptive observation."""
+"""The environment's Gymnasium spaces: the ``IK_JOINT_SERVO`` control action and the proprioceptive observation."""
 from __future__ import annotations
 
 import numpy as np

@@ -122,3 +122,11 @@ def test_sim_bad_options_are_named(scene_models):
         TabletopEnv(scene, models, grasp="glue")
     with pytest.raises(ConfigError, match="whole number"):
         TabletopEnv(scene, models, control_freq=30, timestep=0.002)
+    with pytest.raises(ConfigError, match="IK_JOINT_SERVO"):
+        TabletopEnv(scene, models, controller="OSC")
+
+
+def test_sim_old_controller_name_is_an_alias(scene_models):
+    scene, models = scene_models
+    assert TabletopEnv(scene, models).config["controller"] == "IK_JOINT_SERVO"
+    assert TabletopEnv(scene, models, controller="OSC_POSE").config["controller"] == "IK_JOINT_SERVO"
