@@ -1,14 +1,16 @@
 """``muble render``: render a scene file, or an episode's keyframes, to PNGs plus a GIF and a contact sheet.
 
-    muble render SCENE.json [--keyframes EPISODE_states.npz] [--renderer blender] [--camera front]
-                 [--object-set shopvrb2] [--out DIR] [--set samples=16 --set width=320 …] [--passes]
+    muble render SCENE.json [--keyframes EPISODE_states.npz] [--renderer NAME] [--camera front]
+                 [--object-set NAME] [--out DIR] [--set samples=16 --set width=320 …] [--passes]
 
 ``EPISODE_states.npz`` is the keyframe state file ``muble run`` writes beside an episode's keyframes
 (``keyframes/<episode>_states.npz``, see ``muble.core.keyframe_states``): ``qpos``, an array (keyframes, nq) of
 MuJoCo joint positions of the scene's world, one row per keyframe, and the robot, object set and camera the
 episode used (the defaults of ``--robot``, ``--object-set`` and ``--camera``). Without it the scene's initial
-state is rendered once. With ``--passes`` each keyframe's depth (16-bit PNG, millimetres) and segmentation
-(16-bit PNG, label + 3: 0 background, 1 table, 2 robot, 3 + i object i) are written next to its RGB.
+state is rendered once. The renderer, and an object set that neither the command line nor the keyframe states
+name, are the ``render`` config's (``conf/render.yaml``: the run's, with the photoreal renderer). With
+``--passes`` each keyframe's depth (16-bit PNG, millimetres) and segmentation (16-bit PNG, label + 3:
+0 background, 1 table, 2 robot, 3 + i object i) are written next to its RGB.
 
 Every input is checked before anything is written; the outputs reach ``--out`` only when all keyframes are
 rendered, so a failed command leaves no folder or partial files behind.
@@ -83,10 +85,12 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="muble render", description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", help="SHOP-VRB2 scene JSON file")
     parser.add_argument("--keyframes", help="keyframe state file (.npz with 'qpos') that `muble run` writes")
-    parser.add_argument("--renderer", default="blender", help="renderer plugin name (default: blender)")
+    parser.add_argument("--renderer", default=None,
+                        help="renderer plugin name (default: the render config's, conf/render.yaml)")
     parser.add_argument("--camera", default=None, help="MuJoCo camera name (default: the episode's, else front)")
     parser.add_argument("--object-set", default=None,
-                        help="object set the scene's objects come from (default: the episode's, else shopvrb2)")
+                        help="object set the scene's objects come from (default: the episode's, else the render "
+                        "config's)")
     parser.add_argument("--robot", default=None, help="robosuite robot (default: the episode's, else the "
                         "environment's)")
     parser.add_argument("--out", default="render_out", help="output folder (created)")
@@ -94,6 +98,15 @@ def _parser() -> argparse.ArgumentParser:
                         help="renderer option, repeatable (e.g. --set samples=16 --set width=320)")
     parser.add_argument("--passes", action="store_true", help="also write depth and segmentation PNGs")
     return parser
+
+
+def configured_plugins() -> tuple[str, str]:
+    """(renderer, object set) of the ``render`` config (``conf/render.yaml``), composed as every job's config is,
+    plugins' config folders included."""
+    from muble.app.config import compose
+
+    cfg = compose("render")
+    return cfg.renderer.name, cfg.objects.name
 
 
 def _check_name(registry: Any, kind: str, name: str, flag: str) -> None:
@@ -117,7 +130,11 @@ def main(argv: list[str]) -> int:
     scene = load_scene(args.scene)
     states = read_keyframe_states(args.keyframes) if args.keyframes else None
     camera = args.camera or (states.camera if states else None) or "front"
-    object_set = args.object_set or (states.object_set if states else None) or "shopvrb2"
+    object_set = args.object_set or (states.object_set if states else None)
+    if args.renderer is None or object_set is None:
+        renderer, configured_set = configured_plugins()
+        args.renderer = args.renderer or renderer
+        object_set = object_set or configured_set
     robot_name = args.robot or (states.robot if states else None)
     registry = get_registry()
     _check_name(registry, "renderer", args.renderer, "--renderer")

@@ -98,6 +98,13 @@ def test_every_experiment_composes(experiment):
     assert cfg.renderer.name in get_registry().names("renderer")
 
 
+def test_render_takes_its_default_plugins_from_the_render_config():
+    from muble.app.render import configured_plugins
+
+    cfg = compose("render")
+    assert configured_plugins() == (cfg.renderer.name, cfg.objects.name) == ("blender", "shopvrb2")
+
+
 def test_dry_run_writes_manifest(tmp_path):
     result = muble("dry_run=true", f"hydra.run.dir={tmp_path}")
     assert result.returncode == 0, result.stderr
