@@ -43,7 +43,17 @@ def setting_differences(stored: Any, current: Any, where: str = "") -> list[tupl
             else:
                 out.extend(setting_differences(stored[key], current[key], sub))
         return out
-    return [] if stored == current else [(where, stored, current)]
+    return [] if stored == current or _renamed(where, stored) == _renamed(where, current) else [(where, stored, current)]
+
+
+def _renamed(key: str, value: Any) -> Any:
+    """A setting's value under its current name: a folder made before a value was renamed (the step controller's
+    old name ``OSC_POSE``) still matches a run that uses the new name."""
+    if key == "robot.controller" and isinstance(value, str):
+        from muble.sim.env import CONTROLLER_ALIASES
+
+        return CONTROLLER_ALIASES.get(value, value)
+    return value
 
 
 def _difference(key: str, stored: Any, requested: Any) -> str:

@@ -55,6 +55,14 @@ def test_identity_check_lists_the_differences(tmp_path):
     assert "robot.name: stored \"Panda\", requested \"UR5e\"" in str(info.value) and "seed" in str(info.value)
 
 
+def test_a_dataset_made_under_the_controller_s_old_name_resumes_under_the_new_one(tmp_path):
+    check_or_store_identity(tmp_path, {"seed": 0, "robot": {"name": "Panda", "controller": "OSC_POSE"}, "dataset": {}})
+    check_or_store_identity(tmp_path, {"seed": 0, "robot": {"name": "Panda", "controller": "IK_JOINT_SERVO"},
+                                       "dataset": {}})  # the same controller: no difference
+    with pytest.raises(ConfigError, match="robot.controller"):
+        check_or_store_identity(tmp_path, {"seed": 0, "robot": {"name": "Panda", "controller": "OTHER"}, "dataset": {}})
+
+
 def test_a_live_owner_is_refused_and_a_stale_lock_taken_over(tmp_path):
     root = tmp_path / "ds"
     root.mkdir()
