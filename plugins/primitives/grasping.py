@@ -99,10 +99,16 @@ def pad_faces(m, d, site: int, left: list[int], right: list[int]) -> tuple[np.nd
 
 def measure_grip(env) -> GripGeometry:
     """The pad geometry of ``env``'s gripper, from its own model: the fingers are opened and closed in a copy
-    in which nothing but the gripper collides (the live simulation is not touched)."""
+    in which nothing but the gripper collides (the live simulation is not touched).
+
+    The copy starts from the model's rest state with the arm at its rest configuration, not from the live state:
+    the geometry is then a function of the robot and gripper alone, whatever the environment was doing when it
+    was first asked for (it is cached per process, so it must not depend on which episode came first)."""
     m = copy.deepcopy(env.model)
     d = mujoco.MjData(m)
-    d.qpos[:] = env.data.qpos
+    rest = np.asarray(env.names.init_qpos, dtype=float)
+    for name, q in zip(env.names.arm_joints, rest):
+        d.qpos[m.joint(name).qposadr[0]] = q
     m.opt.gravity[:] = 0.0
     hand = m.body(env.names.hand_body).id
     in_gripper = np.array([_below(m, b, hand) for b in range(m.nbody)])
@@ -115,9 +121,8 @@ def measure_grip(env) -> GripGeometry:
     ctrl_ids = env.gripper_actuator_ids
     states = {}
     for name, ctrl in (("open", env.gripper_open_ctrl), ("closed", env.gripper_closed_ctrl)):
-        d.ctrl[:] = env.data.ctrl
         d.ctrl[ctrl_ids] = ctrl
-        env.set_arm_target(env.arm_q(), data=d)
+        env.set_arm_target(rest, data=d)
         for _ in range(int(FINGER_TRAVEL / m.opt.timestep)):
             mujoco.mj_step(m, d)
         mujoco.mj_forward(m, d)

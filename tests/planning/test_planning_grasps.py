@@ -120,6 +120,26 @@ def test_planning_grip_geometry_comes_from_the_mounted_gripper(robot):
         np.testing.assert_allclose(rot @ grip.approach, [0.0, 0.0, -1.0], atol=1e-9)
 
 
+def test_planning_grip_geometry_is_the_same_whatever_state_or_scene_it_is_measured_in():
+    """The measured pad geometry is cached per process: it must not depend on the scene or on where the arm and
+    fingers were when it was first measured, or an episode's outcome would depend on the episodes before it."""
+    import dataclasses
+
+    from muble.sim.env import TabletopEnv
+    from muble.sim.fixtures import five_object_scene, simple_scene
+
+    scene, models = five_object_scene()
+    first = TabletopEnv(scene, models)
+    second = TabletopEnv(simple_scene([(0.45, 0.1)], [models[2]]), {0: models[2]})
+    second.data.qpos[second.arm_qpos_adr] += 0.3  # the arm elsewhere, the hand closed
+    second.set_arm_target(second.arm_q())
+    second.close_gripper()
+    second.hold(0.3)
+    a, b = measure_grip(first), measure_grip(second)
+    for field in dataclasses.fields(a):
+        np.testing.assert_array_equal(getattr(a, field.name), getattr(b, field.name), err_msg=field.name)
+
+
 @pytest.mark.slow
 def test_planning_ur5e_with_its_robotiq_gripper_picks_and_weighs_a_can_a_thermos_and_a_bowl(objects):
     from muble.sim.env import TabletopEnv
