@@ -22,12 +22,6 @@ from muble.sim.sync import is_lifted
 log = logging.getLogger(__name__)
 
 
-def declared(primitive: Any, name: str, attribute: str) -> str | None:
-    """The ``hand_at_target`` or ``measures`` declaration of a primitive (class or instance) registered as
-    ``name``; None when it declares none."""
-    return getattr(primitive, attribute, None)
-
-
 class PhysicalWorld:
     """Executes primitive actions (by registry name) in a ``TabletopEnv`` and renders a keyframe after each.
 
@@ -76,7 +70,7 @@ class PhysicalWorld:
             log.info("%s failed to plan: %s", action, e)
             return ActionResult(False, failure_reason=f"planning: {e}")
         if result.success:
-            self._track(action, declared(primitive, action.name, "hand_at_target"), held)
+            self._track(action, getattr(primitive, "hand_at_target", None), held)
         return result
 
     def _track(self, action: ActionCall, hand_at: str | None, held_before: int | None) -> None:

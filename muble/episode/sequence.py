@@ -60,13 +60,12 @@ def _robot(observation: Observation, action: ActionCall | None, weight: float | 
 def _measures(registry: Any, name: str) -> str | None:
     """What the primitive registered as ``name`` measures (``PrimitiveAction.measures``); None if unknown."""
     from muble.core.errors import PluginError
-    from muble.episode.physical import declared
 
     try:
         factory = registry.get("primitive", name).record.factory
     except PluginError:
         factory = None
-    return declared(factory, name, "measures")
+    return getattr(factory, "measures", None)
 
 
 def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths: list[str],

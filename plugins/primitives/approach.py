@@ -103,7 +103,7 @@ def candidates_with_opening(env, obj_id: int, body: str, command: float, settle:
     ``HAND_OPENINGS``). The fingers are moved there in physics (``settle=False``: they already are)."""
     model = env.object_models[obj_id]
     grip = ctx.grip_geometry(env)
-    table = ctx.table(env)
+    table = env.table()
     if settle:
         env.set_gripper(command)
         env.hold(0.3 if command == -1.0 else PRESHAPE_SETTLE)
@@ -111,10 +111,10 @@ def candidates_with_opening(env, obj_id: int, body: str, command: float, settle:
         max_width = grip.max_width  # the fingers go on opening on the way; the measured open gap applies
     else:
         max_width = ctx.pad_gap(env) - 2 * PAD_MARGIN - PRESHAPE_SLACK
-    world = ctx.collision_world(env)
+    world = env.collision_world()
     # Ranked by how far the hand stays from the neighbours, with more directions around round objects.
     candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z, max_width=max_width,
-                                  rest_quat=ctx.world_rest_quat(env), grip=grip,
+                                  rest_quat=env.top_down(), grip=grip,
                                   clearance=hand_clearance(world, body, ignore=[table.body]))
     if not candidates and command == -1.0:
         raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
@@ -162,7 +162,7 @@ PRE_GRASP_RETRIES = 2  # planned moves again to the pre-grasp configuration whil
 
 def _go(env, snap, obj_id: int, body: str, to_pre, down, grasp: Pose, tried: int) -> ActionResult:
     """Execute the planned approach: over the object, then (the empty hand tared) straight in."""
-    world = ctx.collision_world(env)
+    world = env.collision_world()
     first = ctx.execute(env, to_pre, world)
     env.hold(0.3)
     first = _catch_up(env, world, to_pre.q[-1], first)
@@ -172,7 +172,7 @@ def _go(env, snap, obj_id: int, body: str, to_pre, down, grasp: Pose, tried: int
         raise PlanningError(f"the arm did not reach the pre-grasp pose over object {obj_id} "
                             f"(joint error {lag:.2f} rad)")
     env.tare()  # the empty hand, still: the zero for weighing
-    world = ctx.collision_world(env)
+    world = env.collision_world()
     second = ctx.execute(env, down.__class__(
         np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names), world,
         allowed={env.model.body(body).id})
@@ -334,7 +334,7 @@ def _rise_holding(env, world, body: str, q_grasp: np.ndarray) -> None:
     world.kinematics.set_q(q_grasp)
     world.hold(body)
     held = m.body(body).id
-    support = {ctx.table(env).body}
+    support = {env.table().body}
     world.allow_contact(support)
     support |= {m.body(name).id for pair in world.contacts(q_grasp) for name in pair} - world.robot_bodies - {held}
     world.allow_contact(support)

@@ -1,5 +1,5 @@
 """What the built-in primitives share on top of the environment API (``muble.core.environment.Environment``):
-the collision world, planners, trajectory execution with contact counting, and the table's geometry.
+the gripper's measured geometry, planners by name, and trajectory execution with contact counting.
 
 The collision world is the environment's own (a model copy, re-synced before every plan), so planning never
 writes to the live simulation.
@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from muble import CollisionWorld, MotionPlanner, PlanningError, Pose, PoseGoal, Trajectory
-from muble.core.environment import Environment, TableTop
+from muble.core.environment import Environment
 
 logger = logging.getLogger(__name__)
 
@@ -28,11 +28,6 @@ class MotionReport:
     duration: float = 0.0
     final_error: float = 0.0
     unintended_contacts: set[tuple[str, str]] = field(default_factory=set)
-
-
-def collision_world(env: Environment) -> CollisionWorld:
-    """The environment's collision world, synced with its current state (held object included)."""
-    return env.collision_world()
 
 
 def grip_geometry(env: Environment):
@@ -125,28 +120,6 @@ def execute(env, trajectory: Trajectory, world: CollisionWorld, allowed: set[int
     if report.unintended_contacts:
         logger.info("unintended contacts while moving: %s", sorted(report.unintended_contacts))
     return report
-
-
-def top_down(env: Environment, yaw: float = 0.0) -> np.ndarray:
-    """Grip-site orientation pointing straight down, turned by ``yaw`` about the vertical from the rest pose."""
-    return env.top_down(yaw)
-
-
-def world_rest_quat(env: Environment) -> np.ndarray:
-    """Grip-site orientation at the robot's rest posture (pointing down for every supported arm)."""
-    return env.top_down(0.0)
-
-
-Table = TableTop  # the table top as ``table(env)`` gives it
-
-
-def table(env: Environment) -> TableTop:
-    return env.table()
-
-
-def object_top(env: Environment, obj_id: int) -> float:
-    """Height of an object's highest point (world z) from its current collision geometry."""
-    return env.object_top(obj_id)
 
 
 def hover_pose(env, xy: np.ndarray, clear_z: float, quat: np.ndarray) -> PoseGoal:

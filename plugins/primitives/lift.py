@@ -22,7 +22,7 @@ class Lift(PrimitiveAction):
     def execute(self, env) -> ActionResult:
         height = float(self.arguments.get("height", LIFT_HEIGHT))
         held = env.held_object
-        world = ctx.collision_world(env)
+        world = env.collision_world()
         support = _leaving(env, world)
         pose = env.ee_pose()
         goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, height], pose.quat), 0.005, 0.05)
@@ -68,7 +68,7 @@ def lift_around(env, world, support: set[int], pose: Pose, goal: PoseGoal, heigh
         trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
         return ctx.execute(env, trajectory, world, allowed=support)
     report = ctx.execute(env, first, world, allowed=support)
-    world = ctx.collision_world(env)
+    world = env.collision_world()
     q_goal = _raised(env, world, goal)
     trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
     second = ctx.execute(env, trajectory, world)

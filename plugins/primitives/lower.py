@@ -37,11 +37,11 @@ class Lower(PrimitiveAction):
         attempt = int(self.arguments.get("attempt", 0))
         held = env.held_object
         held_body = env.model.body(env.names.objects[held]).id
-        table = ctx.table(env)
+        table = env.table()
         snap = env.snapshot()
         try:
-            rise = placement.clear_start(env, ctx.collision_world(env))  # off what the start touches, if anything
-            world = ctx.collision_world(env)
+            rise = placement.clear_start(env, env.collision_world())  # off what the start touches, if anything
+            world = env.collision_world()
             support_body, support_top, places = _places(env, target, held, table)
             places = rotated(places, attempt)
             to_above, down = _plan(env, world, target, places, support_body, support_top)
@@ -115,7 +115,7 @@ def _put_down(env, world, to_above, down, support_body, held_body, held) -> Acti
     """Over the place, down, let go, back up; succeeds when the object is released and comes to rest."""
     world.allow_contact([])
     first = ctx.execute(env, to_above, world)
-    world = ctx.collision_world(env)
+    world = env.collision_world()
     world.allow_contact([support_body])
     second = ctx.execute(env, down.__class__(np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names),
                          world, allowed={support_body})
@@ -151,7 +151,7 @@ RETREAT = 0.08  # m the empty hand rises straight up after letting go, before th
 def _retreat(env, held_body: int) -> ctx.MotionReport:
     """Rise ``RETREAT`` straight up from the released object; where the straight line is blocked the hand stays
     (an empty report): the object is down, and the next move starts by rising clear of it."""
-    world = ctx.collision_world(env)
+    world = env.collision_world()
     # The opened fingers may now brush a neighbour: rising straight up can only leave it, so the plan may
     # start there; contacts in physics with anything but the released object still count.
     world.allow_contact([held_body])

@@ -29,13 +29,13 @@ class Move(PrimitiveAction):
         attempt = int(self.arguments.get("attempt", 0))
         held = env.held_object
         if isinstance(target, str):
-            ctx.table(env).part_region(target)  # an unknown part name fails before anything moves
+            env.table().part_region(target)  # an unknown part name fails before anything moves
         else:
             ctx.body_name(env, target)
         snap = env.snapshot()
         try:
-            rise = placement.clear_start(env, ctx.collision_world(env))  # off what the start touches, if anything
-            world = ctx.collision_world(env)
+            rise = placement.clear_start(env, env.collision_world())  # off what the start touches, if anything
+            world = env.collision_world()
             if isinstance(target, str) and env.held_object is not None:
                 goals = [JointGoal(over_free_place(env, world, target, attempt))]
             else:
@@ -86,13 +86,13 @@ def hover_goals(env, target) -> list[PoseGoal]:
 def hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
     """Hover pose over ``target``: the hand turned by ``yaw`` about the vertical; with ``clear``, above
     everything standing near it rather than above the target alone."""
-    table = ctx.table(env)
+    table = env.table()
     if isinstance(target, str):
         lo, hi = table.part_region(target)
         xy, top = 0.5 * (lo + hi), table.top_z
     else:
-        xy, top = env.object_pose(int(target)).pos[:2], ctx.object_top(env, int(target))
-    quat = ctx.top_down(env, yaw)
+        xy, top = env.object_pose(int(target)).pos[:2], env.object_top(int(target))
+    quat = env.top_down(yaw)
     if env.held_object is not None:
         # Carrying: the hand keeps its orientation (the object stays as it was lifted, whatever the grasp)
         # and the object's centre, not the hand, comes over the target, ready to be lowered onto it. Turned
@@ -107,7 +107,7 @@ def hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
 def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
     """The arm configuration ``ctx.HOVER`` over the first free place on ``part`` (rotated by ``attempt``) that the
     held object can be lowered to straight, released at the first of ``RELEASE_GAPS``."""
-    table = ctx.table(env)
+    table = env.table()
     lo, hi = table.part_region(part)
     places = placement.free_places(env, lo, hi, env.held_object)
     if not places:

@@ -29,7 +29,7 @@ class MoveVel(PrimitiveAction):
         if speed * duration < 1e-4:
             env.hold(duration)
             return ActionResult(True, measurement=[0.0, 0.0, 0.0])
-        world = ctx.collision_world(env)
+        world = env.collision_world()
         line = get_registry().create("planner", "straight_line",
                                      {"speed": speed, "max_distance": speed * duration + 0.01})
         goal = PoseGoal(Pose(start.pos + velocity * duration, start.quat), 0.003, 0.05)

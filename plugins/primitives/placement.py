@@ -60,7 +60,7 @@ def geom_bottom(env, g: int) -> float:
 
 def clear_top(env, xy: np.ndarray, table_top: float, skip: int | None) -> float:
     """The height to clear around ``xy``: the table top or whatever stands within 15 cm of it."""
-    near = [ctx.object_top(env, i) for i in env.names.objects if i != skip
+    near = [env.object_top(i) for i in env.names.objects if i != skip
             and np.linalg.norm(env.object_pose(i).pos[:2] - xy) < 0.15]
     return max([table_top] + near)
 
@@ -90,7 +90,7 @@ def resting_top(env, target: int, held: int) -> float:
     m, d = env.model, env.data
     target_body = m.body(env.names.objects[target]).id
     held_body = m.body(env.names.objects[held]).id
-    top = ctx.object_top(env, target)
+    top = env.object_top(target)
     shape = footprint(env, held_body) - d.xpos[held_body][:2]
     points = np.vstack([np.zeros((1, 2)), shape, 0.5 * shape]) + env.object_pose(target).pos[:2]
     groups = np.zeros(6, dtype=np.uint8)
