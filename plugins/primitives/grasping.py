@@ -111,7 +111,7 @@ def measure_grip(env) -> GripGeometry:
         d.qpos[m.joint(name).qposadr[0]] = q
     m.opt.gravity[:] = 0.0
     hand = m.body(env.names.hand_body).id
-    in_gripper = np.array([_below(m, b, hand) for b in range(m.nbody)])
+    in_gripper = np.array([below(m, b, hand) for b in range(m.nbody)])
     outside = ~in_gripper[m.geom_bodyid]
     m.geom_contype[outside] = 0
     m.geom_conaffinity[outside] = 0
@@ -137,7 +137,7 @@ def measure_grip(env) -> GripGeometry:
     return GripGeometry(closing, approach, open_centre, closed_centre, open_gap, closed_gap, max(tip, 0.0))
 
 
-def _below(m, body: int, root: int) -> bool:
+def below(m, body: int, root: int) -> bool:
     while body not in (root, 0):
         body = int(m.body_parentid[body])
     return body == root

@@ -11,6 +11,7 @@ from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal,
 from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
+from muble_plugins.primitives.grasping import below
 from muble_plugins.primitives.common import ATTEMPT, CARRY_TURNS, PART_OPEN, RELEASE_GAPS, checked_result, rotated
 
 logger = logging.getLogger(__name__)
@@ -48,7 +49,7 @@ class Lower(PrimitiveAction):
         except PlanningError:
             env.restore(snap)
             raise
-        result = _put_down(env, world, to_above, down, support_body, held_body, held)
+        result = _put_down(env, world, to_above, down, support_body, held_body, held, target)
         result.info["unintended_contacts"] = sorted(set(result.info["unintended_contacts"])
                                                     | (rise.unintended_contacts if rise else set()))
         return result
@@ -78,7 +79,7 @@ def _places(env, target, held, table):
 
 
 def put_down_tries(places: list, target):
-    """(place, turn, release gap) in the order tried: each place in turn, at each of ``RELEASE_GAPS`` and, onto
+    """(place, turn, release gap) in the order tried: each of ``RELEASE_GAPS`` in turn, at each place and, onto
     an object, with the hand turned by each of ``CARRY_TURNS``.
 
     Where a neighbour blocks the last centimetres of the descent (fingers beside a tall object), the object is let
@@ -86,7 +87,9 @@ def put_down_tries(places: list, target):
     about the vertical (the held object with it) where it cannot go down as it is.
     """
     yaws = CARRY_TURNS if isinstance(target, (int, np.integer)) else (0.0,)
-    return itertools.product(places, yaws, RELEASE_GAPS)
+    # The release gap varies slowest: every place and turn at the lowest gap before any is let go from higher up
+    # (a drop lands the object less surely than another free place does).
+    return ((xy, yaw, gap) for gap, xy, yaw in itertools.product(RELEASE_GAPS, places, yaws))
 
 
 def _plan(env, world, target, places, support_body, support_top):
@@ -111,26 +114,59 @@ def _plan(env, world, target, places, support_body, support_top):
                         f"tried): {reasons[0] if reasons else ''}")
 
 
-def _put_down(env, world, to_above, down, support_body, held_body, held) -> ActionResult:
-    """Over the place, down, let go, back up; succeeds when the object is released and comes to rest."""
+def _put_down(env, world, to_above, down, support_body, held_body, held, target) -> ActionResult:
+    """Over the place, down, let go, back up; succeeds when the object is released, comes to rest on its target
+    and nothing else was moved."""
     world.allow_contact([])
     first = ctx.execute(env, to_above, world)
     world = env.collision_world()
     world.allow_contact([support_body])
     second = ctx.execute(env, down.__class__(np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names),
                          world, allowed={support_body})
+    others = {i: env.object_pose(i).pos.copy() for i in env.object_ids if i != held}
+    between = _between_pads(env, held_body)
+    width = ctx.pad_gap(env)
     env.set_gripper(release_command(env))
     env.hold(0.5)
-    third = _retreat(env, held_body)
+    _off_neighbours(env, held_body, width)
+    third = _retreat(env, held_body, between)
     env.hold(0.3)
     speed = wait_for_rest(env, held_body, waited=0.3)
     contacts = first.unintended_contacts | second.unintended_contacts | third.unintended_contacts
     report = ctx.MotionReport(first.duration + second.duration + third.duration, third.final_error, contacts)
     result = checked_result(report, resting_speed=speed, released=env.held_object is None)
-    result.success = env.held_object is None and speed < RESTING_SPEED
-    if not result.success:
-        result.failure_reason = f"object {held} did not come to rest (speed {speed:.3f} m/s)"
+    problem = None
+    if env.held_object is not None:
+        problem = f"object {held} is still in the hand"
+    elif speed >= RESTING_SPEED:
+        problem = f"object {held} did not come to rest (speed {speed:.3f} m/s)"
+    else:
+        problem = misplaced(env, held, held_body, target, support_body, others)
+    result.success = problem is None
+    if problem:
+        result.failure_reason = problem
     return result
+
+
+# m any other object may move while one is put down (a support settling under the added weight) before the
+# put-down counts as having disturbed the scene (a stack tipped over, a neighbour dragged along).
+DISTURBED = 0.02
+
+
+def misplaced(env, held: int, held_body: int, target, support_body: int, others: dict) -> str | None:
+    """Why the put-down of ``held`` did not end as asked, from the physics after it came to rest, or ``None``:
+    it must touch its target (an object, or the table for a table part) and no other object may have moved more
+    than ``DISTURBED``."""
+    moved = {i: float(np.linalg.norm(env.object_pose(i).pos - p)) for i, p in others.items()}
+    moved = {i: d for i, d in moved.items() if d > DISTURBED}
+    if moved:
+        worst = max(moved, key=moved.get)
+        return (f"putting object {held} down moved object {worst} by {100 * moved[worst]:.0f} cm"
+                + (f" (and {len(moved) - 1} more)" if len(moved) > 1 else ""))
+    if target is not None and support_body not in ctx.touching_bodies(env, {held_body}):
+        where = f"object {target}" if isinstance(target, (int, np.integer)) else "the table"
+        return f"object {held} did not stay on {where} after it was let go"
+    return None
 
 
 # m between the pads holding an object below which the hold counts as a thin part (a rim, a handle, a stem) and
@@ -145,27 +181,72 @@ def release_command(env) -> float:
     return PART_OPEN if ctx.pad_gap(env) < THIN_HOLD else -1.0
 
 
+# m between each pad and the released object that fingers opened against a neighbour close back to: opened
+# fully inside a bowl round a released glass, they press on the bowl's wall and would lift it as they rise.
+RELEASE_CLEARANCE = 0.005
+
+
+def gap_command(env, gap: float) -> float:
+    """The gripper command that brings the pads ``gap`` apart (between the measured open and closed gaps)."""
+    grip = ctx.grip_geometry(env)
+    span = grip.open_gap - grip.closed_gap
+    closed_share = 0.0 if span <= 1e-6 else (grip.open_gap - gap) / span
+    return float(np.clip(2.0 * closed_share - 1.0, -1.0, 1.0))
+
+
+def _off_neighbours(env, held_body: int, width: float) -> None:
+    """Where the opened fingers touch anything but the released object, close them back to ``width`` (the pads'
+    gap holding it) plus ``RELEASE_CLEARANCE`` a side."""
+    fingers = _finger_bodies(env)
+    touched = ctx.touching_bodies(env, fingers) - {held_body} - set(env.collision_world().robot_bodies)
+    if touched and ctx.pad_gap(env) > width + 2 * RELEASE_CLEARANCE:
+        logger.info("the opened fingers touch %s: closing back to the released object's width", sorted(touched))
+        env.set_gripper(gap_command(env, width + 2 * RELEASE_CLEARANCE))
+        env.hold(0.3)
+
+
+def _finger_bodies(env) -> set[int]:
+    """The hand's bodies: the hand and everything mounted below it (fingers, pads, tips)."""
+    m = env.model
+    hand = m.body(env.names.hand_body).id
+    return {b for b in range(m.nbody) if below(m, b, hand)}
+
+
+def _between_pads(env, body: int) -> np.ndarray:
+    """The point of ``body`` (its own frame) that is between the pads now."""
+    d = env.data
+    return d.xmat[body].reshape(3, 3).T @ (env.ee_pose().pos - d.xpos[body])
+
+
 RETREAT = 0.08  # m the empty hand rises straight up after letting go, before the object is checked for rest
+# m the released object may drift at the pads' height (a can set into a bowl slides down its curved floor) before
+# the hand follows it sideways: rising with a finger pressed against it would tip it over.
+FOLLOW_DRIFT = 0.002
 
 
-def _retreat(env, held_body: int) -> ctx.MotionReport:
-    """Rise ``RETREAT`` straight up from the released object; where the straight line is blocked the hand stays
-    (an empty report): the object is down, and the next move starts by rising clear of it."""
+def _retreat(env, held_body: int, between: np.ndarray) -> ctx.MotionReport:
+    """Rise ``RETREAT`` straight up from the released object, first following it sideways where it drifted from
+    between the pads (``between``: that point in the object's frame); where the straight line is blocked the hand
+    stays (an empty report): the object is down, and the next move starts by rising clear of it."""
     world = env.collision_world()
     # The opened fingers may now brush a neighbour: rising straight up can only leave it, so the plan may
     # start there; contacts in physics with anything but the released object still count.
     world.allow_contact([held_body])
-    m = env.model
+    m, d = env.model, env.data
     near = {m.body(name).id for pair in world.contacts(env.arm_q()) for name in pair} - world.robot_bodies
     world.allow_contact({held_body} | near)
     pose = env.ee_pose()
-    try:
-        retreat = ctx.planner(env, "straight_line").plan(
-            env.arm_q(), PoseGoal(Pose(pose.pos + [0.0, 0.0, RETREAT], pose.quat), 0.005, 0.05), world)
-        return ctx.execute(env, retreat, world, allowed={held_body})
-    except PlanningError as e:
-        logger.info("no straight retreat after letting go (%s); the hand stays where it released", e)
-        return ctx.MotionReport()
+    drift = (d.xpos[held_body] + d.xmat[held_body].reshape(3, 3) @ between - pose.pos) * [1.0, 1.0, 0.0]
+    report = ctx.MotionReport()
+    for step in ([drift] if np.linalg.norm(drift) > FOLLOW_DRIFT else []) + [np.array([0.0, 0.0, RETREAT])]:
+        goal = PoseGoal(Pose(env.ee_pose().pos + step, pose.quat), 0.005, 0.05)
+        try:
+            path = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
+        except PlanningError as e:
+            logger.info("no straight move by %s after letting go (%s); the hand stays", np.round(step, 3), e)
+            continue
+        report = placement.merge(report, ctx.execute(env, path, world, allowed={held_body}))
+    return report
 
 
 RESTING_SPEED = 0.01  # m/s (the body's linear speed) below which a put-down object counts as resting

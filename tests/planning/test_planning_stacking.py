@@ -67,10 +67,10 @@ def test_planning_stack_a_stackable_object_on_a_stack_base(objects, top, base):
 DATA = Path(__file__).parent / "data"
 
 
-def _stack_in_scene(scene_file: str, top: int, base: int) -> list:
+def _stack_in_scene(scene_file: str, top: int, base: int, under: int | None = None) -> list:
     """Pick ``top`` up in the stored scene and stack it on ``base``; every primitive must succeed without
-    unintended contact and ``top`` must end resting on ``base`` alone. Returns the hand's orientation before and
-    after the move over the base."""
+    unintended contact and ``top`` must end resting on ``base`` alone (and ``base`` still on ``under``, where it
+    stands on another object). Returns the hand's orientation before and after the move over the base."""
     from muble.core.scene_io import load_scene
     from muble.sim.build import env_from_object_set
 
@@ -92,6 +92,9 @@ def _stack_in_scene(scene_file: str, top: int, base: int) -> list:
         touching = _touching(env, top)
         assert base_body in touching and table not in touching
         assert np.linalg.norm(env.object_pose(top).pos[:2] - env.object_pose(base).pos[:2]) < 0.03
+        if under is not None:
+            assert env.model.body(env.names.objects[under]).id in _touching(env, base)
+            assert np.linalg.norm(env.object_pose(base).pos[:2] - env.object_pose(under).pos[:2]) < 0.03
     finally:
         env.close()
     return quats
@@ -114,3 +117,39 @@ def test_planning_lower_turns_the_held_bowl_where_a_tall_thermos_blocks_the_stra
     """Bowl 0 carried over bowl 3 as it was picked up: going down, the wrist would hit the 29 cm thermos beside
     the base, so lower turns the hand (and the bowl) about the vertical and puts it down from there."""
     _stack_in_scene("stack_base_beside_a_tall_neighbour.json", top=0, base=3)
+
+
+@pytest.mark.slow
+def test_planning_fingers_opened_inside_a_bowl_do_not_lift_it_as_they_rise():
+    """A glass let go inside a bowl standing on a plate: opened fully, the fingers press on the bowl's inner wall
+    and, rising, lifted the bowl off the plate; they close back to the glass's width plus a clearance first."""
+    _stack_in_scene("glass_into_a_bowl_on_a_plate.json", top=1, base=2, under=0)
+
+
+@pytest.mark.slow
+def test_planning_the_hand_follows_a_can_that_slid_in_a_bowl_before_rising():
+    """A soda can let go into a bowl on a food box slides about a centimetre down the bowl's curved floor against
+    a finger; rising straight up, that finger tipped the can and the bowl off the box. The hand follows the can
+    sideways first."""
+    _stack_in_scene("can_into_a_bowl_on_a_food_box.json", top=0, base=3, under=2)
+
+
+def test_planning_a_put_down_that_moved_another_object_or_missed_its_target_is_reported(objects):
+    """``lower``'s check after the object came to rest: it must touch its target and leave the others where they
+    were; each way of failing is named."""
+    from muble_plugins.primitives.lower import misplaced
+
+    rng = np.random.default_rng(0)
+    models = [objects.build(objects.sample(rng, category=c)) for c in ("glass", "plate")]
+    env = TabletopEnv(simple_scene([(0.42, -0.20), (0.52, 0.12)], models), dict(enumerate(models)))
+    try:
+        env.hold(0.3)
+        bodies = [env.model.body(env.names.objects[i]).id for i in (0, 1)]
+        table = int(env.model.geom_bodyid[env.model.geom("table_collision").id])
+        here = {1: env.object_pose(1).pos.copy()}
+        assert misplaced(env, 0, bodies[0], "left", table, here) is None
+        assert "did not stay on object 1" in misplaced(env, 0, bodies[0], 1, bodies[1], here)
+        moved = {1: here[1] + [0.05, 0.0, 0.0]}
+        assert "moved object 1 by 5 cm" in misplaced(env, 0, bodies[0], "left", table, moved)
+    finally:
+        env.close()
