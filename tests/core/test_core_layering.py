@@ -182,6 +182,17 @@ def plugin_name_uses(path: Path, names: set[str]) -> list[tuple[int, str]]:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in ("create", "get") \
                 and len(node.args) >= 2 and isinstance(node.args[0], ast.Constant) and node.args[0].value in KINDS:
             found += [(c.lineno, c.value) for c in _strings(node.args[1]) if c.value in names]
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "add_argument":
+            # A command-line option named after a plugin kind whose default is a built-in plugin.
+            options = [c.value.lstrip("-").replace("-", "_") for c in node.args if isinstance(c, ast.Constant)
+                       and isinstance(c.value, str)]
+            found += [(k.value.lineno, k.value.value) for k in node.keywords if k.arg == "default"
+                      and any(_kindlike(o) for o in options) and isinstance(k.value, ast.Constant)
+                      and k.value.value in names]
+        elif isinstance(node, ast.Call):
+            # A keyword argument named after a plugin kind: ``make(renderer="mujoco")``.
+            found += [(k.value.lineno, k.value.value) for k in node.keywords if _kindlike(k.arg)
+                      and isinstance(k.value, ast.Constant) and k.value.value in names]
         elif isinstance(node, ast.Compare):
             sides = [node.left, *node.comparators]
             if any(isinstance(s, ast.Attribute) and s.attr == "name" for s in sides):
@@ -293,6 +304,10 @@ def test_a_plugin_name_used_as_one_is_found(tree):
                                         'def f(registry, call, object_set="shopvrb2"):\n'
                                         '    registry.create("renderer", "mujoco", {})\n'
                                         '    return call.name == "weigh"\n'
-                                        'TITLE = "move"  # a word, not a plugin name\n')
-    found = plugin_name_uses(path, {"move", "lift", "shopvrb2", "mujoco", "weigh"})
-    assert sorted(found) == [(1, "lift"), (1, "move"), (2, "shopvrb2"), (3, "mujoco"), (4, "weigh")]
+                                        'TITLE = "move"  # a word, not a plugin name\n'
+                                        'parser.add_argument("--object-set", default="shopvrb2")\n'
+                                        'parser.add_argument("--title", default="move")\n'
+                                        'make(planner="ompl", title="lift")\n')
+    found = plugin_name_uses(path, {"move", "lift", "shopvrb2", "mujoco", "weigh", "ompl"})
+    assert sorted(found) == [(1, "lift"), (1, "move"), (2, "shopvrb2"), (3, "mujoco"), (4, "weigh"),
+                             (6, "shopvrb2"), (8, "ompl")]
