@@ -40,7 +40,8 @@ class Renderer(ABC):
     """Turns simulation states into frames.
 
     ``setup`` is called once per scene with the scene graph and the compiled MuJoCo model; a keyframe renderer
-    builds its scene there and afterwards only moves transforms. ``render`` draws the state in ``data`` as seen by
+    builds its scene there and afterwards only moves transforms. Called again with the same scene graph and model
+    objects it must return at once (callers need not remember what a shared renderer was last set up with). ``render`` draws the state in ``data`` as seen by
     the MuJoCo camera named ``camera`` and returns RGB, depth and segmentation from one render.
     """
 

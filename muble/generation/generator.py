@@ -11,7 +11,6 @@ import dataclasses
 import logging
 import math
 import time
-import weakref
 from typing import Any, Callable
 
 import numpy as np
@@ -31,10 +30,6 @@ log = logging.getLogger(__name__)
 # Key, back and fill lamps (metres, robot frame) that the Blender renderer lights the table with.
 LAMPS = {"Lamp_Key": [3.2, -2.1, 2.2], "Lamp_Back": [-1.8, 2.0, 2.3], "Lamp_Fill": [-2.4, -3.0, 2.5]}
 WEIGHT_RESAMPLES = 30
-
-
-# The view model each renderer was last set up with (renderers may be shared between generators).
-_set_up: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _named(name: str, option: str) -> str:
@@ -113,11 +108,10 @@ class SceneGenerator:
         return get_registry().create("renderer", _named(self.config.renderer, "renderer"), options)
 
     def _draw(self, renderer, models, placements):
-        """Segmentation of a layout: the shared view model is re-posed, and set up again only when it changed."""
+        """Segmentation of a layout: the shared view model is re-posed; a renderer's setup returns at once for the
+        view model it already has (the ``Renderer`` contract)."""
         view, data = self._view.pose(models, placements)
-        if _set_up.get(renderer) is not view:  # a renderer may be shared with another generator
-            renderer.setup(None, view)
-            _set_up[renderer] = view
+        renderer.setup(None, view)
         return renderer.render(data, checks.CAMERA_NAME)
 
     @property

@@ -72,6 +72,7 @@ class BlenderRenderer(Renderer):
         self._geoms: np.ndarray = np.empty(0, dtype=int)
         self._objects: list[Any] = []  # Blender objects, parallel to self._geoms
         self._model = None
+        self._set_up_with: tuple | None = None  # (scene graph, model) of the last setup
         self._pass_dir: Path | None = None
         self._materials = MaterialLibrary()
         self.last_build_s = 0.0
@@ -80,6 +81,8 @@ class BlenderRenderer(Renderer):
     # -- scene building -------------------------------------------------------------------------------
 
     def setup(self, scene: "SceneGraph", model: "mujoco.MjModel") -> None:
+        if self._set_up_with is not None and self._set_up_with[0] is scene and self._set_up_with[1] is model:
+            return  # already built for these: rendering only moves transforms
         import bpy
 
         start = time.perf_counter()
@@ -139,6 +142,7 @@ class BlenderRenderer(Renderer):
         self.last_build_s = time.perf_counter() - start
         log.info("Blender scene built: %d geoms, %d meshes in %.2f s", len(self._geoms), len(meshes),
                  self.last_build_s)
+        self._set_up_with = (scene, model)
 
     def _stage_extent(self, model: "mujoco.MjModel", labels: np.ndarray) -> tuple[np.ndarray, float]:
         """Centre and radius of what matters (robot, table, objects) at the model's initial state; the
@@ -268,6 +272,7 @@ class BlenderRenderer(Renderer):
         """Remove everything the last ``setup`` built and purge orphan data blocks."""
         import bpy
 
+        self._set_up_with = None
         if self._bscene is None:
             return
         for obj in list(self._bscene.collection.objects):

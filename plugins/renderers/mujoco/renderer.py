@@ -49,6 +49,7 @@ class MujocoRenderer(Renderer):
         self._atlas = MeshAtlas()
         self._model = None
         self._scene = None  # MjvScene
+        self._set_up_with: tuple | None = None  # (scene graph, model) of the last setup
         self._option = None
         self._mesh_remap: np.ndarray | None = None
         self._labels: np.ndarray | None = None
@@ -60,6 +61,8 @@ class MujocoRenderer(Renderer):
 
     # --- setup ------------------------------------------------------------------------------------------------
     def setup(self, scene: SceneGraph | None, model) -> None:
+        if self._set_up_with is not None and self._set_up_with[0] is scene and self._set_up_with[1] is model:
+            return  # already set up for these: only the state in ``render``'s data changes
         import mujoco
 
         from muble_plugins.renderers.mujoco.gl import make_context
@@ -93,6 +96,7 @@ class MujocoRenderer(Renderer):
         self._option.geomgroup[:] = 0
         self._option.geomgroup[self.config.geom_groups] = 1
         self._option.sitegroup[:] = 0
+        self._set_up_with = (scene, model)
 
     def _make_context(self, model) -> None:
         import mujoco
@@ -202,7 +206,7 @@ class MujocoRenderer(Renderer):
 
             release_context(self._gl)
             self._gl = None
-        self._model = self._scene = None
+        self._model = self._scene = self._set_up_with = None
 
     def __del__(self) -> None:  # GL resources left to interpreter exit print EGL errors
         try:
