@@ -21,7 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "render": ("muble.app.render", "render a scene file or an episode's keyframes to PNGs and a GIF"),
     "generate": ("muble.app.generate", "generate the SHOP-VRB2 dataset (sharded, resumable)"),
     "eval": ("muble.app.evaluate", "evaluate an agent over a dataset split"),
-    "export": ("muble.app.export", "export a split's sequences as a LeRobot-style dataset (parquet + images)"),
+    "export": ("muble.app.export", "export a split's sequences as a LeRobot dataset (needs muble[lerobot])"),
     "serve": ("muble.app.serve", "serve episodes to an agent in another process (JSON protocol over ZeroMQ)"),
 }
 

@@ -1,11 +1,13 @@
-"""``muble export``: a generated split's sequences as a LeRobot-style dataset (parquet + images).
+"""``muble export``: a generated split's sequences as a LeRobot dataset, written by the LeRobot library.
 
 Every sequence file is read and checked before anything is written, and the dataset reaches ``--out`` only when
-complete: a failed export leaves ``--out`` as it was. An existing export in ``--out`` is replaced.
+complete: a failed export leaves ``--out`` as it was. An existing export in ``--out`` is replaced. The LeRobot
+library is the extra ``muble[lerobot]``; ``LeRobotDataset(REPO_ID, root=OUT)`` loads the result.
 """
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from muble.core.errors import ConfigError
@@ -15,16 +17,14 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="muble export", description=__doc__.split("\n\n")[0])
     parser.add_argument("dataset", help="the dataset root written by `muble generate` (with dataset.sequences=true)")
     parser.add_argument("--split", default="val", help="which split (default: val)")
-    parser.add_argument("--out", required=True, help="folder for the LeRobot-style dataset")
-    parser.add_argument("--robot-type", default="", help="recorded in meta/info.json")
+    parser.add_argument("--out", required=True, help="folder for the LeRobot dataset")
+    parser.add_argument("--robot-type", default=None,
+                        help="recorded as robot_type in meta/info.json (default: the dataset's robot)")
+    parser.add_argument("--repo-id", default="muble/shopvrb2", help="the dataset's LeRobot repo id")
     args = parser.parse_args(argv)
-    try:
-        import pyarrow  # noqa: F401
-    except ImportError:
-        parser.error("the LeRobot export needs pyarrow: pip install 'muble[export]'")
-    from muble.core.atomic import staged_folder
+    from muble.core.atomic import check_output_folder, staged_folder
     from muble.core.layout import check_split_name
-    from muble.dataset.lerobot import export_lerobot
+    from muble.dataset.lerobot import check_split, require_lerobot, write_lerobot
 
     check_split_name(args.split, "--split")
     dataset, out = Path(args.dataset), Path(args.out)
@@ -33,7 +33,15 @@ def main(argv: list[str]) -> int:
                           + "; pass the dataset.root folder of `muble generate`")
     if out.is_dir() and any(out.iterdir()) and not (out / "meta" / "info.json").is_file():
         raise ConfigError(f"--out {out} holds files that are not a LeRobot export; pass a new or empty folder")
+    check_output_folder(out, "--out")
+    checked = check_split(dataset, args.split)  # every input, before LeRobot is needed
+    require_lerobot()
     with staged_folder(out, "--out", replace=True) as stage:
-        counts = export_lerobot(dataset, args.split, stage, args.robot_type)
-    print(f"muble export: {counts['episodes']} episodes, {counts['frames']} frames in {args.out}")
+        written = stage / "lerobot"  # LeRobot creates its root folder itself
+        counts = write_lerobot(checked, written, args.robot_type, args.repo_id)
+        for entry in written.iterdir():
+            os.replace(entry, stage / entry.name)
+        written.rmdir()
+    print(f"muble export: {counts['episodes']} episodes, {counts['frames']} frames, robot_type "
+          f"{counts['robot_type']} in {args.out} (lerobot {counts['lerobot']})")
     return 0

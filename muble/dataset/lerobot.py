@@ -1,35 +1,61 @@
-"""Export generated SHOP-VRB2 sequences as a LeRobot-style dataset (parquet frames + PNG images).
+"""Export generated SHOP-VRB2 sequences as a LeRobot dataset, written by LeRobot's own writer.
 
 Each episode is one sequence file; each frame is the keyframe after a primitive (frame 0: the start). Per frame:
-``observation.state`` (end-effector position, quaternion w x y z, gripper command: 8 floats), ``action`` (the
-state the primitive led to: the next frame's state, the last frame repeats its own), ``action.primitive`` and
-``action.target`` (the primitive that produced the *next* frame), the measured weight, the instruction as the
-task, and the image path. Layout (LeRobot v2.1): ``meta/info.json``, ``meta/episodes.jsonl``,
-``meta/tasks.jsonl``, ``data/chunk-000/episode_XXXXXX.parquet``,
-``images/observation.images.front/episode_XXXXXX/frame_XXXXXX.png``.
+``observation.images.front`` (the keyframe image), ``observation.state`` (end-effector position, quaternion
+w x y z, gripper command: 8 floats), ``observation.weight`` (the measured weight in grams), ``action`` (the state the
+primitive led to: the next frame's state, the last frame repeats its own), ``action.primitive`` and
+``action.target`` (the primitive that produced the *next* frame, ``STOP`` after the last, and its target as JSON),
+and the instruction as the frame's task. ``robot_type`` is the robot's name.
+
+``LeRobotDataset.create`` / ``add_frame`` / ``save_episode`` / ``finalize`` write the current format of the
+installed ``lerobot`` (dataset format v3.0 for lerobot 0.4 and 0.6): ``meta/info.json``, ``meta/stats.json``,
+``meta/tasks.parquet``, ``meta/episodes/…``, ``data/chunk-000/file-000.parquet`` with the images embedded.
+``lerobot`` is the extra ``muble[lerobot]``. Frames are keyframes, not a fixed control rate: ``fps`` is 1 and a
+frame's ``timestamp`` is its index.
 """
 from __future__ import annotations
 
 import json
-import shutil
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from muble.core.atomic import write_bytes_atomic
+import numpy as np
+
 from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.layout import DatasetLayout
 
-CODEBASE_VERSION = "v2.1"
 IMAGE_KEY = "observation.images.front"
 STATE_NAMES = ["x", "y", "z", "qw", "qx", "qy", "qz", "gripper"]
+FPS = 1
+INSTALL = 'pip install "muble[lerobot]"'
 
 
 def _state(robot: dict[str, Any]) -> list[float]:
     return [*map(float, robot["pos"]), *map(float, robot["ori"]), float(robot["gripper_action"])]
 
 
-def _jsonl(rows: list[dict[str, Any]]) -> bytes:
-    return "".join(json.dumps(r) + "\n" for r in rows).encode()
+def lerobot_version() -> str | None:
+    """The installed lerobot's version, or ``None`` when it is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("lerobot")
+    except PackageNotFoundError:
+        return None
+
+
+def require_lerobot() -> None:
+    """A ``ConfigError`` naming the extra when the LeRobot library cannot be imported."""
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("lerobot") is not None
+    except (ImportError, ValueError):
+        found = False
+    if not found:
+        raise ConfigError(f"`muble export` writes with the LeRobot library, which is not installed: {INSTALL} "
+                          "(lerobot 0.6 on Python 3.13; it brings torch)")
 
 
 def read_sequence(path: Path, split_dir: Path) -> dict[str, Any]:
@@ -53,7 +79,7 @@ def read_sequence(path: Path, split_dir: Path) -> dict[str, Any]:
         what = f"missing field {e}" if isinstance(e, KeyError) else str(e)
         raise SceneValidationError(f"{path}: not a complete sequence file ({what}); generate the split again "
                                    "or remove the file") from e
-    if not isinstance(task, str):
+    if not isinstance(task, str) or not task:
         raise SceneValidationError(f"{path}: 'info.instruction' must be text", field="instruction")
     missing = [p for p in images if not (split_dir / p).is_file()]
     if missing:
@@ -62,78 +88,119 @@ def read_sequence(path: Path, split_dir: Path) -> dict[str, Any]:
     return sequence
 
 
-def export_lerobot(dataset_root: str | Path, split: str, out: str | Path, robot_type: str = "") -> dict[str, int]:
-    """Write the split's sequences under ``out``; returns episode and frame counts."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+def dataset_robot(root: Path) -> str | None:
+    """The robot a generated dataset was made with (its ``dataset_config.json`` or ``manifest.json``)."""
+    from muble.dataset.identity import IDENTITY_FILE
 
+    for name in (IDENTITY_FILE, "manifest.json"):
+        path = root / name
+        if not path.is_file():
+            continue
+        try:
+            record = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        config = record.get("config", record) if isinstance(record, dict) else {}
+        robot = config.get("robot") if isinstance(config, dict) else None
+        name_ = robot.get("name") if isinstance(robot, dict) else robot
+        if isinstance(name_, str) and name_:
+            return name_
+    return None
+
+
+def _image(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return np.asarray(image.convert("RGB"))
+
+
+def _image_shape(path: Path) -> tuple[int, int, int]:
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as image:
+            return image.height, image.width, 3
+    except (OSError, UnidentifiedImageError) as e:
+        raise ConfigError(f"{path}: not a readable keyframe image ({e}); generate the split again") from e
+
+
+def features(image_shape: tuple[int, int, int]) -> dict[str, dict[str, Any]]:
+    """The dataset's features in LeRobot's terms (LeRobot adds timestamp, frame, episode, index and task index)."""
+    return {
+        IMAGE_KEY: {"dtype": "image", "shape": image_shape, "names": ["height", "width", "channels"]},
+        "observation.state": {"dtype": "float32", "shape": (len(STATE_NAMES),), "names": STATE_NAMES},
+        "observation.weight": {"dtype": "float32", "shape": (1,), "names": ["grams"]},
+        "action": {"dtype": "float32", "shape": (len(STATE_NAMES),), "names": STATE_NAMES},
+        "action.primitive": {"dtype": "string", "shape": (1,), "names": None},
+        "action.target": {"dtype": "string", "shape": (1,), "names": None},
+    }
+
+
+@dataclass(frozen=True)
+class CheckedSplit:
+    """A split whose every sequence file and keyframe image was checked: ready to write."""
+
+    layout: DatasetLayout
+    sequences: list[dict[str, Any]]
+    image_shape: tuple[int, int, int]
+
+
+def check_split(dataset_root: str | Path, split: str) -> CheckedSplit:
+    """Read and check every sequence of the split (needs no LeRobot): a ``MubleError`` names the first problem."""
     layout = DatasetLayout(Path(dataset_root), split)
-    sequences = sorted((layout.split_dir / "sequences").glob("*.json"))
-    if not sequences:
+    paths = sorted((layout.split_dir / "sequences").glob("*.json"))
+    if not paths:
         raise ConfigError(f"no sequence files under {layout.split_dir / 'sequences'}; generate the split with "
                           "dataset.sequences=true first")
-    loaded = [read_sequence(path, layout.split_dir) for path in sequences]  # all checked before writing
-    out = Path(out)
-    tasks: dict[str, int] = {}
-    episodes, total = [], 0
-    for episode_index, (path, sequence) in enumerate(zip(sequences, loaded)):
-        observations = sequence["observations"]
-        task = sequence["info"]["instruction"]
-        task_index = tasks.setdefault(task, len(tasks))
-        states = [_state(o["robot"]) for o in observations]
-        rows: dict[str, list] = {k: [] for k in (
-            "observation.state", "action", "action.primitive", "action.target", "observation.weight",
-            IMAGE_KEY, "timestamp", "frame_index", "episode_index", "index", "task_index")}
-        for i, obs in enumerate(observations):
-            following = observations[i + 1]["robot"]["action"] if i + 1 < len(observations) else ["STOP", None]
-            target = following[1]
-            image = Path(sequence["image_paths"][i])
-            rel = Path("images") / IMAGE_KEY / f"episode_{episode_index:06d}" / f"frame_{i:06d}.png"
-            (out / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(layout.split_dir / image, out / rel)
-            rows["observation.state"].append(states[i])
-            rows["action"].append(states[min(i + 1, len(states) - 1)])
-            rows["action.primitive"].append(following[0])
-            rows["action.target"].append(json.dumps(target))
-            rows["observation.weight"].append(float(obs["robot"]["weight_measurement"]))
-            rows[IMAGE_KEY].append(str(rel))
-            rows["timestamp"].append(float(i))
-            rows["frame_index"].append(i)
-            rows["episode_index"].append(episode_index)
-            rows["index"].append(total + i)
-            rows["task_index"].append(task_index)
-        table = pa.table(rows)
-        target_path = out / "data" / "chunk-000" / f"episode_{episode_index:06d}.parquet"
-        target_path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = target_path.with_name(f".{target_path.name}.tmp")
-        pq.write_table(table, tmp)
-        tmp.replace(target_path)
-        episodes.append({"episode_index": episode_index, "tasks": [task], "length": len(observations),
-                         "source": str(path.relative_to(layout.root)), "result": sequence["result"]})
-        total += len(observations)
-    info = {
-        "codebase_version": CODEBASE_VERSION, "robot_type": robot_type, "total_episodes": len(episodes),
-        "total_frames": total, "total_tasks": len(tasks), "chunks_size": 1000, "fps": 1,
-        "splits": {split: f"0:{len(episodes)}"},
-        "data_path": "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
-        "image_path": "images/{image_key}/episode_{episode_index:06d}/frame_{frame_index:06d}.png",
-        "features": {
-            "observation.state": {"dtype": "float32", "shape": [8], "names": STATE_NAMES},
-            "action": {"dtype": "float32", "shape": [8], "names": STATE_NAMES},
-            "action.primitive": {"dtype": "string", "shape": [1]},
-            "action.target": {"dtype": "string", "shape": [1]},
-            "observation.weight": {"dtype": "float32", "shape": [1]},
-            IMAGE_KEY: {"dtype": "image", "shape": None},
-            "timestamp": {"dtype": "float32", "shape": [1]},
-            "frame_index": {"dtype": "int64", "shape": [1]},
-            "episode_index": {"dtype": "int64", "shape": [1]},
-            "index": {"dtype": "int64", "shape": [1]},
-            "task_index": {"dtype": "int64", "shape": [1]},
-        },
-        "note": "one frame per primitive action (keyframes), not a fixed control rate",
-    }
-    write_bytes_atomic(out / "meta" / "info.json", json.dumps(info, indent=2).encode())
-    write_bytes_atomic(out / "meta" / "episodes.jsonl", _jsonl(episodes))
-    write_bytes_atomic(out / "meta" / "tasks.jsonl",
-                       _jsonl([{"task_index": i, "task": t} for t, i in sorted(tasks.items(), key=lambda x: x[1])]))
-    return {"episodes": len(episodes), "frames": total}
+    sequences = [read_sequence(path, layout.split_dir) for path in paths]
+    shapes = {_image_shape(layout.split_dir / p) for s in sequences for p in s["image_paths"]}
+    if len(shapes) > 1:
+        raise ConfigError(f"keyframe images of split '{split}' differ in size ({sorted(shapes)}); a LeRobot "
+                          "dataset has one image shape: generate the split with one renderer size")
+    return CheckedSplit(layout, sequences, shapes.pop())
+
+
+def write_lerobot(checked: CheckedSplit, out: str | Path, robot_type: str | None = None,
+                  repo_id: str = "muble/shopvrb2") -> dict[str, Any]:
+    """Write a checked split as a LeRobot dataset in ``out`` (a folder that must not exist yet: LeRobot creates
+    it). ``robot_type`` defaults to the robot the dataset was generated with. Returns the episode and frame counts,
+    the robot type and the lerobot version."""
+    require_lerobot()
+    robot_type = robot_type or dataset_robot(checked.layout.root)
+    if not robot_type:
+        raise ConfigError(f"{checked.layout.root} records no robot (no dataset_config.json or manifest.json): pass "
+                          "--robot-type NAME")
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    split_dir = checked.layout.split_dir
+    dataset = LeRobotDataset.create(repo_id, FPS, features(checked.image_shape), root=Path(out),
+                                    robot_type=robot_type, use_videos=False)
+    total = 0
+    try:
+        for sequence in checked.sequences:
+            observations = sequence["observations"]
+            states = np.asarray([_state(o["robot"]) for o in observations], dtype=np.float32)
+            for i, obs in enumerate(observations):
+                following = observations[i + 1]["robot"]["action"] if i + 1 < len(observations) else ["STOP", None]
+                dataset.add_frame({
+                    IMAGE_KEY: _image(split_dir / sequence["image_paths"][i]),
+                    "observation.state": states[i],
+                    "observation.weight": np.asarray([obs["robot"]["weight_measurement"]], dtype=np.float32),
+                    "action": states[min(i + 1, len(states) - 1)],
+                    "action.primitive": str(following[0]),
+                    "action.target": json.dumps(following[1] if len(following) > 1 else None),
+                    "task": sequence["info"]["instruction"],
+                })
+            dataset.save_episode()
+            total += len(observations)
+    finally:
+        dataset.finalize()
+    return {"episodes": len(checked.sequences), "frames": total, "robot_type": robot_type,
+            "lerobot": lerobot_version()}
+
+
+def export_lerobot(dataset_root: str | Path, split: str, out: str | Path, robot_type: str | None = None,
+                   repo_id: str = "muble/shopvrb2") -> dict[str, Any]:
+    """``check_split`` then ``write_lerobot``."""
+    return write_lerobot(check_split(dataset_root, split), out, robot_type, repo_id)

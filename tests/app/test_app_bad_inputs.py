@@ -99,7 +99,6 @@ def _fake_split(root: Path, sequence_text: str) -> None:
 
 
 def test_export_bad_inputs_exit_2_and_write_nothing(tmp_path):
-    pytest.importorskip("pyarrow")
     good = {"info": {"instruction": "weigh it"}, "image_paths": ["images/a.png"], "result": "success",
             "observations": [{"robot": {"pos": [0, 0, 0], "ori": [1, 0, 0, 0], "gripper_action": -1,
                                         "weight_measurement": 0.0, "action": ["START", None]}}]}
