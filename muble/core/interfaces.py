@@ -106,8 +106,10 @@ class CollisionWorld(ABC):
         """Carry ``body`` with the hand from now on (None: nothing). Optional for worlds nothing is grasped in."""
         raise NotImplementedError(f"{type(self).__name__} cannot carry an object with the hand")
 
-    def allow_contact(self, bodies: "Iterable[str | int]") -> None:
-        """Contacts with ``bodies`` no longer make a configuration invalid (empty: none excused). Optional."""
+    def allow_contact(self, bodies: "Iterable[str | int]", held_only: bool = False) -> None:
+        """Contacts with ``bodies`` no longer make a configuration invalid (empty: none excused); with
+        ``held_only``, only the held object's contacts with them are excused and the gripper's still count (an
+        object set down into a bowl may touch it, the fingers round it may not). Optional."""
         raise NotImplementedError(f"{type(self).__name__} cannot excuse contacts")
 
     def resting_at(self, q: np.ndarray) -> "contextlib.AbstractContextManager[bool]":

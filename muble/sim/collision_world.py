@@ -99,6 +99,7 @@ class MujocoCollisionWorld(CollisionWorld):
         self._held_qpos_adr: int | None = None
         self._held_offset: tuple[np.ndarray, np.ndarray] | None = None
         self._allowed_bodies: set[int] = set()
+        self._allowed_held_only = False
         # Per geom pair, the least distance a contact may have (inf: none tolerated); see ``resting_at``.
         self._tolerated = np.full((m.ngeom, m.ngeom), np.inf)
         self._tolerating = False
@@ -141,9 +142,11 @@ class MujocoCollisionWorld(CollisionWorld):
         return ignore
 
     # ----------------------------------------------------------------- grasp handling
-    def allow_contact(self, bodies: Iterable[str | int]) -> None:
-        """Contacts of the gripper and the held object with these bodies are allowed (grasp target, support)."""
+    def allow_contact(self, bodies: Iterable[str | int], held_only: bool = False) -> None:
+        """Contacts of the gripper and the held object with these bodies are allowed (grasp target, support); with
+        ``held_only`` those of the held object alone."""
         self._allowed_bodies = {self.model.body(b).id if isinstance(b, str) else int(b) for b in bodies}
+        self._allowed_held_only = bool(held_only)
         self._update_ignore()
 
     def hold(self, body: str | int | None) -> None:
@@ -237,7 +240,7 @@ class MujocoCollisionWorld(CollisionWorld):
         held_gripper = np.outer(self._held_geoms, self._gripper_geoms)
         ignore |= held_gripper | held_gripper.T
         allowed = np.isin(m.geom_bodyid, list(self._allowed_bodies)) & ~robot
-        own = self._gripper_geoms | self._held_geoms
+        own = self._held_geoms if self._allowed_held_only else self._gripper_geoms | self._held_geoms
         allowed_pairs = np.outer(own, allowed)
         ignore |= allowed_pairs | allowed_pairs.T
         self._ignore = ignore

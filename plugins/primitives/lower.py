@@ -8,6 +8,7 @@ import logging
 import numpy as np
 
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble.core.geometry import tilt_deg
 from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
@@ -102,7 +103,8 @@ def _plan(env, world, target, places, support_body, support_top):
         if yaw == 0.0 and np.linalg.norm(hand[:2] - place.pos[:2]) < 0.01 and hand[2] > place.pos[2]:
             above = hand.copy()  # already over the place (``move`` went there): straight down from here
         try:
-            q_above, down = placement.plan_descent(env, world, place, above, support_body)
+            q_above, down = placement.plan_descent(env, world, place, above, support_body,
+                                                   gripper_may_touch=not isinstance(target, (int, np.integer)))
             world.allow_contact([])
             to_above = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_above), world)
             return to_above, down
@@ -124,6 +126,7 @@ def _put_down(env, world, to_above, down, support_body, held_body, held, target)
     second = ctx.execute(env, down.__class__(np.vstack([env.arm_q(), down.q[1:]]), down.t, down.joint_names),
                          world, allowed={support_body})
     others = {i: env.object_pose(i).pos.copy() for i in env.object_ids if i != held}
+    tilt_at_release = tilt_deg(env.object_pose(held).quat)
     between = _between_pads(env, held_body)
     width = ctx.pad_gap(env)
     env.set_gripper(release_command(env))
@@ -141,7 +144,7 @@ def _put_down(env, world, to_above, down, support_body, held_body, held, target)
     elif speed >= RESTING_SPEED:
         problem = f"object {held} did not come to rest (speed {speed:.3f} m/s)"
     else:
-        problem = misplaced(env, held, held_body, target, support_body, others)
+        problem = misplaced(env, held, held_body, target, support_body, others, tilt_at_release)
     result.success = problem is None
     if problem:
         result.failure_reason = problem
@@ -151,12 +154,17 @@ def _put_down(env, world, to_above, down, support_body, held_body, held, target)
 # m any other object may move while one is put down (a support settling under the added weight) before the
 # put-down counts as having disturbed the scene (a stack tipped over, a neighbour dragged along).
 DISTURBED = 0.02
+# degrees a put-down object may lean further than it did when let go (settling on a curved floor) before it counts
+# as fallen over or left leaning on a rim; the task judge's upright limit is of the same size.
+LEANING = 20.0
 
 
-def misplaced(env, held: int, held_body: int, target, support_body: int, others: dict) -> str | None:
+def misplaced(env, held: int, held_body: int, target, support_body: int, others: dict,
+              tilt_at_release: float | None = None) -> str | None:
     """Why the put-down of ``held`` did not end as asked, from the physics after it came to rest, or ``None``:
-    it must touch its target (an object, or the table for a table part) and no other object may have moved more
-    than ``DISTURBED``."""
+    it must touch its target (an object, or the table for a table part) and lean at most ``LEANING`` further than
+    when it was let go (``tilt_at_release``, degrees), and no other object may have moved more than
+    ``DISTURBED``. Put back without a target, it need only be down and leave the others where they were."""
     moved = {i: float(np.linalg.norm(env.object_pose(i).pos - p)) for i, p in others.items()}
     moved = {i: d for i, d in moved.items() if d > DISTURBED}
     if moved:
@@ -166,6 +174,10 @@ def misplaced(env, held: int, held_body: int, target, support_body: int, others:
     if target is not None and support_body not in ctx.touching_bodies(env, {held_body}):
         where = f"object {target}" if isinstance(target, (int, np.integer)) else "the table"
         return f"object {held} did not stay on {where} after it was let go"
+    if target is not None and tilt_at_release is not None:  # put back where it was: only set down
+        tilt = tilt_deg(env.object_pose(held).quat)
+        if tilt - tilt_at_release > LEANING:
+            return f"object {held} came to rest leaning {tilt:.0f} degrees (let go at {tilt_at_release:.0f})"
     return None
 
 

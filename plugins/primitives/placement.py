@@ -188,10 +188,15 @@ def _reversed(path: Trajectory) -> Trajectory:
     return Trajectory(path.q[::-1].copy(), path.t[-1] - path.t[::-1], path.joint_names)
 
 
-def plan_descent(env, world, place: Pose, above: np.ndarray, support: int) -> tuple[np.ndarray, Trajectory]:
+def plan_descent(env, world, place: Pose, above: np.ndarray, support: int,
+                 gripper_may_touch: bool = True) -> tuple[np.ndarray, Trajectory]:
     """An arm configuration with the hand at ``above`` (collision-free) and the straight descent from it to
     ``place`` (touching only ``support``): the arm's current branch first, then configurations found from the
     place upwards, which avoid a singularity or joint limit met on the way down.
+
+    Without ``gripper_may_touch`` only the held object may touch the support, the fingers keep the planning
+    clearance from it: an object set down into a bowl, with the fingers pressed on the bowl's walls, could not
+    be let go (the opening fingers wedge against the walls and lift the bowl as they rise).
 
     Raises ``PlanningError`` with the first reason when the place is out of reach or every descent is blocked.
     """
@@ -204,7 +209,7 @@ def plan_descent(env, world, place: Pose, above: np.ndarray, support: int) -> tu
     try:
         world.allow_contact([])
         q_above = world.inverse_kinematics(above_goal, seeds=seeds[0][None])
-        world.allow_contact([support])
+        world.allow_contact([support], held_only=not gripper_may_touch)
         return q_above, line.plan(q_above, place_goal, world)
     except PlanningError as e:
         reasons.append(str(e))
@@ -214,13 +219,13 @@ def plan_descent(env, world, place: Pose, above: np.ndarray, support: int) -> tu
         world.allow_contact([])
     for seed in seeds:
         try:
-            world.allow_contact([support])
+            world.allow_contact([support], held_only=not gripper_may_touch)
             q_place = world.local_inverse_kinematics(place_goal, seed)
             up = line.plan(q_place, above_goal, world)
             world.allow_contact([])
             if not world.is_valid(up.q[-1]):
                 raise PlanningError(f"the pose above the place is in collision {world.last_contacts[:2]}")
-            world.allow_contact([support])
+            world.allow_contact([support], held_only=not gripper_may_touch)
             try:
                 return up.q[-1], line.plan(up.q[-1], place_goal, world)
             except PlanningError:
