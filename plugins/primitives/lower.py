@@ -138,7 +138,6 @@ def _put_down(env, world, to_above, down, support_body, held_body, held, target)
     contacts = first.unintended_contacts | second.unintended_contacts | third.unintended_contacts
     report = ctx.MotionReport(first.duration + second.duration + third.duration, third.final_error, contacts)
     result = checked_result(report, resting_speed=speed, released=env.held_object is None)
-    problem = None
     if env.held_object is not None:
         problem = f"object {held} is still in the hand"
     elif speed >= RESTING_SPEED:
