@@ -225,6 +225,20 @@ def _step_stack(ctx: _Context, step: dict, prev: Any, index: int) -> list[list[i
     return chains
 
 
+def stack_pairs(chains: list[list[int]]) -> list[tuple[int, int]]:
+    """(top, base) pairs of a ``stack`` step's output, bottom pair first; the chains list the stack top first."""
+    order = [i for chain in chains for i in chain]
+    return [(order[k], order[k + 1]) for k in range(len(order) - 2, -1, -1)]
+
+
+def stacked_pairs(program: list[dict[str, Any]]) -> list[tuple[int, int]]:
+    """The (top, base) pairs a program ending in ``stack`` builds, bottom pair first, from the output its last
+    step recorded (ground-truth weights; see ``Instruction.program``); empty for any other program."""
+    if not program or program[-1].get("type") != "stack" or not program[-1].get("output"):
+        return []
+    return stack_pairs(program[-1]["output"])
+
+
 STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
     "scene": _step_scene,
     **{name: _attribute_filter(attr) for name, attr in ATTRIBUTE_FILTERS.items()},

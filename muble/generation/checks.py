@@ -91,3 +91,80 @@ def settle(models: list[ObjectModel], placements: list[Placement], table_x, tabl
     moved = np.maximum(np.linalg.norm(data.xpos[bodies] - origin0, axis=1),
                        np.linalg.norm(data.xipos[bodies] - com0, axis=1))
     return moved
+
+
+# A stack the ground truth builds must stand: the upper object, let go centred over its base as ``lower`` lets it
+# go, comes to rest in contact with the base, leaning at most this many degrees: three quarters of the task judge's
+# upright limit (20 degrees), so that a put-down a little off centre still ends upright.
+STACK_LEAN_DEG = 15.0
+STACK_DROP = 0.003  # m between the upper object's bottom and the base under it when let go
+STACK_SETTLE = 1.0  # s of physics after each put-down
+
+
+def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: list[tuple[int, int]], table_x,
+                 table_y, timestep: float, settle_time: float = STACK_SETTLE) -> str | None:
+    """``None`` when every (top, base) pair of ``pairs`` (bottom pair first, as a stack is built) stands: the top
+    object, set down centred over its base from ``STACK_DROP`` above the highest point of the base under its
+    footprint, comes to rest touching the base and leaning at most ``STACK_LEAN_DEG`` from how it was let go, and
+    every object stacked before it still does. Else why not (the first pair that does not stand).
+
+    The objects start as placed on the table; each top object keeps its turn about the vertical. A bowl too small
+    for a mug's base, a can on a bowl's sloping wall, a glass on a tray's rim: the physics of the built models
+    says, not the objects' categories.
+    """
+    import mujoco
+
+    from muble.core.geometry import tilt_deg
+
+    model = mujoco.MjModel.from_xml_string(physics_world_xml(models, placements, table_x, table_y, timestep))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    bodies = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"obj{i}") for i in range(len(models))]
+    qpos = [model.jnt_qposadr[model.body_jntadr[b]] for b in bodies]
+    qvel = [model.jnt_dofadr[model.body_jntadr[b]] for b in bodies]
+    steps = max(1, int(round(settle_time / timestep)))
+    groups = np.ones(6, dtype=np.uint8)
+    hit = np.zeros(1, dtype=np.int32)
+    placed: list[tuple[int, int, np.ndarray]] = []  # (top, base, the top's orientation when let go)
+    for top, base in pairs:
+        tb, bb = bodies[top], bodies[base]
+        rot = data.xmat[tb].reshape(3, 3)
+        verts = np.vstack([np.asarray(p.vertices, float) for p in models[top].collision_parts]) @ rot.T
+        depth = -float(verts[:, 2].min())  # the top's bottom below its origin
+        shape = verts[:, :2]
+        centre = data.xpos[bb][:2]
+        points = np.vstack([np.zeros((1, 2)), shape, 0.5 * shape]) + centre
+        start_z = float(data.xpos[bb][2]) + float(np.ptp(np.vstack(
+            [np.asarray(p.vertices, float) for p in models[base].collision_parts])[:, 2])) * 2 + 0.05
+        heights = []
+        for x, y in points:
+            dist = mujoco.mj_ray(model, data, np.array([x, y, start_z]), np.array([0.0, 0.0, -1.0]), groups, 0,
+                                 tb, hit)
+            if dist >= 0 and model.geom_bodyid[hit[0]] == bb:
+                heights.append(start_z - dist)
+        if not heights:
+            return f"object {top} has nothing of object {base} under it when centred over it"
+        a = qpos[top]
+        data.qpos[a:a + 3] = [centre[0], centre[1], max(heights) + depth + STACK_DROP]
+        data.qvel[qvel[top]:qvel[top] + 6] = 0.0
+        mujoco.mj_forward(model, data)
+        placed.append((top, base, data.xquat[tb].copy()))
+        mujoco.mj_step(model, data, nstep=steps)
+        if not np.all(np.isfinite(data.qpos)):
+            return f"object {top} on object {base}: the physics diverged"
+        for t, b, quat in placed:
+            lean = tilt_deg(data.xquat[bodies[t]]) - tilt_deg(quat)
+            if lean > STACK_LEAN_DEG:
+                return f"object {t} on object {b} comes to rest leaning {lean:.0f} degrees"
+            if not _touching(model, data, bodies[t], bodies[b]):
+                return f"object {t} does not stay on object {b}"
+    return None
+
+
+def _touching(model, data, a: int, b: int) -> bool:
+    for k in range(data.ncon):
+        c = data.contact[k]
+        pair = {int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])}
+        if pair == {a, b}:
+            return True
+    return False

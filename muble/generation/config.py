@@ -43,6 +43,9 @@ class GeneratorConfig:
     settle_time: float = 1.0  # s
     stability_tolerance: float = 0.005  # m
     timestep: float = 0.002  # s
+    # Accept a layout only when every stack its instruction's ground truth builds stands upright in physics
+    # (``checks.stacks_stand``); the pairs come from the caller (``SceneGenerator.generate(stacks=...)``).
+    stack_check: bool = True
     # Accept a layout only when ``robot`` (RobotConfig fields; empty: Panda) can grasp every pickupable object and
     # put it down again (``muble.generation.reachability``).
     reach_check: bool = True

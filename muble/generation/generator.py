@@ -156,13 +156,16 @@ class SceneGenerator:
 
     # --- one scene --------------------------------------------------------------------------------------------
     def generate(self, index: int, *, sample: int = 0, objects: int | None = None,
-                 accept: Callable[[SceneGraph], bool] | None = None) -> SceneGraph:
+                 accept: Callable[[SceneGraph], bool] | None = None,
+                 stacks: Callable[[SceneGraph], list[tuple[int, int]]] | None = None) -> SceneGraph:
         """The scene for ``index``; raises ``SceneGenerationError`` naming the failing checks if no layout passes.
 
         ``sample`` > 0 draws a further, independent scene for the same index (its own stream ``[seed, index,
         sample]``), e.g. when the scene drawn first does not suit the task wanted there. ``objects`` fixes the
         object count instead of drawing it. ``accept(scene)`` is asked about each placed layout before the
-        costlier checks (visibility, rest, reach); it sees every field but the masks.
+        costlier checks (visibility, rest, reach); it sees every field but the masks. ``stacks(scene)`` names the
+        (top, base) pairs, bottom pair first, that the scene's task will stack (asked after ``accept``): with
+        ``stack_check`` on, a layout is kept only when each such stack stands upright in physics.
         """
         cfg = self.config
         rng = np.random.default_rng([self.seed, int(index)] + ([int(sample)] if sample else []))
@@ -200,6 +203,15 @@ class SceneGenerator:
                     reasons["stability"] += 1
                     continue
             scene = self._scene(index, specs, models, placements, None)
+            pairs = stacks(scene) if stacks is not None and cfg.stack_check else []
+            if pairs:
+                t5 = time.perf_counter()
+                fallen = checks.stacks_stand(models, placements, pairs, cfg.table_x, cfg.table_y, cfg.timestep)
+                self.timings["stacking"] += time.perf_counter() - t5
+                if fallen:
+                    reasons["stacking"] += 1
+                    log.debug("scene %d: layout rejected: %s", index, fallen)
+                    continue
             if self.reach_check is not None:
                 t5 = time.perf_counter()
                 unreachable = self.reach_check(scene, dict(enumerate(models)))

@@ -23,6 +23,7 @@ import numpy as np
 
 from muble.core.errors import ConfigError, PlanningError, SceneGenerationError
 from muble.core.interfaces import Instruction, Task
+from muble.core.program import stacked_pairs
 from muble.core.scene import SceneGraph
 
 MIX_STREAM = 7  # keeps the mix's random streams apart from the scene and instruction streams of an index
@@ -96,7 +97,7 @@ def suited_scene(generator: Any, tasks: dict[str, Task], weights: Sequence[float
     ``generator`` is a ``SceneGenerator`` seeded with the split's seed; ``instruction_rng(index)`` gives the
     random stream an instruction is chosen with. A scene sample is accepted when the template yields an
     instruction whose ground truth the symbolic oracle completes; the generator's own checks (visibility,
-    rest, reach) then run on the accepted layout only. Raises ``SceneGenerationError`` when no sample in
+    rest, the stacks of that ground truth standing, reach) then run on the accepted layout only. Raises ``SceneGenerationError`` when no sample in
     ``max_samples`` (default: the generator's ``scene_samples``) suits the template.
     """
     names = list(tasks)
@@ -122,7 +123,8 @@ def suited_scene(generator: Any, tasks: dict[str, Task], weights: Sequence[float
     for sample in range(max_samples):
         chosen.clear()
         try:
-            scene = generator.generate(index, sample=sample, objects=count, accept=accept)
+            scene = generator.generate(index, sample=sample, objects=count, accept=accept,
+                                       stacks=lambda _: stacked_pairs(chosen["instruction"].program))
         except SceneGenerationError as e:
             for k, v in e.reasons.items():
                 reasons[k] = reasons.get(k, 0) + v

@@ -37,8 +37,9 @@ class Approach(PrimitiveAction):
             except PlanningError:
                 env.restore(snap)
                 raise
+            candidates = rotated(candidates, attempt)[:EXECUTE_CANDIDATES]
             tried += len(candidates)
-            chosen = first_short_swing(env, world, body, rotated(candidates, attempt), grip, reasons)
+            chosen = first_short_swing(env, world, body, candidates, grip, reasons)
             if chosen is not None:
                 return _go(env, snap, obj_id, body, *chosen, len(reasons) + 1)
         env.restore(snap)
@@ -321,6 +322,10 @@ def _touches_lightly(world, qs) -> bool:
 
 # Feasibility check (scene generation): how much of ``execute``'s search it repeats, traded against its cost.
 FEASIBLE_CANDIDATES = 16  # grasp candidates per hand opening tried at most
+# Grasp candidates per hand opening ``execute`` tries at most (from the ``attempt``-th on): three times the number
+# the reach check vouches for. A round object in clutter offers hundreds; when the first few dozen are all
+# blocked the rest are too (the same neighbour in the way), and planning each takes seconds.
+EXECUTE_CANDIDATES = 48
 FEASIBLE_IK_RESTARTS = 12  # random inverse-kinematics restarts per pose (``execute`` uses the world's default)
 FEASIBLE_RISE = 0.10  # m the hand must rise straight up holding the object: clear of its support, as ``lift`` does
 FINGERS_STILL = 0.005  # m/s (rad/s) of finger joint speed below which the fingers count as at rest

@@ -10,10 +10,9 @@ import math
 from typing import Any
 
 from muble import Answer, ConfigError, Instruction, Outcome, PlanningError, SceneGraph
-from muble.core.program import execute
+from muble.core.program import execute, stack_pairs
 
 from muble_plugins.tasks.geometry import broken, on_table_part, rests_on
-from muble_plugins.tasks.task_planner import stack_pairs
 
 log = logging.getLogger(__name__)
 

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 from muble import ActionCall, Answer, PlanningError, SceneGraph
-from muble.core.program import execute, table_parts_of
+from muble.core.program import execute, stack_pairs, table_parts_of
 
 from muble_plugins.tasks.geometry import on_table_part, rests_on
 from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH, ArmState
@@ -91,12 +91,6 @@ def place_at(scene: SceneGraph, obj_id: int, part: str, arm: ArmState) -> list[A
 
 def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> list[ActionCall]:
     return _deliver(obj_id, _carried_to(scene, obj_id, arm, base_id), base_id, arm)
-
-
-def stack_pairs(chains: list[list[int]]) -> list[tuple[int, int]]:
-    """(top, base) pairs of a stack output, bottom pair first; chains list the stack top first."""
-    order = [i for chain in chains for i in chain]
-    return [(order[k], order[k + 1]) for k in range(len(order) - 2, -1, -1)]
 
 
 def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, float] | None = None,
