@@ -8,7 +8,7 @@
 MuJoCo joint positions of the scene's world, one row per keyframe, and the robot, object set and camera the
 episode used (the defaults of ``--robot``, ``--object-set`` and ``--camera``). Without it the scene's initial
 state is rendered once. The renderer, and an object set that neither the command line nor the keyframe states
-name, are the ``render`` config's (``conf/render.yaml``: the run's, with the photoreal renderer). With
+name, are the ``render`` config's (``muble_conf/render.yaml``: the run's, with the photoreal renderer). With
 ``--passes`` each keyframe's depth (16-bit PNG, millimetres) and segmentation (16-bit PNG, label + 3:
 0 background, 1 table, 2 robot, 3 + i object i) are written next to its RGB.
 
@@ -86,7 +86,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("scene", help="SHOP-VRB2 scene JSON file")
     parser.add_argument("--keyframes", help="keyframe state file (.npz with 'qpos') that `muble run` writes")
     parser.add_argument("--renderer", default=None,
-                        help="renderer plugin name (default: the render config's, conf/render.yaml)")
+                        help="renderer plugin name (default: the render config's, muble_conf/render.yaml)")
     parser.add_argument("--camera", default=None, help="MuJoCo camera name (default: the episode's, else front)")
     parser.add_argument("--object-set", default=None,
                         help="object set the scene's objects come from (default: the episode's, else the render "
@@ -101,7 +101,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def configured_plugins() -> tuple[str, str]:
-    """(renderer, object set) of the ``render`` config (``conf/render.yaml``), composed as every job's config is,
+    """(renderer, object set) of the ``render`` config (``muble_conf/render.yaml``), composed as every job's config is,
     plugins' config folders included."""
     from muble.app.config import compose
 

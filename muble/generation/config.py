@@ -17,7 +17,7 @@ class GeneratorConfig:
     ``reach_y`` (the arm's reachable part of the table, metres in the robot frame) and their whole footprint on
     the table; ``margin`` is the least mesh-to-mesh distance between objects. ``min_visible_pixels`` is counted
     on the full-size image; the check renders at ``occlusion_scale`` of it. The plugins it uses are named here
-    (``conf/generator/*.yaml`` names them): ``object_set``, the ``renderer`` that draws the segmentation for the
+    (``muble_conf/generator/*.yaml`` names them): ``object_set``, the ``renderer`` that draws the segmentation for the
     visibility checks and the masks (it gets ``width`` and ``height`` besides ``renderer_options`` and is set up
     with MuJoCo models), and the ``reach_primitive`` asked whether each object can be grasped.
     """
@@ -62,7 +62,7 @@ class GeneratorConfig:
 
 
 def register_generator_config() -> None:
-    """Store the schema as ``generator/generator_schema`` so ``conf/generator/*.yaml`` can extend it."""
+    """Store the schema as ``generator/generator_schema`` so ``muble_conf/generator/*.yaml`` can extend it."""
     from hydra.core.config_store import ConfigStore
 
     ConfigStore.instance().store(group="generator", name="generator_schema", node=GeneratorConfig)

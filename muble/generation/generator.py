@@ -34,7 +34,7 @@ WEIGHT_RESAMPLES = 30
 
 def _named(name: str, option: str) -> str:
     if not name:
-        raise ConfigError(f"generator.{option} is not set: name the plugin (conf/generator/*.yaml names the "
+        raise ConfigError(f"generator.{option} is not set: name the plugin (muble_conf/generator/*.yaml names the "
                           "built-in one)")
     return name
 

@@ -14,7 +14,7 @@ from muble.app.config import GROUP_OF_KIND, compose
 from muble.plugins.registry import get_registry
 
 ROOT = Path(__file__).resolve().parents[2]
-CONF = ROOT / "conf"
+CONF = ROOT / "muble_conf"
 GROUPS = sorted(p.name for p in CONF.iterdir() if p.is_dir() and not p.name.startswith("_"))
 
 

@@ -9,7 +9,7 @@ import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-BUILD_INPUTS = ("pyproject.toml", "setup.py", "README.md", "muble", "plugins", "conf")
+BUILD_INPUTS = ("pyproject.toml", "setup.py", "README.md", "muble", "muble_plugins", "muble_conf")
 
 
 def test_wheel_builds_without_warnings_and_ships_the_configs(tmp_path):
@@ -30,5 +30,5 @@ def test_wheel_builds_without_warnings_and_ships_the_configs(tmp_path):
         assert noise not in output, [line for line in output.splitlines() if noise in line][:5]
     (wheel,) = (tmp_path / "dist").glob("muble-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    configs = {f"muble_conf/{p.relative_to(ROOT / 'conf')}" for p in (ROOT / "conf").rglob("*.yaml")}
+    configs = {str(p.relative_to(ROOT)) for p in (ROOT / "muble_conf").rglob("*.yaml")}
     assert configs <= names, sorted(configs - names)

@@ -44,7 +44,7 @@ def test_interface_has_docs_entry(interface):
 
 def test_every_config_option_is_documented():
     reference = (ROOT / "docs" / "configs.md").read_text()
-    for group in sorted(p for p in (ROOT / "conf").iterdir() if p.is_dir() and not p.name.startswith("_")):
+    for group in sorted(p for p in (ROOT / "muble_conf").iterdir() if p.is_dir() and not p.name.startswith("_")):
         assert f"`{group.name}`" in reference, f"document config group {group.name} in docs/configs.md"
         for option in group.glob("*.yaml"):
             assert f"`{option.stem}`" in reference, f"document {group.name}={option.stem} in docs/configs.md"

@@ -49,7 +49,7 @@ NAME_EXCEPTIONS: dict[tuple[str, str], str] = {
 
 def _module(path: Path) -> str:
     rel = path.relative_to(ROOT).with_suffix("")
-    parts = ["muble_plugins", *rel.parts[1:]] if rel.parts[0] == "plugins" else list(rel.parts)
+    parts = list(rel.parts)
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
@@ -88,7 +88,7 @@ def _modules() -> set[str]:
 
 @functools.lru_cache(maxsize=None)
 def _modules_under(root: Path) -> set[str]:
-    return {_module(p) for folder in ("muble", "plugins") for p in _files(folder) if (root / folder).is_dir()}
+    return {_module(p) for folder in ("muble", "muble_plugins") for p in _files(folder) if (root / folder).is_dir()}
 
 
 def _layer(module: str) -> str | None:
@@ -230,7 +230,7 @@ def test_imports_run_from_higher_layers_to_lower_ones():
 
 
 def test_plugins_keep_to_their_rules():
-    found = rule_violations(_files("plugins"))
+    found = rule_violations(_files("muble_plugins"))
     assert not found, "\n".join(found)
 
 
@@ -253,7 +253,7 @@ def test_every_package_of_muble_has_a_layer():
 
 
 def test_the_exceptions_are_still_needed():
-    imports = {(str(p.relative_to(ROOT)), m) for p in _files("muble") + _files("plugins") for _, m in _imports(p)}
+    imports = {(str(p.relative_to(ROOT)), m) for p in _files("muble") + _files("muble_plugins") for _, m in _imports(p)}
     stale = [k for k in EXCEPTIONS if k not in imports]
     assert not stale, f"remove these from EXCEPTIONS, the imports are gone: {stale}"
 
@@ -261,7 +261,7 @@ def test_the_exceptions_are_still_needed():
 # --- the checks catch what they should ------------------------------------------------------------------------
 @pytest.fixture
 def tree(tmp_path, monkeypatch):
-    """A scratch copy of the layout: files written under it are scanned as ``muble/...`` and ``plugins/...``."""
+    """A scratch copy of the layout: files written under it are scanned as ``muble/...`` and ``muble_plugins/...``."""
     monkeypatch.setitem(globals(), "ROOT", tmp_path)
     _tree.cache_clear()
     _modules_under.cache_clear()
@@ -286,8 +286,8 @@ def test_an_upward_import_inside_a_function_is_found(tree):
 
 
 def test_a_plugin_importing_the_app_is_found(tree):
-    path = tree("plugins/renderers/x.py", "from muble.app.render import contact_sheet\n")
-    assert rule_violations([path]) == ["plugins/renderers/x.py:1: muble_plugins.renderers.x imports "
+    path = tree("muble_plugins/renderers/x.py", "from muble.app.render import contact_sheet\n")
+    assert rule_violations([path]) == ["muble_plugins/renderers/x.py:1: muble_plugins.renderers.x imports "
                                        "muble.app.render: plugins use the public API, not the command line's "
                                        "internals"]
 

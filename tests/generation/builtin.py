@@ -1,4 +1,4 @@
-"""The plugins the built-in generator config (conf/generator/shopvrb2.yaml) names, for generators built in tests."""
+"""The plugins the built-in generator config (muble_conf/generator/shopvrb2.yaml) names, for generators in tests."""
 from muble_conf import group_defaults
 
 BUILTIN = {k: v for k, v in group_defaults("generator", "shopvrb2").items()

@@ -168,7 +168,7 @@ def test_planners_are_registered_with_checked_options():
         registry.create("planner", "ompl", {"planner": "NoSuchPlanner"})
     with pytest.raises(ConfigError, match="time_limit"):
         registry.create("planner", "ompl", {"time_limt": 1.0})
-    conf = Path(__file__).resolve().parents[2] / "conf" / "planner"
+    conf = Path(__file__).resolve().parents[2] / "muble_conf" / "planner"
     for name in ("ompl", "straight_line"):
         values = OmegaConf.to_container(OmegaConf.load(conf / f"{name}.yaml"))
         assert values.pop("defaults") == [f"{name}_schema", "_self_"]

@@ -13,7 +13,7 @@ from muble.core.environment import Environment, EnvironmentNames
 from muble.sim.env import TabletopEnv
 from tests.sim.conftest import pick
 
-PLUGINS = Path(muble.__file__).resolve().parents[1] / "plugins"
+PLUGINS = Path(muble.__file__).resolve().parents[1] / "muble_plugins"
 
 
 def _members(protocol: type) -> set[str]:

@@ -10,7 +10,7 @@ from hydra.core.global_hydra import GlobalHydra
 from muble import Agent, Task, get_registry
 from muble.app.config import CONFIG_MODULE, HYDRA_VERSION_BASE, register_configs
 
-CONF = Path(__file__).resolve().parents[2] / "conf"
+CONF = Path(__file__).resolve().parents[2] / "muble_conf"
 TASK_YAMLS = sorted(p.stem for p in (CONF / "task").glob("*.yaml"))
 AGENT_YAMLS = sorted(p.stem for p in (CONF / "agent").glob("*.yaml"))
 

@@ -17,7 +17,7 @@ from muble.core.observation import MEASURED_STIFFNESS, TOUCHING_TABLE, agent_vie
 
 from muble_plugins.tasks.geometry import free_spot, height
 
-# The primitive plugins' registry names (plugins/primitives): grasping and releasing are the gripper primitives.
+# The primitive plugins' registry names (muble_plugins/primitives): grasping and releasing are the gripper primitives.
 MOVE, APPROACH, LIFT, WEIGH, LOWER = "move", "approach", "lift", "weigh", "lower"
 GRASP, RELEASE, SQUEEZE = "close_gripper", "open_gripper", "squeeze"
 PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE)

@@ -1,4 +1,4 @@
-"""Options of the Blender renderer; the Hydra schema of ``conf/renderer/blender.yaml``."""
+"""Options of the Blender renderer; the Hydra schema of ``muble_conf/renderer/blender.yaml``."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
