@@ -200,4 +200,10 @@ def _compile(world, names: WorldNames, timestep: float) -> mujoco.MjModel:
     model.opt.timestep = timestep
     # Implicit-in-velocity integration keeps the stiff joint servos and contact damping stable at 2 ms.
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    # No fluid forces. robosuite's base world sets air's density and viscosity, and MuJoCo then drags every body as
+    # the box of its inertia; the Panda model's placeholder inertias make boxes of 0.8 to 2.5 m of the hand and
+    # finger tips, whose drag (about 10 N m about the last joint at 1 rad/s) saturates the 12 N m wrist actuator:
+    # the wrist fell a radian behind a planned turn. Real air drag on a tabletop arm and objects is negligible.
+    model.opt.density = 0.0
+    model.opt.viscosity = 0.0
     return model
