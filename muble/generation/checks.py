@@ -99,6 +99,10 @@ def settle(models: list[ObjectModel], placements: list[Placement], table_x, tabl
 STACK_LEAN_DEG = 15.0
 STACK_DROP = 0.003  # m between the upper object's bottom and the base under it when let go
 STACK_SETTLE = 1.0  # s of physics after each put-down
+# The way down: the upper object, lowered straight onto its release pose from this far above (m), keeps at least
+# STACK_CLEARANCE (m) from every object but those of its stack (``lower`` descends straight onto its target).
+STACK_SWEEP = 0.2
+STACK_CLEARANCE = 0.005
 
 
 def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: list[tuple[int, int]], table_x,
@@ -106,7 +110,8 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
     """``None`` when every (top, base) pair of ``pairs`` (bottom pair first, as a stack is built) stands: the top
     object, set down centred over its base from ``STACK_DROP`` above the highest point of the base under its
     footprint, comes to rest touching the base and leaning at most ``STACK_LEAN_DEG`` from how it was let go, and
-    every object stacked before it still does. Else why not (the first pair that does not stand).
+    every object stacked before it still does; and on its way down onto that pose (``STACK_SWEEP`` straight down)
+    it keeps ``STACK_CLEARANCE`` from every object outside its stack. Else why not (the first pair that fails).
 
     The objects start as placed on the table; each top object keeps its turn about the vertical. A bowl too small
     for a mug's base, a can on a bowl's sloping wall, a glass on a tray's rim: the physics of the built models
@@ -145,7 +150,13 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
         if not heights:
             return f"object {top} has nothing of object {base} under it when centred over it"
         a = qpos[top]
-        data.qpos[a:a + 3] = [centre[0], centre[1], max(heights) + depth + STACK_DROP]
+        release = max(heights) + depth + STACK_DROP
+        stack = {bodies[b] for _, b, _ in placed} | {bb}
+        blocked = _in_the_way(model, data, a, tb, stack, [centre[0], centre[1], release])
+        if blocked is not None:
+            return (f"object {top} set down on object {base} comes within {STACK_CLEARANCE * 1000:.0f} mm of object "
+                    f"{bodies.index(blocked)} on the way")
+        data.qpos[a:a + 3] = [centre[0], centre[1], release]
         data.qvel[qvel[top]:qvel[top] + 6] = 0.0
         mujoco.mj_forward(model, data)
         placed.append((top, base, data.xquat[tb].copy()))
@@ -159,6 +170,31 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
             if not _touching(model, data, bodies[t], bodies[b]):
                 return f"object {t} does not stay on object {b}"
     return None
+
+
+def _in_the_way(model, data, qpos_adr: int, body: int, allowed: set[int], release) -> int | None:
+    """The first body other than ``allowed`` that ``body``, lowered straight down onto ``release`` (its origin)
+    from ``STACK_SWEEP`` above, comes within ``STACK_CLEARANCE`` of; ``None`` when the way is clear. The body's
+    pose is left at the last height tried."""
+    import mujoco
+
+    geoms = np.flatnonzero(model.geom_bodyid == body)
+    margins = model.geom_margin[geoms].copy()
+    model.geom_margin[geoms] = STACK_CLEARANCE
+    try:
+        for dz in np.linspace(STACK_SWEEP, 0.0, int(round(STACK_SWEEP / 0.02)) + 1):
+            data.qpos[qpos_adr:qpos_adr + 3] = [release[0], release[1], release[2] + dz]
+            mujoco.mj_forward(model, data)
+            for k in range(data.ncon):
+                c = data.contact[k]
+                pair = (int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2]))
+                if body in pair and c.dist < STACK_CLEARANCE:
+                    other = pair[1] if pair[0] == body else pair[0]
+                    if other not in allowed and model.body_jntnum[other] > 0:  # an object, not the table
+                        return other
+        return None
+    finally:
+        model.geom_margin[geoms] = margins
 
 
 def _touching(model, data, a: int, b: int) -> bool:

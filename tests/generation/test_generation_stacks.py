@@ -41,6 +41,13 @@ def test_a_mug_wider_than_a_small_bowls_bottom_leans_and_is_refused():
     assert _check("mug_into_a_small_bowl_on_a_board.json", [[1], [0]]) is None
 
 
+def test_a_bowl_whose_way_onto_a_food_box_passes_a_wine_glass_is_refused():
+    # bowl3 at 1.15 scale (4, 15.6 cm wide) onto food box 2 (1): centred over the box its rim overlaps the wine
+    # glass (0) standing 13 cm from the box's centre; the put-down's straight descent was blocked there.
+    reason = _check("bowl_onto_a_food_box_beside_a_wine_glass.json", [[4], [1]])
+    assert reason == "object 4 set down on object 1 comes within 5 mm of object 0 on the way"
+
+
 def test_stacked_pairs_reads_the_programs_stack_output_bottom_pair_first():
     program = [{"type": "scene"}, {"type": "stack", "output": [[2], [1], [0]]}]
     assert stacked_pairs(program) == [(1, 0), (2, 1)]
