@@ -1,18 +1,18 @@
 """End-to-end success of the oracle agent with physics, per SHOP-VRB2 task type, and its failure taxonomy.
 
-Seeded scenes come from the configured scene generator (one pool shared by every template); for each template
-the first N scenes that template yields an instruction for are written as a dataset split (scenes and
-instructions, the layout ``muble generate`` writes) and evaluated by ``muble eval agent=oracle``: the real
-pipeline, MuJoCo physics, the configured planner. Failed episodes are sorted into the failure classes of the
-taxonomy; execution errors are split further by the primitive that failed, so grasp failures (approach /
-close_gripper) show apart from carrying and placing.
+Each seed's scenes are a ``val`` split made the way ``muble generate`` makes a dataset: every template gets an
+equal share of the indices, and each index a scene drawn to suit its template and kept only when the generator's
+checks pass (visibility, rest, the robot's reach, the ground truth's stacks standing). ``muble eval
+agent=oracle`` then runs every episode: the real pipeline, MuJoCo physics, the configured planner. Failed
+episodes are sorted into the failure classes of the taxonomy; execution errors are split further by the primitive
+that failed, so grasp failures (approach / close_gripper) show apart from carrying and placing.
 
-Goal: the oracle succeeds on at least 98% of the episodes of every task type (acceptance: 50 scenes each).
+Goal: the oracle succeeds on at least 99% of a seed's episodes, with at most one failure in 30 for every task type.
 
-    python benchmarks/oracle_success.py [--scenes 50] [--templates stack_simple remove] [--seed 0] [--workers 2]
+    python benchmarks/oracle_success.py [--scenes 30] [--templates stack_simple remove] [--seed 0] [--workers 2]
     python benchmarks/oracle_success.py --scenes 30 --seeds 7 8 9     # several seeds: overall and per seed
 
-Scenes are cached under --root/pool_s<seed>; every run is deterministic in (seed, scene index, template).
+Datasets are kept under --root/s<seed> (generation resumes); every run is deterministic in (seed, scene index).
 """
 from __future__ import annotations
 
@@ -25,73 +25,11 @@ import time
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
-
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-GOAL = 0.98
+GOAL = 0.99
 GRASP_PRIMITIVES = ("approach", "close_gripper")
 SPLIT = "val"
-
-
-class ScenePool:
-    """Seeded generated scenes, index by index, cached as scene files."""
-
-    def __init__(self, root: Path, seed: int):
-        from muble.app.config import compose
-
-        self.folder = root / f"pool_s{seed}"
-        self.folder.mkdir(parents=True, exist_ok=True)
-        self.cfg = compose("generate", [f"seed={seed}", "output.dir=/tmp", f"dataset.root={root}"])
-        self.generator = None
-
-    def scene(self, index: int):
-        from muble.core.scene_io import load_scene, save_scene
-
-        path = self.folder / f"{index:06d}.json"
-        if path.is_file():
-            return load_scene(path)
-        if self.generator is None:
-            from muble.app.run import scene_generator
-            from muble.plugins.registry import get_registry
-
-            objects = get_registry().create("object_set", self.cfg.objects.name, self.cfg.objects)
-            self.generator = scene_generator(self.cfg, objects)
-        scene = self.generator.generate(index)
-        save_scene(path, scene)
-        return scene
-
-
-def write_split(pool: ScenePool, template: str, scenes: int, seed: int, folder: Path, max_tries: int) -> int:
-    """The first ``scenes`` pool scenes with an instruction of ``template`` as a split; returns how many."""
-    from muble.core.instructions_io import instruction_to_dict
-    from muble.core.scene_io import save_scene
-    from muble.dataset.layout import DatasetLayout
-    from muble.plugins.registry import get_registry
-
-    layout = DatasetLayout(folder, SPLIT)
-    task = get_registry().create("task", template, {})
-    written = 0
-    for index in range(max_tries):
-        if written == scenes:
-            break
-        if (layout.split_dir / layout.instruction(index)).is_file():
-            written += 1
-            continue
-        scene = pool.scene(index)
-        candidates = task.generate(scene, np.random.default_rng([seed, index, 1]))
-        if not candidates:
-            continue
-        instruction = candidates[0]
-        instruction.split, instruction.image_index = SPLIT, index
-        save_scene(layout.split_dir / layout.scene(index), scene)
-        record = instruction_to_dict(instruction)
-        record["ground_truth_actions"] = [[a.name, a.params] for a in task.ground_truth(instruction, scene)]
-        path = layout.split_dir / layout.instruction(index)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(record))
-        written += 1
-    return written
 
 
 def muble(*args: str) -> None:
@@ -113,25 +51,30 @@ def failure_kind(record: dict) -> str:
     return f"execution_error:{'grasp' if failed in GRASP_PRIMITIVES else failed}"
 
 
-def evaluate_template(pool: ScenePool, template: str, scenes: int, seed: int, root: Path, workers: int) -> list[dict]:
-    data = root / f"{template}_s{seed}"
-    write_split(pool, template, scenes, seed, data, max_tries=20 * scenes)
-    out = root / f"{template}_s{seed}_eval"
-    muble("eval", "agent=oracle", f"seed={seed}", f"dataset.splits=[{SPLIT}]", f"dataset.root={data}",
-          f"dataset.workers={workers}", f"dataset.executor={'serial' if workers == 1 else 'processes'}",
-          f"evaluation.limit={scenes}", f"hydra.run.dir={out}", "evaluation.plot=false")
+def evaluate_seed(seed: int, templates: list[str], scenes: int, root: Path, workers: int) -> list[dict]:
+    """The oracle's episodes on a ``val`` split of ``scenes`` per template, generated as ``muble generate`` makes
+    a dataset (every index its template, a scene drawn to suit it, the generator's checks) and run by
+    ``muble eval``; generation resumes where a previous run stopped."""
+    data = root / f"s{seed}"
+    executor = [f"dataset.workers={workers}", f"dataset.executor={'serial' if workers == 1 else 'processes'}"]
+    muble("generate", f"seed={seed}", f"dataset.splits=[{SPLIT}]", f"dataset.sizes=[{scenes * len(templates)}]",
+          f"dataset.templates=[{','.join(templates)}]", "dataset.sequences=false", f"dataset.root={data}",
+          *executor, f"hydra.run.dir={root / f's{seed}_generate'}")
+    out = root / f"s{seed}_eval"
+    muble("eval", "agent=oracle", f"seed={seed}", f"dataset.splits=[{SPLIT}]", f"dataset.root={data}", *executor,
+          f"hydra.run.dir={out}", "evaluation.plot=false")
     return [json.loads(line) for line in (out / f"episodes_{SPLIT}.jsonl").read_text().splitlines() if line.strip()]
 
 
 def run_seed(args, seed: int) -> dict:
-    """Every template on ``seed``'s scene pool; prints one line per template and the failure examples."""
+    """Every template on ``seed``'s split; prints one line per template and the failure examples."""
     start = time.perf_counter()
-    pool = ScenePool(args.root, seed)
+    every = evaluate_seed(seed, args.templates, args.scenes, args.root, args.workers)
     per_template, without_grasp, failures, examples = {}, {}, Counter(), {}
     retried = {}  # episodes in which the oracle retried a failed primitive (an ``attempt=`` call), per template
     episodes, successes, failed_per_template = 0, 0, {}
     for template in args.templates:
-        records = evaluate_template(pool, template, args.scenes, seed, args.root, args.workers)
+        records = [r for r in every if r["template"] == template]
         ok = sum(r["outcome"] == "success" for r in records)
         episodes, successes = episodes + len(records), successes + ok
         failed_per_template[template] = len(records) - ok
@@ -163,7 +106,7 @@ def main() -> None:
     from muble.app.config import SHOPVRB2_TEMPLATES
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scenes", type=int, default=10, help="scenes per template (acceptance: 50)")
+    parser.add_argument("--scenes", type=int, default=10, help="scenes per template (acceptance: 30)")
     parser.add_argument("--templates", nargs="*", default=list(SHOPVRB2_TEMPLATES))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seeds", type=int, nargs="*", help="several seeds in turn (overrides --seed)")
@@ -172,10 +115,14 @@ def main() -> None:
     args = parser.parse_args()
 
     runs = [run_seed(args, seed) for seed in (args.seeds or [args.seed])]
+    allowed = max(1, args.scenes // 30)  # failures per task type the goal allows: one in 30
     worst = min(min(r["success_per_template"].values(), default=0.0) for r in runs)
     summary = {
-        "benchmark": "oracle_success", "metric": "min_success_rate_per_task_type", "value": worst, "unit": "ratio",
-        "goal": GOAL, "scenes_per_template": args.scenes, "templates": len(args.templates),
+        "benchmark": "oracle_success", "metric": "overall success of the worst seed", "unit": "ratio",
+        "value": min(r["overall"] for r in runs), "goal": GOAL, "failures_per_type_allowed": allowed,
+        "min_success_rate_per_task_type": worst, "scenes_per_template": args.scenes,
+        "templates": len(args.templates),
+        "meets_goal": all(r["overall"] >= GOAL and r["max_failures_per_template"] <= allowed for r in runs),
     }
     if len(runs) == 1:
         summary.update(runs[0])

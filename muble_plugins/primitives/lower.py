@@ -46,7 +46,7 @@ class Lower(PrimitiveAction):
             world = env.collision_world()
             support_body, support_top, places = _places(env, target, held, table)
             places = rotated(places, attempt)
-            to_above, down = _plan(env, world, target, places, support_body, support_top)
+            to_above, down = _plan(env, world, target, places, support_body, support_top, attempt)
         except PlanningError:
             env.restore(snap)
             raise
@@ -79,25 +79,26 @@ def _places(env, target, held, table):
             [env.object_pose(int(target)).pos[:2]])
 
 
-def put_down_tries(places: list, target):
+def put_down_tries(places: list, target, attempt: int = 0):
     """(place, turn, release gap) in the order tried: each of ``RELEASE_GAPS`` in turn, at each place and, onto
-    an object, with the hand turned by each of ``CARRY_TURNS``.
+    an object, with the hand turned by each of ``CARRY_TURNS`` (a retry starts from its ``attempt``-th turn: the
+    same object set down the same way would lean or fall the same way again).
 
     Where a neighbour blocks the last centimetres of the descent (fingers beside a tall object), the object is let
     go a little higher over the same place: a short drop still lands it. Onto an object, the hand may also turn
     about the vertical (the held object with it) where it cannot go down as it is.
     """
-    yaws = CARRY_TURNS if isinstance(target, (int, np.integer)) else (0.0,)
+    yaws = rotated(list(CARRY_TURNS), attempt) if isinstance(target, (int, np.integer)) else [0.0]
     # The release gap varies slowest: every place and turn at the lowest gap before any is let go from higher up
     # (a drop lands the object less surely than another free place does).
     return ((xy, yaw, gap) for gap, xy, yaw in itertools.product(RELEASE_GAPS, places, yaws))
 
 
-def _plan(env, world, target, places, support_body, support_top):
+def _plan(env, world, target, places, support_body, support_top, attempt=0):
     """(planned move over the first place that works, straight descent onto it)."""
     reasons = []
     hand = env.ee_pose().pos
-    for xy, yaw, gap in put_down_tries(places, target):
+    for xy, yaw, gap in put_down_tries(places, target, attempt):
         place = placement.place_pose(env, xy, support_top, gap, yaw)
         above = place.pos + [0.0, 0.0, ctx.HOVER]
         if yaw == 0.0 and np.linalg.norm(hand[:2] - place.pos[:2]) < 0.01 and hand[2] > place.pos[2]:
@@ -163,7 +164,8 @@ def misplaced(env, held: int, held_body: int, target, support_body: int, others:
     """Why the put-down of ``held`` did not end as asked, from the physics after it came to rest, or ``None``:
     it must touch its target (an object, or the table for a table part) and lean at most ``LEANING`` further than
     when it was let go (``tilt_at_release``, degrees), and no other object may have moved more than
-    ``DISTURBED``. Put back without a target, it need only be down and leave the others where they were."""
+    ``DISTURBED``. Put back without a target, it need not touch anything in particular, but it must not lean or
+    fall over either."""
     moved = {i: float(np.linalg.norm(env.object_pose(i).pos - p)) for i, p in others.items()}
     moved = {i: d for i, d in moved.items() if d > DISTURBED}
     if moved:
@@ -173,7 +175,7 @@ def misplaced(env, held: int, held_body: int, target, support_body: int, others:
     if target is not None and support_body not in ctx.touching_bodies(env, {held_body}):
         where = f"object {target}" if isinstance(target, (int, np.integer)) else "the table"
         return f"object {held} did not stay on {where} after it was let go"
-    if target is not None and tilt_at_release is not None:  # put back where it was: only set down
+    if tilt_at_release is not None:  # set down anywhere, it must still stand as it was let go
         tilt = tilt_deg(env.object_pose(held).quat)
         if tilt - tilt_at_release > LEANING:
             return f"object {held} came to rest leaning {tilt:.0f} degrees (let go at {tilt_at_release:.0f})"

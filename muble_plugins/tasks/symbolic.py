@@ -10,6 +10,7 @@ an object that was grasped but not lifted). The flags it keeps in ``SceneObject.
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 
 from muble import ActionCall, ActionResult, Observation, SceneGraph, SceneObject, get_registry
@@ -23,6 +24,13 @@ GRASP, RELEASE, SQUEEZE = "close_gripper", "open_gripper", "squeeze"
 PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE)
 FLAGS = ("in_hand", "raised", "approached", "gripper_over")
 LIFT_HEIGHT = 0.1  # metres above the resting pose while raised
+ARRIVAL_TOLERANCE = 0.03  # metres between a carried object and its destination that count as arrived over it
+
+
+def over(held: SceneObject, base: SceneObject) -> bool:
+    """``held`` is within ``ARRIVAL_TOLERANCE`` of ``base`` about the vertical (carried over it, or standing on
+    it)."""
+    return math.hypot(held.position[0] - base.position[0], held.position[1] - base.position[1]) <= ARRIVAL_TOLERANCE
 
 
 @dataclass
@@ -154,7 +162,8 @@ class SymbolicWorld:
             target = call.params.get("target")
             if isinstance(target, str) and self.destination is None:
                 self.destination = free_spot(self.scene, held, target)
-            elif target is not None and not isinstance(target, str) and state.over != int(target):
+            elif target is not None and not isinstance(target, str) and state.over != int(target) and \
+                    not over(held, self._object(call)):
                 return fail(f"move over object {target} before lowering onto it")
             self._lower(held, state)
             # Lowering puts the object down and lets go; the hand retreats straight up, over it.
@@ -172,6 +181,7 @@ class SymbolicWorld:
         return get_registry().create("primitive", call.name, call.params).symbolic_effect(self.scene)
 
     def _lower(self, held: SceneObject, state: ArmState) -> None:
+        held.extra.pop("tilt_deg", None)  # set down upright, however it leaned before
         if state.over is not None and state.over != held.id:
             base = self.scene.object(state.over)
             held.position = base.position + [0.0, 0.0, height(base)]

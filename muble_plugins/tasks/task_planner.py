@@ -10,16 +10,13 @@ every primitive.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from muble import ActionCall, Answer, PlanningError, SceneGraph
 from muble.core.program import execute, stack_pairs, table_parts_of
 
-from muble_plugins.tasks.geometry import on_table_part, rests_on
-from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH, ArmState
-
-ARRIVAL_TOLERANCE = 0.03  # metres between a carried object and its destination that count as arrived
+from muble_plugins.tasks.geometry import on_table_part, rests_on, upright
+from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH, ArmState, over
 
 
 @dataclass
@@ -71,26 +68,30 @@ def _carried_to(scene: SceneGraph, obj_id: int, arm: ArmState, base_id: int) -> 
         return False
     if arm.over == base_id:
         return True
-    pos, xy = scene.object(obj_id).position, scene.object(base_id).position
-    return math.hypot(pos[0] - xy[0], pos[1] - xy[1]) <= ARRIVAL_TOLERANCE
+    return over(scene.object(obj_id), scene.object(base_id))
 
 
-def _deliver(obj_id: int, arrived: bool, destination: int | str, arm: ArmState) -> list[ActionCall]:
+def _deliver(scene: SceneGraph, obj_id: int, arrived: bool, destination: int | str, arm: ArmState) -> list[ActionCall]:
     """Carry ``obj_id`` to ``destination`` (an object id or a table part) and set it down there (``lower``
-    lets go); an object grasped where it belongs but not lifted is just released."""
+    lets go). An object grasped where it belongs but not lifted is just released if it stands upright; leaning
+    there (a mug tipped against a bowl's rim, a can fallen over) it is lifted and set down again."""
     lower = ActionCall(LOWER, {"target": destination})
     if arrived:
-        return [lower] if arm.raised else [ActionCall(RELEASE)]
+        if arm.raised:
+            return [lower]
+        if upright(scene.object(obj_id)):
+            return [ActionCall(RELEASE)]
+        return [ActionCall(LIFT), lower]
     return hold_up(obj_id, arm) + [ActionCall(MOVE, {"target": destination}), lower]
 
 
 def place_at(scene: SceneGraph, obj_id: int, part: str, arm: ArmState) -> list[ActionCall]:
     arrived = arm.held == obj_id and part in table_parts_of(scene.object(obj_id), scene)
-    return _deliver(obj_id, arrived, part, arm)
+    return _deliver(scene, obj_id, arrived, part, arm)
 
 
 def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> list[ActionCall]:
-    return _deliver(obj_id, _carried_to(scene, obj_id, arm, base_id), base_id, arm)
+    return _deliver(scene, obj_id, _carried_to(scene, obj_id, arm, base_id), base_id, arm)
 
 
 def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, float] | None = None,

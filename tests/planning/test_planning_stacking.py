@@ -135,8 +135,8 @@ def test_planning_the_hand_follows_a_can_that_slid_in_a_bowl_before_rising():
 
 
 def test_planning_a_put_down_that_moved_another_object_or_missed_its_target_is_reported(objects):
-    """``lower``'s check after the object came to rest: it must touch its target, stand as it was let go and leave
-    the others where they were; each way of failing is named."""
+    """``lower``'s check after the object came to rest: it must touch its target, stand as it was let go (with a
+    target or without) and leave the others where they were; each way of failing is named."""
     from muble.core.geometry import tilt_deg
     from muble_plugins.primitives.lower import misplaced
 
@@ -155,5 +155,8 @@ def test_planning_a_put_down_that_moved_another_object_or_missed_its_target_is_r
         upright = float(tilt_deg(env.object_pose(0).quat))
         assert misplaced(env, 0, bodies[0], "left", table, here, tilt_at_release=upright) is None
         assert "came to rest leaning" in misplaced(env, 0, bodies[0], "left", table, here, tilt_at_release=upright - 30)
+        # Put back where it was (no target): it need touch nothing in particular, but must not have fallen over.
+        assert misplaced(env, 0, bodies[0], None, table, here, tilt_at_release=upright) is None
+        assert "came to rest leaning" in misplaced(env, 0, bodies[0], None, table, here, tilt_at_release=upright - 30)
     finally:
         env.close()
