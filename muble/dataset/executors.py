@@ -58,8 +58,20 @@ def _processes(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: An
         return
     # spawn, not fork: MuJoCo GL contexts and bpy must be created inside each worker.
     context = multiprocessing.get_context("spawn")
-    with context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),), maxtasksperchild=50) as pool:
+    pool = context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),), maxtasksperchild=50)
+    finished = False
+    try:
         yield from pool.imap_unordered(fn, items)
+        finished = True
+    finally:
+        if finished:
+            # Every result is in: let the workers exit on their own. Pool.terminate (what leaving a ``with Pool``
+            # block calls) can wait forever on the task queue's read lock after workers were replaced
+            # (maxtasksperchild; CPython issue 78178): a finished 300-scene run hung there.
+            pool.close()
+            pool.join()
+        else:  # an error or the consumer stopped early: the workers are killed
+            pool.terminate()
 
 
 def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: str | None = None,

@@ -59,3 +59,28 @@ def test_pool_workers_die_within_seconds_of_a_killed_parent(tmp_path):
                 os.kill(int(p.name.split("-")[1]), signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+POOL_REPLACING_WORKERS = """
+import os
+from muble.dataset.executors import run_all
+
+def work(i):
+    return i, os.getpid()
+
+if __name__ == "__main__":
+    results = list(run_all("processes", work, range(130), workers=2))
+    print(len(results), len({i for i, _ in results}), len({pid for _, pid in results}))
+"""
+
+
+def test_a_pool_whose_workers_were_replaced_finishes_and_returns(tmp_path):
+    """130 items on 2 workers that each take 50 (``maxtasksperchild``): workers are replaced on the way, every
+    result arrives and the owner returns; ending the pool by terminate could wait forever on the task queue."""
+    script = tmp_path / "owner.py"
+    script.write_text(POOL_REPLACING_WORKERS)
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=240)
+    assert done.returncode == 0, done.stderr[-2000:]
+    results, distinct, workers = (int(v) for v in done.stdout.split()[-3:])
+    assert results == distinct == 130
+    assert workers >= 3  # at least one worker was replaced
