@@ -52,26 +52,37 @@ def die_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, name="muble-parent-watchdog", daemon=True).start()
 
 
+# local workers are renewed every ``workers * TASKS_PER_WORKER`` items (memory a long run of MuJoCo and renderer
+# contexts would otherwise accumulate).
+TASKS_PER_WORKER = 50
+
+
 def _processes(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: Any) -> Iterator[Any]:
+    """``fn`` over ``items`` in ``workers`` local processes, renewed every ``workers * TASKS_PER_WORKER`` items.
+
+    Workers are renewed by running the items in batches, each in a pool of its own that ends with close and join,
+    not with the pool's ``maxtasksperchild``: a pool that replaced workers can hang when it is ended (its
+    finalizer waits forever on the task queue's read lock; CPython issue 78178), and a finished 300-episode
+    ``muble eval`` did.
+    """
     if workers <= 1:
         yield from _serial(fn, items, workers)
         return
     # spawn, not fork: MuJoCo GL contexts and bpy must be created inside each worker.
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),), maxtasksperchild=50)
-    finished = False
-    try:
-        yield from pool.imap_unordered(fn, items)
-        finished = True
-    finally:
-        if finished:
-            # Every result is in: let the workers exit on their own. Pool.terminate (what leaving a ``with Pool``
-            # block calls) can wait forever on the task queue's read lock after workers were replaced
-            # (maxtasksperchild; CPython issue 78178): a finished 300-scene run hung there.
-            pool.close()
-            pool.join()
-        else:  # an error or the consumer stopped early: the workers are killed
-            pool.terminate()
+    batch = workers * TASKS_PER_WORKER
+    for start in range(0, len(items), batch):
+        pool = context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),))
+        finished = False
+        try:
+            yield from pool.imap_unordered(fn, items[start:start + batch])
+            finished = True
+        finally:
+            if finished:
+                pool.close()
+                pool.join()
+            else:  # an error or the consumer stopped early: the workers are killed
+                pool.terminate()
 
 
 def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: str | None = None,
