@@ -50,8 +50,10 @@ CARRY_TURNS = tuple(np.radians([0, 45, -45, 90, -90, 135, -135, 180]))
 
 # m between the held object's bottom and its support at the moment it is let go, tried in this order: 4 mm, a
 # drop too short to disturb it, then, where a neighbour blocks the last centimetres of the descent (fingers
-# beside a tall object), 15 mm and 30 mm: a short drop still lands it. ``move`` goes over a place for the first.
-RELEASE_GAPS = (0.004, 0.015, 0.03)
+# beside a tall object), 15 mm and 30 mm: a short drop still lands it; last 50 and 70 mm, for a bowl held by its
+# rim and set into a wider bowl, whose outer finger meets the base's wall 3 to 4 cm above where the held bowl would
+# rest (nested, it lands centred from there). ``move`` goes over a place for the first.
+RELEASE_GAPS = (0.004, 0.015, 0.03, 0.05, 0.07)
 
 # Gripper command (-1 open, 1 closed) of the hand opened part way: still wide enough for a rim or a handle,
 # narrower than the open hand where that touches a neighbour or would reach across a rim.

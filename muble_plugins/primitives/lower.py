@@ -235,12 +235,15 @@ RETREAT = 0.08  # m the empty hand rises straight up after letting go, before th
 # m the released object may drift at the pads' height (a can set into a bowl slides down its curved floor) before
 # the hand follows it sideways: rising with a finger pressed against it would tip it over.
 FOLLOW_DRIFT = 0.002
+FOLLOW_TRIES = 4  # sideways steps after the released object at most, before the hand rises regardless
 
 
 def _retreat(env, held_body: int, between: np.ndarray) -> ctx.MotionReport:
     """Rise ``RETREAT`` straight up from the released object, first following it sideways where it drifted from
-    between the pads (``between``: that point in the object's frame); where the straight line is blocked the hand
-    stays (an empty report): the object is down, and the next move starts by rising clear of it."""
+    between the pads (``between``: that point in the object's frame) or still leans on a finger, up to
+    ``FOLLOW_TRIES`` times with a short settle after each (a can in a bowl that slid with the opening finger keeps
+    leaning on it after one step, and a finger rising against it tips it over); where a straight line is blocked
+    the hand stays (an empty report): the object is down, and the next move starts by rising clear of it."""
     world = env.collision_world()
     # The opened fingers may now brush a neighbour: rising straight up can only leave it, so the plan may
     # start there; contacts in physics with anything but the released object still count.
@@ -249,17 +252,25 @@ def _retreat(env, held_body: int, between: np.ndarray) -> ctx.MotionReport:
     near = {m.body(name).id for pair in world.contacts(env.arm_q()) for name in pair} - world.robot_bodies
     world.allow_contact({held_body} | near)
     pose = env.ee_pose()
-    drift = (d.xpos[held_body] + d.xmat[held_body].reshape(3, 3) @ between - pose.pos) * [1.0, 1.0, 0.0]
+    fingers = _finger_bodies(env)
     report = ctx.MotionReport()
-    for step in ([drift] if np.linalg.norm(drift) > FOLLOW_DRIFT else []) + [np.array([0.0, 0.0, RETREAT])]:
-        goal = PoseGoal(Pose(env.ee_pose().pos + step, pose.quat), 0.005, 0.05)
-        try:
-            path = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
-        except PlanningError as e:
-            logger.info("no straight move by %s after letting go (%s); the hand stays", np.round(step, 3), e)
-            continue
-        report = placement.merge(report, ctx.execute(env, path, world, allowed={held_body}))
-    return report
+    for _ in range(FOLLOW_TRIES):
+        drift = (d.xpos[held_body] + d.xmat[held_body].reshape(3, 3) @ between - env.ee_pose().pos) * [1.0, 1.0, 0.0]
+        if np.linalg.norm(drift) <= FOLLOW_DRIFT and not ctx.touching_bodies(env, {held_body}) & fingers:
+            break
+        report = placement.merge(report, _straight(env, world, drift, pose.quat, held_body))
+        env.hold(0.2)
+    return placement.merge(report, _straight(env, world, np.array([0.0, 0.0, RETREAT]), pose.quat, held_body))
+
+
+def _straight(env, world, step, quat, held_body) -> ctx.MotionReport:
+    goal = PoseGoal(Pose(env.ee_pose().pos + step, quat), 0.005, 0.05)
+    try:
+        path = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
+    except PlanningError as e:
+        logger.info("no straight move by %s after letting go (%s); the hand stays", np.round(step, 3), e)
+        return ctx.MotionReport()
+    return ctx.execute(env, path, world, allowed={held_body})
 
 
 RESTING_SPEED = 0.01  # m/s (the body's linear speed) below which a put-down object counts as resting
