@@ -58,3 +58,15 @@ RELEASE_GAPS = (0.004, 0.015, 0.03, 0.05, 0.07)
 # Gripper command (-1 open, 1 closed) of the hand opened part way: still wide enough for a rim or a handle,
 # narrower than the open hand where that touches a neighbour or would reach across a rim.
 PART_OPEN = 0.0
+
+
+# m between the pads holding an object below which the hold counts as a thin part (a rim, a handle, a stem) and
+# it is let go with the hand part open.
+THIN_HOLD = 0.025
+
+
+def release_command(env) -> float:
+    """The gripper command that lets the held object go: fully open (-1), or for a thin part held (a rim, a
+    handle, a stem; under ``THIN_HOLD``) only part way: opened fully, the finger inside a rim would reach across
+    to the far side and catch it on the way up."""
+    return PART_OPEN if ctx.pad_gap(env) < THIN_HOLD else -1.0

@@ -13,7 +13,8 @@ from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
 from muble_plugins.primitives.grasping import below
-from muble_plugins.primitives.common import ATTEMPT, CARRY_TURNS, PART_OPEN, RELEASE_GAPS, checked_result, rotated
+from muble_plugins.primitives.common import (ATTEMPT, CARRY_TURNS, RELEASE_GAPS, checked_result, release_command,
+                                             rotated)
 
 logger = logging.getLogger(__name__)
 
@@ -180,18 +181,6 @@ def misplaced(env, held: int, held_body: int, target, support_body: int, others:
         if tilt - tilt_at_release > LEANING:
             return f"object {held} came to rest leaning {tilt:.0f} degrees (let go at {tilt_at_release:.0f})"
     return None
-
-
-# m between the pads holding an object below which the hold counts as a thin part (a rim, a handle, a stem) and
-# it is let go with the hand part open.
-THIN_HOLD = 0.025
-
-
-def release_command(env) -> float:
-    """The gripper command that lets the held object go: fully open (-1), or for a thin part held (a rim, a
-    handle, a stem; under ``THIN_HOLD``) only part way: opened fully, the finger inside a rim would reach across
-    to the far side and catch it on the way up."""
-    return PART_OPEN if ctx.pad_gap(env) < THIN_HOLD else -1.0
 
 
 # m between each pad and the released object that fingers opened against a neighbour close back to: opened

@@ -16,6 +16,7 @@ import numpy as np
 from muble import PlanningError, Pose, PoseGoal, Trajectory
 from muble.core.geometry import hull_2d, yaw_quat
 from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives.common import PART_OPEN, release_command
 
 logger = logging.getLogger(__name__)
 
@@ -25,6 +26,7 @@ CANDIDATE_SPACING = 0.04  # m between the places a primitive tries in turn (neig
 MAX_CANDIDATES = 20
 DESCENT_SEEDS = 6  # random arm configurations tried for a place the current arm cannot descend to
 RISE = 0.04  # m risen straight up to leave what the arm or held object touches at the start of a move
+CLEAR_RISE = 0.12  # m risen in such steps at most (the hover height over an object), still in contact or not
 _ANGLES = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
 _DISC = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1)  # unit circle, for round geoms and the gap
 
@@ -239,26 +241,44 @@ def plan_descent(env, world, place: Pose, above: np.ndarray, support: int,
 
 def clear_start(env, world) -> ctx.MotionReport | None:
     """Where the arm or the held object starts in contact (a held object still touching what it stood on,
-    fingers beside the object just let go), rise straight up by ``RISE`` touching only that; ``None`` when the
-    start is clear. The caller re-syncs its collision world afterwards."""
+    fingers beside the object just let go), an empty closed hand first opens, then the hand rises straight up
+    by ``RISE`` touching only that, again while the arm is still in contact, up to ``CLEAR_RISE`` in all (a
+    finger left down between nested bowls is deeper than one step); ``None`` when the start is clear. The caller
+    re-syncs its collision world afterwards."""
     world.allow_contact([])
-    q = env.arm_q()
-    if world.is_valid(q):
+    if world.is_valid(env.arm_q()):
         return None
+    if env.held_object is None and env.gripper_command > PART_OPEN:
+        # A grasp that did not take (the fingers closed on a mug's handle, or on a glass without holding it)
+        # leaves the hand closed round the object, and rising would lift it along: the hand lets go first, as
+        # ``lower`` does (part way round a thin part, else fully).
+        logger.info("starting in contact with the hand closed and nothing held: opening it first")
+        env.set_gripper(release_command(env))
+        env.hold(0.3)
+        world = env.collision_world()
+        world.allow_contact([])
+        if world.is_valid(env.arm_q()):
+            return None
     m = env.model
     own = set(world.robot_bodies)
     if env.held_object is not None:
         own.add(m.body(env.names.objects[env.held_object]).id)
-    touched = {m.body(name).id for pair in world.last_contacts for name in pair} - own
-    if not touched:
-        raise PlanningError(f"start configuration is in collision {world.last_contacts[:3]} (self-collision)")
-    world.allow_contact(touched)
-    pose = env.ee_pose()
-    rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, RISE], pose.quat), 0.005, 0.05)
-    trajectory = ctx.planner(env, "straight_line").plan(q, rise, world)
-    logger.info("starting in contact with %s: rising %.0f cm first", sorted(touched), RISE * 100)
-    return ctx.execute(env, trajectory, world, allowed=touched)
-
+    report = None
+    for _ in range(int(round(CLEAR_RISE / RISE))):
+        touched = {m.body(name).id for pair in world.last_contacts for name in pair} - own
+        if not touched:
+            raise PlanningError(f"start configuration is in collision {world.last_contacts[:3]} (self-collision)")
+        world.allow_contact(touched)
+        pose = env.ee_pose()
+        rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, RISE], pose.quat), 0.005, 0.05)
+        trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
+        logger.info("starting in contact with %s: rising %.0f cm first", sorted(touched), RISE * 100)
+        report = merge(report, ctx.execute(env, trajectory, world, allowed=touched))
+        world = env.collision_world()
+        world.allow_contact([])
+        if world.is_valid(env.arm_q()):
+            break
+    return report
 
 
 def merge(*reports: ctx.MotionReport | None) -> ctx.MotionReport:

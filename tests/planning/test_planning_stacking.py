@@ -182,3 +182,28 @@ def test_planning_the_hand_moves_off_a_can_still_leaning_on_a_finger_before_risi
     has followed it once it still leans on that finger; rising then tipped it over against the bowl's rim (46
     degrees). The hand follows it again until no finger touches it, then rises."""
     _stack_in_scene("can_into_a_large_bowl_on_a_chopping_board.json", top=2, base=0, under=3, build=True)
+
+
+@pytest.mark.slow
+def test_planning_a_hand_closed_on_a_glass_it_did_not_take_opens_before_the_next_move():
+    """Closing on a small glass whose wider top meets one finger's side before its pad, the grasp does not take
+    (only one pad touches), and the closed hand stays round the glass. The next move starts in contact with it:
+    rising closed lifted the glass along, so every move failed with its start in collision; the hand opens first,
+    rises off it and moves, and the glass stays standing where it was."""
+    from muble.core.geometry import tilt_deg
+    from muble.core.scene_io import load_scene
+    from muble.sim.build import env_from_object_set
+
+    env = env_from_object_set(load_scene(DATA / "glass_the_fingers_close_on_without_taking.json"), "shopvrb2")
+    try:
+        for name, params in _stack(2, 3) + [("move", {"target": 1}), ("approach", {"target": 1})]:
+            result = act(env, name, **params)
+            assert result.success, (name, result.failure_reason)
+        glass = env.object_pose(1).pos.copy()
+        assert not act(env, "close_gripper", target=1).success and env.held_object is None
+        result = act(env, "move", target=1, attempt=1)
+        assert result.success, result.failure_reason
+        env.hold(0.5)
+        assert np.linalg.norm(env.object_pose(1).pos - glass) < 0.01 and tilt_deg(env.object_pose(1).quat) < 5.0
+    finally:
+        env.close()
