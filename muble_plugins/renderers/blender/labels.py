@@ -64,12 +64,17 @@ def geom_labels(model: "mujoco.MjModel", scene: "SceneGraph | None" = None) -> n
 
 
 def drawn_geoms(model: "mujoco.MjModel", labels: np.ndarray, groups: list[int] | tuple[int, ...],
-                world: bool = True) -> np.ndarray:
+                world: bool = True, walls: bool = True) -> np.ndarray:
     """Indices of the geoms a renderer draws: in one of ``groups``, not fully transparent, and part of the
-    robot, the table, an object or (when ``world``) the world body (floor, walls). Other top-level bodies,
-    such as robosuite's translucent end-effector target markers, are left out."""
+    robot, the table, an object or (when ``world``) the world body: its planes (the floor) and, when
+    ``walls``, its other geoms (robosuite's room). Other top-level bodies, such as robosuite's translucent
+    end-effector target markers, are left out."""
+    import mujoco
+
     mask = np.isin(model.geom_group, np.asarray(groups)) & (model.geom_rgba[:, 3] > 0)
     on_world = model.geom_bodyid == 0
+    if not walls:
+        on_world &= model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE
     mask &= (labels != SEG_BACKGROUND) | (on_world if world else False)
     return np.flatnonzero(mask)
 

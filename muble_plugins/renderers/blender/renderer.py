@@ -100,7 +100,7 @@ class BlenderRenderer(Renderer):
         bscene.world = build_world(cfg)
         self._model = model
         labels = geom_labels(model, scene)
-        self._geoms = drawn_geoms(model, labels, cfg.geom_groups, world=cfg.floor)
+        self._geoms = drawn_geoms(model, labels, cfg.geom_groups, world=cfg.floor, walls=cfg.walls)
         classes = self._object_classes(scene)
         meshes: dict[tuple, Any] = {}
         collection = bscene.collection
@@ -125,6 +125,9 @@ class BlenderRenderer(Renderer):
                     details["grain"] = TABLE_GRAIN
             obj.material_slots[0].material = self._materials.get(cls, rgba, **details)
             obj.pass_index = pass_index(label)
+            # The world's floor and walls are backdrop: they cast no shadows, so lamps placed outside the
+            # room (the scene files' lamps are) still light the table and robot directly.
+            obj.visible_shadow = label != SEG_BACKGROUND
             collection.objects.link(obj)
             self._objects.append(obj)
         centre, radius = self._stage_extent(model, labels)
