@@ -1,0 +1,125 @@
+"""Where a MuJoCo keyframe's render time goes: the RGB pass's shadows, floor reflection and multisampling.
+
+One generated scene, the ``front`` camera at 848x480, the MuJoCo renderer with its defaults (without the mesh
+atlas, so that the quality settings reach the model it draws). Each
+variant turns one feature of robosuite's world off (or makes the shadow maps smaller) and is timed over the same
+frames in the same run; it prints seconds per frame, the ratio to the frame as written, and how many pixels of
+the RGB image change (a variant that changes pixels changes what ``muble generate`` writes).
+
+    python benchmarks/keyframe_breakdown.py [FRAMES]
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+
+def scene_env():
+    from omegaconf import OmegaConf
+
+    from muble.app.config import compose
+    from muble.app.run import build_components, scene_generator
+    from muble.sim.build import object_models
+    from muble.sim.env import TabletopEnv
+
+    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
+    components = build_components(cfg, renderer=False, task=False)
+    generator = scene_generator(cfg, components["object_set"])
+    try:
+        scene = generator.generate(0)
+    finally:
+        generator.close()
+    return TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name),
+                       OmegaConf.to_container(cfg.robot, resolve=True), {})
+
+
+@contextmanager
+def quality(model, **values):
+    """Temporarily set ``model.vis.quality`` fields (shadowsize, offsamples)."""
+    old = {k: int(getattr(model.vis.quality, k)) for k in values}
+    for k, v in values.items():
+        setattr(model.vis.quality, k, v)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            setattr(model.vis.quality, k, v)
+
+
+def timed(env, frames: int, passes: str = "rgb", flags_off: tuple = (), **vis) -> tuple[float, np.ndarray]:
+    """Seconds per frame of the MuJoCo renderer with ``flags_off`` render flags cleared and ``vis`` quality."""
+    import mujoco
+
+    from muble import get_registry
+
+    rgb = passes in ("rgb", "all")
+    seg = passes in ("seg", "all")
+    with quality(env.model, **vis):
+        renderer = get_registry().create("renderer", "mujoco", {"rgb": rgb, "segmentation": seg, "depth": seg,
+                                                                 "reuse_meshes": False})
+        try:
+            renderer.setup(env.sync_scene_graph(), env.model)
+            update = renderer._update_scene
+
+            def update_without(data, cam):
+                update(data, cam)
+                for flag in flags_off:
+                    renderer._scene.flags[getattr(mujoco.mjtRndFlag, flag)] = 0
+
+            renderer._update_scene = update_without
+            frame = renderer.render(env.data, "front")  # warm-up: shaders, textures, buffers
+            start = time.perf_counter()
+            for _ in range(frames):
+                frame = renderer.render(env.data, "front")
+            return (time.perf_counter() - start) / frames, frame.rgb
+        finally:
+            renderer.close()
+
+
+def main() -> int:
+    frames = int(sys.argv[1]) if len(sys.argv) > 1 else 5
+    env = scene_env()
+    variants = {
+        "as written (RGB + segmentation/depth)": dict(passes="all"),
+        "segmentation/depth pass only": dict(passes="seg"),
+        "RGB pass": dict(),
+        "RGB, no shadows": dict(flags_off=("mjRND_SHADOW",)),
+        "RGB, no floor reflection": dict(flags_off=("mjRND_REFLECTION",)),
+        "RGB, no multisampling": dict(offsamples=0),
+        "RGB, shadow maps 2048": dict(shadowsize=2048),
+        "RGB, shadow maps 1024": dict(shadowsize=1024),
+        "RGB, none of shadows, reflection, multisampling": dict(flags_off=("mjRND_SHADOW", "mjRND_REFLECTION"),
+                                                                 offsamples=0),
+    }
+    results, reference = {}, None
+    try:
+        for name, kwargs in variants.items():
+            seconds, rgb = timed(env, frames, **kwargs)
+            if name == "RGB pass":
+                reference = rgb.astype(np.int16)
+            changed = None
+            if reference is not None and kwargs.get("passes", "rgb") == "rgb":
+                changed = float((np.abs(rgb.astype(np.int16) - reference).max(axis=2) > 0).mean())
+            results[name] = {"seconds": round(seconds, 3), "changed_pixels": changed}
+    finally:
+        env.close()
+    written = results["as written (RGB + segmentation/depth)"]["seconds"]
+    print(f"{'variant':50s} {'s/frame':>8s} {'ratio':>6s} {'RGB pixels changed':>19s}")
+    for name, row in results.items():
+        changed = "" if row["changed_pixels"] is None else f"{row['changed_pixels']:.2%}"
+        print(f"{name:50s} {row['seconds']:8.3f} {row['seconds'] / written:6.2f} {changed:>19s}")
+    print(json.dumps({"benchmark": "keyframe_breakdown", "metric": "seconds per MuJoCo render, by variant",
+                      "unit": "s", "frames": frames, "resolution": [848, 480], "variants": results,
+                      "cores": os.cpu_count(), "load_average_1min": round(os.getloadavg()[0], 2)}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
