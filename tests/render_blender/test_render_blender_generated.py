@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from omegaconf import OmegaConf
 
 from muble import SEG_ROBOT, SEG_TABLE, get_registry
 from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
@@ -19,23 +18,11 @@ def test_both_renderers_default_to_the_shopvrb2_image():
         assert (cfg.width, cfg.height) == (DEFAULT_WIDTH, DEFAULT_HEIGHT) == (848, 480)
 
 
-def test_object_masks_agree_on_a_generated_scene():
-    from muble.app.config import compose
-    from muble.app.run import build_components, scene_generator
-    from muble.sim.build import object_models
-    from muble.sim.env import TabletopEnv
+def test_object_masks_agree_on_a_generated_scene(generated_env):
     from muble_plugins.renderers.blender import BlenderRenderer
 
     width, height = DEFAULT_WIDTH // 4, DEFAULT_HEIGHT // 4  # same frame, fewer pixels: masks need no more
-    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
-    components = build_components(cfg, renderer=False, task=False)
-    generator = scene_generator(cfg, components["object_set"])
-    try:
-        scene = generator.generate(3)
-    finally:
-        generator.close()
-    env = TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name),
-                      OmegaConf.to_container(cfg.robot, resolve=True), {})
+    env, scene = generated_env, generated_env.scene
     blender = BlenderRenderer(width=width, height=height, samples=1, denoise=False)
     mujoco_renderer = get_registry().create("renderer", "mujoco", {"width": width, "height": height})
     try:
@@ -48,7 +35,6 @@ def test_object_masks_agree_on_a_generated_scene():
     finally:
         blender.close()
         mujoco_renderer.close()
-        env.close()
     scored = 0
     for label in [SEG_ROBOT, SEG_TABLE, *scene.ids]:
         reference = ref == label

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from omegaconf import OmegaConf
 
 pytestmark = pytest.mark.blender
 
@@ -41,24 +40,7 @@ def test_lamp_params_place_key_fill_and_back():
         bpy.data.scenes.remove(scene)
 
 
-def _generated_scene(index: int):
-    from muble.app.config import compose
-    from muble.app.run import build_components, scene_generator
-    from muble.sim.build import object_models
-    from muble.sim.env import TabletopEnv
-
-    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
-    components = build_components(cfg, renderer=False, task=False)
-    generator = scene_generator(cfg, components["object_set"])
-    try:
-        scene = generator.generate(index)
-    finally:
-        generator.close()
-    return TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name),
-                       OmegaConf.to_container(cfg.robot, resolve=True), {})
-
-
-def test_the_room_casts_no_shadow_from_the_scene_lamps():
+def test_the_room_casts_no_shadow_from_the_scene_lamps(generated_env):
     """The scene file's lamps stand where the original's stood, outside robosuite's room: by the lamps' direct
     light alone (no bounces, no sky) the table is as bright with the floor and the walls drawn as with no world
     geometry at all (walls that cast shadows left it at less than half)."""
@@ -67,32 +49,28 @@ def test_the_room_casts_no_shadow_from_the_scene_lamps():
     from muble.core.types import SEG_TABLE
     from muble_plugins.renderers.blender import BlenderRenderer
 
-    env = _generated_scene(3)
+    env = generated_env
     assert env.scene.lamp_params
     camera = env.names.cameras["front"]
     brightness = {}
-    try:
-        for name, world in (("none", dict(floor=False)), ("room", dict(floor=True, walls=True))):
-            renderer = BlenderRenderer(width=212, height=120, samples=16, denoise=False, max_bounces=0,
-                                       exposure=0.0, background_strength=0.0, **world)
-            try:
-                renderer.setup(env.sync_scene_graph(), env.model)
-                drawn = {env.model.geom(int(g)).name for g in renderer._geoms}
-                if name == "room":
-                    assert any("wall" in g for g in drawn)
-                frame = renderer.render(env.data, camera)
-                brightness[name] = float(frame.rgb[frame.segmentation == SEG_TABLE].mean())
-            finally:
-                renderer.close()
-        # The default draws the floor but not the room's walls.
-        default = BlenderRenderer(width=212, height=120, samples=1, denoise=False)
+    for name, world in (("none", dict(floor=False)), ("room", dict(floor=True, walls=True))):
+        renderer = BlenderRenderer(width=212, height=120, samples=16, denoise=False, max_bounces=0,
+                                   exposure=0.0, background_strength=0.0, **world)
         try:
-            default.setup(env.sync_scene_graph(), env.model)
-            world = [int(g) for g in default._geoms if env.model.geom_bodyid[int(g)] == 0]
-            assert world and all(env.model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE for g in world)
+            renderer.setup(env.sync_scene_graph(), env.model)
+            if name == "room":
+                assert any("wall" in env.model.geom(int(g)).name for g in renderer._geoms)
+            frame = renderer.render(env.data, camera)
+            brightness[name] = float(frame.rgb[frame.segmentation == SEG_TABLE].mean())
         finally:
-            default.close()
+            renderer.close()
+    # The default draws the floor but not the room's walls.
+    default = BlenderRenderer(width=212, height=120, samples=1, denoise=False)
+    try:
+        default.setup(env.sync_scene_graph(), env.model)
+        world = [int(g) for g in default._geoms if env.model.geom_bodyid[int(g)] == 0]
+        assert world and all(env.model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE for g in world)
     finally:
-        env.close()
+        default.close()
     assert brightness["none"] > 40
     assert brightness["room"] == pytest.approx(brightness["none"], rel=0.05)

@@ -53,4 +53,4 @@ class BlenderRendererConfig:
     light_energy: float = 1.0  # multiplies the key/fill/back rig
     light_jitter: float = 0.1  # relative jitter of light position and energy, drawn per scene from ``seed``
     seed: int = 0
-    exposure: float = 0.0  # stops; with the scene lamps, frames sit mid-range (mean ~120 of 255, 99th percentile ~210)
+    exposure: float = 0.0  # stops; with the scene lamps: mean pixel ~120 of 255, 99th percentile ~210
