@@ -29,6 +29,28 @@ def test_each_material_class_looks_different():
     assert looks["wood"]["texture"] > 1.5 * looks["plastic"]["texture"]  # grain
 
 
+def test_the_table_grain_runs_along_the_table():
+    # The rig's camera looks along the table's y axis, so a grain running along x (the desk's boards) makes the
+    # luma change from row to row and hardly from column to column; a figure without a direction would not.
+    from scipy import ndimage
+
+    from muble.core.types import SEG_TABLE
+
+    scene, model, data = material_rig()
+    renderer = BlenderRenderer(width=480, height=240, samples=8)
+    try:
+        renderer.setup(scene, model)
+        frame = renderer.render(data, "materials")
+    finally:
+        renderer.close()
+    luma = frame.rgb.astype(float) @ np.array([0.2126, 0.7152, 0.0722])
+    table = ndimage.binary_erosion(frame.mask(SEG_TABLE), iterations=2)
+    across = np.abs(np.diff(luma, axis=0))[table[1:] & table[:-1]].mean()  # row to row: across the grain
+    along = np.abs(np.diff(luma, axis=1))[table[:, 1:] & table[:, :-1]].mean()
+    assert table.sum() > 5000
+    assert across > 2.0 * along, (across, along)
+
+
 def test_scene_changes_leave_no_blender_data_behind():
     import bpy
 

@@ -47,7 +47,7 @@ class BlenderRendererConfig:
     # outside that room, and the walls turn the lit table into a box of bounced light (noisy, slow to converge).
     walls: bool = False
     table_material: str = "wood"
-    table_rgb: list[float] | None = field(default_factory=lambda: [0.62, 0.45, 0.3])  # None: MuJoCo's colour
+    table_rgb: list[float] | None = field(default_factory=lambda: [0.78, 0.66, 0.5])  # None: MuJoCo's colour
     background_rgb: list[float] = field(default_factory=lambda: [0.78, 0.80, 0.84])
     background_strength: float = 0.3
     light_energy: float = 1.0  # multiplies the key/fill/back rig

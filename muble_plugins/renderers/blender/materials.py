@@ -6,6 +6,7 @@ reflect light: sheen, roughness, transmission, grain. Materials are cached by (c
 from __future__ import annotations
 
 import logging
+import math
 from typing import Any
 
 import numpy as np
@@ -105,14 +106,19 @@ def _ceramic(mat, bsdf, rgb, nodes, links):
          Subsurface_Weight=0.1, Subsurface_Scale=0.01)
 
 
-def _wood(mat, bsdf, rgb, nodes, links, grain: float = 3.0):
-    # Grain: distorted bands across the object's bounding box, pulled between a dark and a light tone of
-    # the colour, with a faint bump. Box-relative coordinates keep the grain size in proportion to the object.
+def _wood(mat, bsdf, rgb, nodes, links, rings: float | None = None):
+    # Objects: the grain is distorted bands across the object's bounding box, pulled between a dark and a light
+    # tone of the colour, with a faint bump; box-relative coordinates keep its size in proportion to the object,
+    # so that it reads on a small bowl. ``rings`` (per metre) asks for the boards' straight grain instead (the
+    # table).
+    if rings is not None:
+        _boards(bsdf, rgb, nodes, links, rings)
+        return
     coords = nodes.new("ShaderNodeTexCoord").outputs["Generated"]
     wave = nodes.new("ShaderNodeTexWave")
     wave.wave_type = "BANDS"
     wave.bands_direction = "X"
-    wave.inputs["Scale"].default_value = grain  # bands across the bounding box
+    wave.inputs["Scale"].default_value = 3.0  # bands across the bounding box
     wave.inputs["Distortion"].default_value = 9.0
     wave.inputs["Detail"].default_value = 4.0
     wave.inputs["Detail Scale"].default_value = 1.2
@@ -127,6 +133,49 @@ def _wood(mat, bsdf, rgb, nodes, links, grain: float = 3.0):
     _bump(nodes, links, bsdf, wave.outputs["Fac"], 0.05, 0.001)
 
 
+def _boards(bsdf, rgb, nodes, links, rings: float) -> None:
+    # Flat-sawn boards, as the original's desk: growth rings are bands running along the object's x axis (the
+    # table's depth, away from the camera), wandering slowly along it, each a light early-wood band ending in a
+    # thin dark late-wood line; fine fibres are noise stretched along the same axis. Object coordinates are
+    # metres: ``rings`` per metre across the grain.
+    coords = _object_coords(nodes, links)
+    along = nodes.new("ShaderNodeMapping")  # compress x: every feature is long along the grain
+    along.inputs["Scale"].default_value = (0.06, 1.0, 1.0)
+    links.new(coords, along.inputs["Vector"])
+    wave = nodes.new("ShaderNodeTexWave")
+    wave.wave_type = "BANDS"
+    wave.bands_direction = "Y"
+    wave.wave_profile = "SAW"  # a ring's early wood fades into its sharp late-wood line
+    wave.inputs["Scale"].default_value = rings * math.pi / 10  # a BANDS period is 2 pi / (20 scale)
+    wave.inputs["Distortion"].default_value = 12.0
+    wave.inputs["Detail"].default_value = 2.0
+    wave.inputs["Detail Scale"].default_value = 0.6
+    links.new(along.outputs["Vector"], wave.inputs["Vector"])
+    fibre_map = nodes.new("ShaderNodeMapping")
+    fibre_map.inputs["Scale"].default_value = (4.0, 350.0, 350.0)
+    links.new(coords, fibre_map.inputs["Vector"])
+    fibres = nodes.new("ShaderNodeTexNoise")
+    fibres.inputs["Scale"].default_value = 1.0
+    fibres.inputs["Detail"].default_value = 3.0
+    links.new(fibre_map.outputs["Vector"], fibres.inputs["Vector"])
+    mix = nodes.new("ShaderNodeMix")  # float mix: 55 % rings, 45 % fibres
+    mix.data_type = "FLOAT"
+    mix.inputs["Factor"].default_value = 0.45
+    links.new(wave.outputs["Fac"], mix.inputs["A"])
+    links.new(fibres.outputs["Fac"], mix.inputs["B"])
+    ramp = nodes.new("ShaderNodeValToRGB")
+    rgb = np.asarray(rgb)
+    ramp.color_ramp.elements[0].position = 0.3
+    ramp.color_ramp.elements[0].color = (*np.clip(1.05 * rgb, 0, 1), 1)  # early wood, light
+    ramp.color_ramp.elements[1].position = 0.85
+    ramp.color_ramp.elements[1].color = (*(0.72 * rgb), 1)  # late wood, dark
+    links.new(mix.outputs["Result"], ramp.inputs["Fac"])
+    links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    # A thin satin varnish: soft reflections of what stands on the table.
+    _set(bsdf, Roughness=0.45, Specular_IOR_Level=0.5, Coat_Weight=0.35, Coat_Roughness=0.2, Coat_IOR=1.5)
+    _bump(nodes, links, bsdf, fibres.outputs["Fac"], 0.08, 0.0005)
+
+
 RECIPES = {"plastic": _plastic, "metal": _metal, "glass": _glass, "rubber": _rubber, "wood": _wood,
            "ceramic": _ceramic, "painted": _painted}
 
@@ -138,8 +187,8 @@ class MaterialLibrary:
         self._cache: dict[tuple, Any] = {}
 
     def get(self, cls: str, rgba: np.ndarray | tuple[float, ...], **details: float) -> Any:
-        """The material of class ``cls`` in colour ``rgba``; ``details`` are recipe options (wood: ``grain``,
-        the number of grain bands across the object)."""
+        """The material of class ``cls`` in colour ``rgba``; ``details`` are recipe options (wood: ``rings``,
+        growth rings per metre of a board's straight grain)."""
         import bpy
 
         if cls not in RECIPES:

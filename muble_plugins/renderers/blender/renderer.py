@@ -32,9 +32,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 log = logging.getLogger(__name__)
 
+TABLE_RINGS = 90.0  # growth rings per metre across the table's grain
 SHARP_EDGE_ANGLE = np.radians(35.0)  # edges sharper than this stay crisp under smooth shading
 BACKGROUND_DEPTH = 1e9
-TABLE_GRAIN = 40.0
 # Pass names in the EXR: Blender 5 writes the long names, older releases the short ones.
 PASS_NAMES = {"Combined": ("Combined",), "Depth": ("Depth",), "IndexOB": ("Object Index", "IndexOB"),
               "Normal": ("Normal",)}  # Cycles' depth of rays that hit nothing is ~1e10
@@ -121,8 +121,8 @@ class BlenderRenderer(Renderer):
             if label == SEG_TABLE:
                 if cfg.table_rgb is not None:
                     rgba = (*cfg.table_rgb, 1.0)
-                if cls == "wood":  # planks' grain, not one log's: many bands across the table top
-                    details["grain"] = TABLE_GRAIN
+                if cls == "wood":  # a desk's boards: straight grain along the table, rings about 1 cm apart
+                    details["rings"] = TABLE_RINGS
             obj.material_slots[0].material = self._materials.get(cls, rgba, **details)
             obj.pass_index = pass_index(label)
             # The world's floor and walls are backdrop: they cast no shadows, so lamps placed outside the
