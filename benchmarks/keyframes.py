@@ -9,7 +9,11 @@ The baseline is the same work with a fresh OpenGL context per episode (what ever
 were kept), measured in the same run, episodes interleaved so load on a shared machine hits both alike. Both
 paths must write the same bytes: the run fails otherwise.
 
-    python benchmarks/keyframes.py [EPISODES] [KEYFRAMES_PER_EPISODE]
+Renderer overrides after the counts (``renderer.shadows=false``, ``renderer.shadow_size=1024``) add a third
+path, the same work with a renderer built with them, timed in the same run; its cost is printed as a ratio to
+the default's, with the share of RGB pixels it changes in the last keyframe of each episode (what it gives up).
+
+    python benchmarks/keyframes.py [EPISODES] [KEYFRAMES_PER_EPISODE] [renderer.OPTION=VALUE ...]
 """
 from __future__ import annotations
 
@@ -28,8 +32,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 GOAL_SECONDS = 0.2
 
 
-def episode(renderer, env, scene, keyframes: int) -> tuple[float, float, str]:
-    """Wall and CPU seconds of one episode's keyframes, and a digest of everything written."""
+def episode(renderer, env, scene, keyframes: int) -> tuple[float, float, str, np.ndarray]:
+    """Wall and CPU seconds of one episode's keyframes, a digest of everything written and the last RGB."""
     import mujoco
 
     from muble.core.types import SEG_ROBOT, SEG_TABLE
@@ -61,7 +65,7 @@ def episode(renderer, env, scene, keyframes: int) -> tuple[float, float, str]:
     digest.update(gif_bytes(frames))
     renderer.close()
     env.data.qpos[:7] = arm
-    return time.perf_counter() - start, time.process_time() - cpu, digest.hexdigest()
+    return time.perf_counter() - start, time.process_time() - cpu, digest.hexdigest(), frames[-1]
 
 
 def main() -> int:
@@ -76,9 +80,14 @@ def main() -> int:
     logging.basicConfig(level=logging.WARNING)
     episodes = int(sys.argv[1]) if len(sys.argv) > 1 else 3
     keyframes = int(sys.argv[2]) if len(sys.argv) > 2 else 6
+    overrides = sys.argv[3:]
     cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", "renderer=mujoco"])
     components = build_components(cfg, task=False)
     renderer = components["renderer"]
+    variant = None
+    if overrides:
+        variant_cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", "renderer=mujoco", *overrides])
+        variant = build_components(variant_cfg, task=False)["renderer"]
     generator = scene_generator(cfg, components["object_set"])
     try:
         scenes = [generator.generate(i) for i in range(episodes)]
@@ -86,37 +95,53 @@ def main() -> int:
         generator.close()
     robot = OmegaConf.to_container(cfg.robot, resolve=True)
     kept = gl.MAX_SPARE
-    totals = {"fresh": [0.0, 0.0], "kept": [0.0, 0.0]}
-    mismatches = 0
+    totals = {"fresh": [0.0, 0.0], "kept": [0.0, 0.0], "variant": [0.0, 0.0]}
+    mismatches, changed = 0, []
     warm_env = TabletopEnv(scenes[0], object_models(scenes[0], components["object_set"], cfg.objects.name), robot, {})
     episode(renderer, warm_env, scenes[0], 1)  # imports and the first context, paid once by any process
+    if variant is not None:
+        episode(variant, warm_env, scenes[0], 1)
     warm_env.close()
     for i, scene in enumerate(scenes):
         env = TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name), robot, {})
-        digests = {}
-        for mode in (("fresh", "kept") if i % 2 == 0 else ("kept", "fresh")):
-            gl.MAX_SPARE = kept if mode == "kept" else 0
+        digests, last = {}, {}
+        modes = ("fresh", "kept", "variant") if variant is not None else ("fresh", "kept")
+        for mode in (modes if i % 2 == 0 else modes[::-1]):
+            gl.MAX_SPARE = 0 if mode == "fresh" else kept
             if mode == "fresh":
                 gl.free_spares()
-            wall, cpu, digests[mode] = episode(renderer, env, scene, keyframes)
+            wall, cpu, digests[mode], last[mode] = episode(variant if mode == "variant" else renderer, env, scene,
+                                                           keyframes)
             totals[mode][0] += wall
             totals[mode][1] += cpu
         mismatches += digests["fresh"] != digests["kept"]
+        if variant is not None:
+            diff = np.abs(last["variant"].astype(np.int16) - last["kept"].astype(np.int16)).max(axis=2)
+            changed.append(float((diff > 0).mean()))
         env.close()
     gl.MAX_SPARE = kept
     n = episodes * keyframes
     per = {mode: {"wall_s": round(t[0] / n, 3), "cpu_s": round(t[1] / n, 3)} for mode, t in totals.items()}
+    variant_summary = None
+    if variant is not None:
+        variant_summary = {"overrides": overrides, "wall_s": per["variant"]["wall_s"],
+                           "cpu_s": per["variant"]["cpu_s"],
+                           "ratio_to_default": round(totals["variant"][0] / totals["kept"][0], 3),
+                           "rgb_pixels_changed": round(float(np.mean(changed)), 4)}
     ratio = totals["kept"][0] / totals["fresh"][0]
     for mode, label in (("fresh", "fresh GL context per episode (before)"), ("kept", "GL context kept (now)")):
         print(f"{label:40s}: {per[mode]['wall_s']:.3f} s/keyframe wall, {per[mode]['cpu_s']:.3f} CPU-s/keyframe")
     print(f"ratio now/before (wall): {ratio:.3f}; outputs identical: {mismatches == 0}")
+    if variant_summary is not None:
+        print(f"{' '.join(overrides):40s}: {variant_summary['wall_s']:.3f} s/keyframe wall, ratio to the default "
+              f"{variant_summary['ratio_to_default']:.3f}, RGB pixels changed {variant_summary['rgb_pixels_changed']:.2%}")
     print(json.dumps({
         "benchmark": "keyframes", "metric": "seconds per MuJoCo keyframe written as by muble generate "
         "(848x480 RGB+depth+segmentation, PNG, masks, GIF; setup amortised)",
         "value": per["kept"]["wall_s"], "unit": "s", "goal": GOAL_SECONDS,
         "baseline": per["fresh"]["wall_s"], "ratio_to_baseline": round(ratio, 3),
         "cpu_seconds": per["kept"]["cpu_s"], "baseline_cpu_seconds": per["fresh"]["cpu_s"],
-        "identical_outputs": mismatches == 0, "episodes": episodes, "keyframes_per_episode": keyframes,
+        "identical_outputs": mismatches == 0, "variant": variant_summary, "episodes": episodes, "keyframes_per_episode": keyframes,
         "resolution": [renderer.config.width, renderer.config.height], "cores": os.cpu_count(),
         "load_average_1min": round(os.getloadavg()[0], 2),
     }))

@@ -28,21 +28,31 @@ class MujocoRendererConfig:
     # Geom groups drawn: robosuite puts visual meshes in group 1 and collision shapes in group 0; object sets put
     # visual meshes in group 2 and convex collision parts in group 3. Sites are never drawn.
     geom_groups: list[int] = field(default_factory=lambda: [1, 2])
+    # Shadows of the model's shadow-casting lights (robosuite's world has three), each drawn from a square depth
+    # map of ``shadow_size`` texels (None: the model's ``visual/quality/shadowsize``, MuJoCo's default 4096).
+    # They are most of an RGB frame's cost on a software rasteriser; turning them off or shrinking the maps
+    # changes the RGB image (depth and segmentation never carry shadows): benchmarks/keyframe_breakdown.py.
+    shadows: bool = True
+    shadow_size: int | None = None
 
 
 class MujocoRenderer(Renderer):
     """Draws MuJoCo states with MuJoCo's own OpenGL renderer (EGL, else OSMesa)."""
 
     def __init__(self, width: int = 848, height: int = 480, rgb: bool = True, depth: bool = True,
-                 segmentation: bool = True, reuse_meshes: bool = True, geom_groups: list[int] | tuple = (1, 2)):
+                 segmentation: bool = True, reuse_meshes: bool = True, geom_groups: list[int] | tuple = (1, 2),
+                 shadows: bool = True, shadow_size: int | None = None):
         if width <= 0 or height <= 0:
             raise RenderError(f"image size must be positive, got {width}x{height}; set renderer.width/height")
         if not (rgb or depth or segmentation):
             raise RenderError("nothing to draw: enable at least one of rgb, depth, segmentation")
         if not all(0 <= int(g) < 6 for g in geom_groups):
             raise RenderError(f"geom_groups must be MuJoCo groups 0..5, got {list(geom_groups)}")
+        if shadow_size is not None and not 64 <= int(shadow_size) <= 16384:
+            raise RenderError(f"shadow_size must be 64..16384 texels (or null for the model's own), got {shadow_size}")
         self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes,
-                                           [int(g) for g in geom_groups])
+                                           [int(g) for g in geom_groups], bool(shadows),
+                                           None if shadow_size is None else int(shadow_size))
         self._gl = None
         self._context = None  # MjrContext
         self._context_model = None  # the model the context was made from
@@ -96,6 +106,7 @@ class MujocoRenderer(Renderer):
         self._option.geomgroup[:] = 0
         self._option.geomgroup[self.config.geom_groups] = 1
         self._option.sitegroup[:] = 0
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = int(self.config.shadows)
         self._set_up_with = (scene, model)
 
     def _make_context(self, model) -> None:
@@ -103,6 +114,8 @@ class MujocoRenderer(Renderer):
 
         if self._context is not None:
             self._context.free()
+        if self.config.shadow_size is not None:  # the context sizes its shadow maps from the model it is made from
+            model.vis.quality.shadowsize = self.config.shadow_size
         self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         self._context_model = model
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
