@@ -22,22 +22,11 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 
 def scene_env():
-    from omegaconf import OmegaConf
-
     from muble.app.config import compose
-    from muble.app.run import build_components, scene_generator
-    from muble.sim.build import object_models
-    from muble.sim.env import TabletopEnv
+    from muble.episode.components import build_components, generated_env
 
     cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
-    components = build_components(cfg, renderer=False, task=False)
-    generator = scene_generator(cfg, components["object_set"])
-    try:
-        scene = generator.generate(0)
-    finally:
-        generator.close()
-    return TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name),
-                       OmegaConf.to_container(cfg.robot, resolve=True), {})
+    return generated_env(cfg, build_components(cfg, renderer=False, task=False), 0)
 
 
 @contextmanager

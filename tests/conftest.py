@@ -23,21 +23,10 @@ def reference_dir() -> Path:
 @pytest.fixture(name="generated_env")
 def generated_env_fixture():
     """The environment of generated scene 3 (the run config's generator, object set and robot), closed after."""
-    from omegaconf import OmegaConf
-
     from muble.app.config import compose
-    from muble.app.run import build_components, scene_generator
-    from muble.sim.build import object_models
-    from muble.sim.env import TabletopEnv
+    from muble.episode.components import build_components, generated_env
 
     cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
-    components = build_components(cfg, renderer=False, task=False)
-    generator = scene_generator(cfg, components["object_set"])
-    try:
-        scene = generator.generate(3)
-    finally:
-        generator.close()
-    env = TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name),
-                      OmegaConf.to_container(cfg.robot, resolve=True), {})
+    env = generated_env(cfg, build_components(cfg, renderer=False, task=False), 3)
     yield env
     env.close()

@@ -51,3 +51,18 @@ def scene_generator(cfg: DictConfig, object_set: object):
 
     options = OmegaConf.to_container(cfg.generator, resolve=True)
     return SceneGenerator(options, seed=cfg.seed, object_set=object_set)
+
+
+def generated_env(cfg: DictConfig, components: dict[str, object], index: int):
+    """The environment (no sensors) of scene ``index`` as ``cfg``'s generator, object set and robot make it;
+    the caller closes it."""
+    from muble.sim.build import object_models
+    from muble.sim.env import TabletopEnv
+
+    generator = scene_generator(cfg, components["object_set"])
+    try:
+        scene = generator.generate(index)
+    finally:
+        generator.close()
+    return TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name),
+                       OmegaConf.to_container(cfg.robot, resolve=True), {})
