@@ -38,6 +38,9 @@ def test_shadow_options_change_the_rgb_only(generated_env):
     assert _changed(default, unshadowed) > 0.3
     # Smaller maps reach the context (shadow edges move) and leave the rest of the frame as it was.
     assert 0 < _changed(default, small_maps) < 0.01
+    # The environment's model keeps its own shadow maps for whoever renders it next.
+    assert generated_env.model.vis.quality.shadowsize == 4096
+    np.testing.assert_array_equal(_frame(generated_env).rgb, default.rgb)
 
 
 def test_shadow_size_out_of_range_is_refused():

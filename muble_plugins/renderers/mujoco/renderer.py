@@ -114,9 +114,14 @@ class MujocoRenderer(Renderer):
 
         if self._context is not None:
             self._context.free()
-        if self.config.shadow_size is not None:  # the context sizes its shadow maps from the model it is made from
+        # The context sizes its shadow maps from the model it is made from; the caller's model is left as it was.
+        own_size = int(model.vis.quality.shadowsize)
+        if self.config.shadow_size is not None:
             model.vis.quality.shadowsize = self.config.shadow_size
-        self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        try:
+            self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        finally:
+            model.vis.quality.shadowsize = own_size
         self._context_model = model
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
         # Read depth as reversed z (far = 0), the mapping _metric_depth undoes.
