@@ -2,8 +2,8 @@
 
 One generated scene, the ``front`` camera at 848x480, the MuJoCo renderer with its defaults (without the mesh
 atlas, so that the quality settings reach the model it draws). Each
-variant turns one feature of robosuite's world off (or makes the shadow maps smaller) and is timed over the same
-frames in the same run; it prints seconds per frame, the ratio to the frame as written, and how many pixels of
+variant turns one feature of robosuite's world off (or makes the shadow maps smaller), through the renderer's
+options where it has them (``shadows``, ``shadow_size``), and is timed over the same frames in the same run; it prints seconds per frame, the ratio to the frame as written, and how many pixels of
 the RGB image change (a variant that changes pixels changes what ``muble generate`` writes).
 
     python benchmarks/keyframe_breakdown.py [FRAMES]
@@ -31,7 +31,7 @@ def scene_env():
 
 @contextmanager
 def quality(model, **values):
-    """Temporarily set ``model.vis.quality`` fields (shadowsize, offsamples)."""
+    """Temporarily set ``model.vis.quality`` fields (offsamples)."""
     old = {k: int(getattr(model.vis.quality, k)) for k in values}
     for k, v in values.items():
         setattr(model.vis.quality, k, v)
@@ -42,8 +42,10 @@ def quality(model, **values):
             setattr(model.vis.quality, k, v)
 
 
-def timed(env, frames: int, passes: str = "rgb", flags_off: tuple = (), **vis) -> tuple[float, np.ndarray]:
-    """Seconds per frame of the MuJoCo renderer with ``flags_off`` render flags cleared and ``vis`` quality."""
+def timed(env, frames: int, passes: str = "rgb", options: dict | None = None, flags_off: tuple = (),
+          **vis) -> tuple[float, np.ndarray]:
+    """Seconds per frame of the MuJoCo renderer built with ``options`` (its own: ``shadows``, ``shadow_size``),
+    with ``flags_off`` render flags cleared and ``vis`` quality (what it has no option for)."""
     import mujoco
 
     from muble import get_registry
@@ -52,7 +54,7 @@ def timed(env, frames: int, passes: str = "rgb", flags_off: tuple = (), **vis) -
     seg = passes in ("seg", "all")
     with quality(env.model, **vis):
         renderer = get_registry().create("renderer", "mujoco", {"rgb": rgb, "segmentation": seg, "depth": seg,
-                                                                 "reuse_meshes": False})
+                                                                 "reuse_meshes": False, **(options or {})})
         try:
             renderer.setup(env.sync_scene_graph(), env.model)
             update = renderer._update_scene
@@ -79,13 +81,13 @@ def main() -> int:
         "as written (RGB + segmentation/depth)": dict(passes="all"),
         "segmentation/depth pass only": dict(passes="seg"),
         "RGB pass": dict(),
-        "RGB, no shadows": dict(flags_off=("mjRND_SHADOW",)),
+        "RGB, no shadows": dict(options={"shadows": False}),
         "RGB, no floor reflection": dict(flags_off=("mjRND_REFLECTION",)),
         "RGB, no multisampling": dict(offsamples=0),
-        "RGB, shadow maps 2048": dict(shadowsize=2048),
-        "RGB, shadow maps 1024": dict(shadowsize=1024),
-        "RGB, none of shadows, reflection, multisampling": dict(flags_off=("mjRND_SHADOW", "mjRND_REFLECTION"),
-                                                                 offsamples=0),
+        "RGB, shadow maps 2048": dict(options={"shadow_size": 2048}),
+        "RGB, shadow maps 1024": dict(options={"shadow_size": 1024}),
+        "RGB, none of shadows, reflection, multisampling": dict(options={"shadows": False},
+                                                                 flags_off=("mjRND_REFLECTION",), offsamples=0),
     }
     results, reference = {}, None
     try:

@@ -6,20 +6,25 @@ import pytest
 
 from muble import ConfigError
 from muble_plugins.renderers.blender import BlenderRenderer
-from muble_plugins.renderers.blender.appearance import appearance, appearance_distance
+from muble_plugins.renderers.blender.appearance import appearance, appearance_distance, luma
 from muble_plugins.renderers.blender.testing import MATERIALS, build_world, material_rig, random_scene
 
 pytestmark = pytest.mark.blender
 
 
-def test_each_material_class_looks_different():
+def rig_frame(width: int, height: int):
+    """The material rig seen by its camera at 8 samples."""
     scene, model, data = material_rig()
-    renderer = BlenderRenderer(width=240, height=120, samples=8)
+    renderer = BlenderRenderer(width=width, height=height, samples=8)
     try:
         renderer.setup(scene, model)
-        frame = renderer.render(data, "materials")
+        return renderer.render(data, "materials")
     finally:
         renderer.close()
+
+
+def test_each_material_class_looks_different():
+    frame = rig_frame(240, 120)
     looks = {name: appearance(frame.rgb, frame.mask(i)) for i, name in enumerate(MATERIALS)}
     for a, b in itertools.combinations(MATERIALS, 2):
         assert appearance_distance(looks[a], looks[b]) > 0.25, (a, looks[a], b, looks[b])
@@ -36,17 +41,11 @@ def test_the_table_grain_runs_along_the_table():
 
     from muble.core.types import SEG_TABLE
 
-    scene, model, data = material_rig()
-    renderer = BlenderRenderer(width=480, height=240, samples=8)
-    try:
-        renderer.setup(scene, model)
-        frame = renderer.render(data, "materials")
-    finally:
-        renderer.close()
-    luma = frame.rgb.astype(float) @ np.array([0.2126, 0.7152, 0.0722])
+    frame = rig_frame(480, 240)
+    y = luma(frame.rgb)
     table = ndimage.binary_erosion(frame.mask(SEG_TABLE), iterations=2)
-    across = np.abs(np.diff(luma, axis=0))[table[1:] & table[:-1]].mean()  # row to row: across the grain
-    along = np.abs(np.diff(luma, axis=1))[table[:, 1:] & table[:, :-1]].mean()
+    across = np.abs(np.diff(y, axis=0))[table[1:] & table[:-1]].mean()  # row to row: across the grain
+    along = np.abs(np.diff(y, axis=1))[table[:, 1:] & table[:, :-1]].mean()
     assert table.sum() > 5000
     assert across > 2.0 * along, (across, along)
 

@@ -5,6 +5,12 @@ import numpy as np
 from scipy import ndimage
 
 FEATURES = ("brightness", "contrast", "highlight", "saturation", "texture")
+REC709_LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+
+def luma(rgb: np.ndarray) -> np.ndarray:
+    """Rec. 709 luma of an 8-bit RGB image, in 0..1."""
+    return (rgb.astype(float) / 255.0) @ REC709_LUMA
 
 
 def appearance(rgb: np.ndarray, mask: np.ndarray) -> dict[str, float]:
@@ -15,11 +21,11 @@ def appearance(rgb: np.ndarray, mask: np.ndarray) -> dict[str, float]:
     if inner.sum() < 10:
         raise ValueError("mask too small to measure an appearance; render at a larger resolution")
     colour = rgb.astype(float) / 255.0
-    luma = colour @ np.array([0.2126, 0.7152, 0.0722])
+    y = luma(rgb)
     top, bottom = colour.max(axis=-1), colour.min(axis=-1)
     saturation = np.where(top > 0, (top - bottom) / np.maximum(top, 1e-6), 0.0)
-    texture = np.abs(ndimage.laplace(luma))
-    values = luma[inner]
+    texture = np.abs(ndimage.laplace(y))
+    values = y[inner]
     return {
         "brightness": float(values.mean()),
         "contrast": float(values.std()),
