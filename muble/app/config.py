@@ -108,6 +108,31 @@ class EvaluationConfig:
     plot: bool = True  # write the success bar chart per split
 
 
+class Track(str, Enum):
+    """What an agent is told about the task (``docs/protocol.md``)."""
+
+    program = "program"  # the instruction's text and its program, nothing computed on the ground truth
+    language = "language"  # the text only
+
+
+class ObservationMode(str, Enum):
+    """What an agent is told about the scene (``muble.core.observation``, ``docs/protocol.md``)."""
+
+    graph = "graph"  # ids, poses, visible attributes, contact state
+    masks = "masks"  # images + per-object ids, masks, poses, bboxes, contact state; no attribute words
+    image = "image"  # images only; a pixel of the latest image names an object in an action
+
+
+@dataclass
+class BenchmarkConfig:
+    """Which protocol, track and observation mode a run follows; stamped on every report."""
+
+    protocol: str | None = None  # a frozen protocol of muble_conf/protocol (protocol=shopvrb2_v1), or none
+    split: str = "mini"  # with a protocol: the protocol split `muble generate` writes
+    track: Track = Track.program
+    mode: ObservationMode = ObservationMode.graph
+
+
 @dataclass
 class MubleConfig:
     """The top-level schema of every MuBlE application."""
@@ -123,6 +148,7 @@ class MubleConfig:
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    benchmark: BenchmarkConfig = field(default_factory=BenchmarkConfig)
     seed: int = bounded(0, ge=0)  # numpy seeds are non-negative
     scene_index: int = bounded(0, ge=0)
     dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing

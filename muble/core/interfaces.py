@@ -270,7 +270,14 @@ class ObjectSet(ABC):
 
 
 class Agent(ABC):
-    """Maps an instruction and observation to the next primitive action or a final answer."""
+    """Maps an instruction and observation to the next primitive action or a final answer.
+
+    ``privileged`` agents (the oracle) are given the program and the graph view whatever the run's track and
+    observation mode, and their actions are expressed in the mode's action form (``muble.episode.modes``): they
+    prove each mode solvable and are never a contestant.
+    """
+
+    privileged: bool = False
 
     def reset(self, instruction: Instruction, observation: Observation) -> None:
         """Called at the start of an episode. Optional; default does nothing."""

@@ -4,7 +4,8 @@ Every world (symbolic or physical) builds the scene an agent observes with ``age
 with the world, the success checks and the ``observations_gt`` of sequence files.
 
 Instructions too (``agent_instruction``): an agent gets the text and the program without the recorded outputs
-(target ids, true weights) and none of the instruction file's ground-truth records.
+and inputs (target ids, true weights: both are computed on the ground truth) and none of the instruction file's
+ground-truth records.
 
 The view is an allow-list, so a property nobody thought of stays hidden by default:
 - visible: identity and visible attributes (model, category, shape, size, material, colour), pose, bbox,
@@ -73,18 +74,25 @@ def agent_view(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | 
     return view
 
 
-# Keys of a program step an agent may see: the recorded ``output`` of a step is ground truth (the target ids
-# chosen on the initial scene, the true weights of a ``query_weight``), so it is left out.
-PROGRAM_STEP_KEYS = ("type", "input", "input_value", "side_inputs", "value_inputs")
+# Keys of a program step an agent may see. The recorded ``output`` of a step is ground truth (the target ids
+# chosen on the initial scene, the true weights of a ``query_weight``), and so is the recorded ``input``: it holds
+# the previous step's output (after a ``filter_weight`` it names the lightest object), so both are left out. The
+# chain structure needs neither (``muble.core.program``: each step takes the output of the one before).
+PROGRAM_STEP_KEYS = ("type", "input_value", "side_inputs", "value_inputs")
+
+
+def agent_program(program: list) -> list:
+    """``program`` as an agent may know it: each step's type and its words (``input_value``), nothing computed
+    on the ground truth (``input`` is kept as null, so consumers of the original schema still find it)."""
+    return [{"input": None, **{k: copy.deepcopy(step[k]) for k in PROGRAM_STEP_KEYS if k in step}}
+            if isinstance(step, dict) else step for step in program]
 
 
 def agent_instruction(instruction: Instruction) -> Instruction:
-    """``instruction`` as an agent may know it: the text and the program without recorded outputs; none of the
-    instruction file's other records (ground-truth actions, the task's target …)."""
-    program = [{k: copy.deepcopy(step[k]) for k in PROGRAM_STEP_KEYS if k in step} if isinstance(step, dict)
-               else step for step in instruction.program]
-    return Instruction(instruction.instruction, program, instruction.template_id, instruction.task_id,
-                       instruction.image_filename, instruction.image_index, instruction.split)
+    """``instruction`` as an agent may know it: the text and the program without recorded outputs or inputs
+    (``agent_program``); none of the instruction file's other records (ground-truth actions, the task's target …)."""
+    return Instruction(instruction.instruction, agent_program(instruction.program), instruction.template_id,
+                       instruction.task_id, instruction.image_filename, instruction.image_index, instruction.split)
 
 
 def leaks(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | None = None) -> list[str]:

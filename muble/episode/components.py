@@ -5,8 +5,11 @@ here, so every entry point turns the same config into the same objects.
 """
 from __future__ import annotations
 
+from typing import Any
+
 from omegaconf import DictConfig, OmegaConf
 
+from muble.core.errors import ConfigError
 from muble.plugins.registry import get_registry
 
 # Plugin kind -> config group that selects it.
@@ -41,9 +44,23 @@ def episode_runner(cfg: DictConfig, components: dict[str, object]):
     from muble.episode.runner import EpisodeRunner
 
     robot = OmegaConf.to_container(cfg.robot, resolve=True)
+    track, mode = benchmark_settings(cfg)
+    if mode != "graph" and components["renderer"] is None:
+        raise ConfigError(f"observation mode '{mode}' shows the agent images: it needs a renderer "
+                          "(with evaluation.render, or muble run's keyframes)")
     return EpisodeRunner(get_registry(), robot, components["planner"], components["agent"],
                          components["object_set"], cfg.objects.name, components["sensors"], components["renderer"],
-                         tuple(cfg.episode.cameras), cfg.episode.max_steps)
+                         tuple(cfg.episode.cameras), cfg.episode.max_steps, track=track, mode=mode)
+
+
+def benchmark_settings(cfg: Any) -> tuple[str, str]:
+    """(track, observation mode) of a config (``benchmark.track``, ``benchmark.mode``; program and graph when
+    the config has no ``benchmark`` section)."""
+    bench = cfg.get("benchmark") if hasattr(cfg, "get") else None
+    if not bench:
+        return "program", "graph"
+    value = lambda v: str(getattr(v, "value", v))  # noqa: E731 - an enum member or its string
+    return value(bench.get("track", "program")), value(bench.get("mode", "graph"))
 
 
 def scene_generator(cfg: DictConfig, object_set: object):

@@ -21,6 +21,7 @@ from typing import Any, Callable, Protocol
 from muble.core.errors import PhysicsError, PlanningError
 from muble.core.interfaces import Agent, Instruction, Task
 from muble.core.observation import agent_instruction
+from muble.episode.modes import ObservationView, express_with_pixels, resolve_pixels, track_instruction
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome
 
@@ -97,6 +98,18 @@ Judge = Callable[[Instruction, SceneGraph, Answer | None], Outcome]
 CallCheck = Callable[[ActionCall, SceneGraph], "str | None"]
 
 
+def _declared(action: Any, registry: Any = None) -> tuple:
+    """The declared parameters of ``action``'s primitive (empty if it names none)."""
+    if registry is None:
+        from muble.plugins.registry import get_registry
+
+        registry = get_registry()
+    name = getattr(action, "name", None)
+    if not isinstance(name, str) or name not in registry.names("primitive"):
+        return ()
+    return tuple(registry.get("primitive", name).record.factory.params)
+
+
 def registry_call_check(registry: Any = None) -> CallCheck:
     """Checks calls against the registered primitives' declared parameters (``muble.core.params``)."""
     from muble.core.params import check_call
@@ -118,13 +131,24 @@ def registry_call_check(registry: Any = None) -> CallCheck:
 
 def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Task | Judge", max_steps: int = 100,
                 max_repeats: int = 3, on_step: Callable[[StepRecord], None] | None = None,
-                max_failures: int = 8, check_call: CallCheck | None = None) -> EpisodeResult:
+                max_failures: int = 8, check_call: CallCheck | None = None, track: str = "program",
+                mode: str = "graph") -> EpisodeResult:
     """Let ``agent`` act in ``world`` until it stops; the episode is judged by ``judge``: a ``Task`` (its ``judge``
-    gets the whole record) or a function of (instruction, final ground-truth scene, answer)."""
+    gets the whole record) or a function of (instruction, final ground-truth scene, answer).
+
+    ``track`` and ``mode`` say what the agent is told (``muble.episode.modes``): the world's observation is the
+    graph view with its frames; the agent gets the mode's view of it, and its object arguments are read in the
+    mode's form (pixels in ``image`` mode). A privileged agent gets the program and the graph view.
+    """
     check_call = check_call or registry_call_check()
-    told = agent_instruction(instruction)  # what the agent is given; the judge gets the whole record
+    privileged = bool(getattr(agent, "privileged", False))
+    # What the agent is given; the judge gets the whole record.
+    told = agent_instruction(instruction) if privileged else track_instruction(instruction, track)
+    view = ObservationView("graph" if privileged else mode)
+    pixels = mode == "image"
     monitor = EpisodeMonitor(max_steps=max_steps, max_repeats=max_repeats)
     observation = world.observe(None, 0)
+    seen = view(observation)
     initial, initial_gt = observation, world.ground_truth()
     actions: list[ActionCall] = []
     steps: list[StepRecord] = []
@@ -139,12 +163,12 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
                              failures)
 
     try:
-        agent.reset(told, observation)
+        agent.reset(told, seen)
     except Exception as e:  # noqa: BLE001 - whatever an agent raises ends its episode, never the evaluation
         return finish(Outcome.AGENT_ERROR, f"agent.reset raised {type(e).__name__}: {e}")
     while True:
         try:
-            decision = agent.act(told, observation)
+            decision = agent.act(told, seen)
         except PlanningError as e:  # the agent's program cannot be carried out in this scene
             return finish(Outcome.PROGRAM_FAILURE, str(e))
         except Exception as e:  # noqa: BLE001 - see above
@@ -158,6 +182,14 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
         if not isinstance(decision, ActionCall):
             return finish(Outcome.INVALID_ACTION, f"the agent returned {type(decision).__name__} {decision!r:.80}; "
                                                   "return an ActionCall, an Answer or None")
+        if pixels:
+            declared = _declared(decision)
+            if privileged:
+                decision = express_with_pixels(decision, observation, declared)
+            decision = resolve_pixels(decision, observation, declared)
+            if isinstance(decision, str):
+                log.info("invalid action: %s", decision)
+                return finish(Outcome.INVALID_ACTION, decision)
         problem = check_call(decision, observation.scene)
         if problem is not None:
             log.info("invalid action %s: %s", decision, problem)
@@ -171,6 +203,7 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
             return finish(Outcome.BROKEN_SCENE, str(e))
         actions.append(decision)
         observation = world.observe(result, len(actions))
+        seen = view(observation)
         steps.append(StepRecord(decision, result, observation, world.ground_truth()))
         if on_step is not None:
             on_step(steps[-1])

@@ -124,8 +124,10 @@ class EpisodeRunner:
 
     def __init__(self, registry: Any, robot: Any, planner: Any, agent: Any, object_set: Any, object_set_name: str,
                  sensors: dict[str, Any], renderer: Renderer | None, cameras: tuple[str, ...] = ("front",),
-                 max_steps: int = 100):
+                 max_steps: int = 100, track: str = "program", mode: str = "graph"):
         self.registry = registry
+        self.track = track  # what the agent is told (muble.episode.modes)
+        self.mode = mode
         self.robot = robot
         self.planner = planner
         self.agent = agent
@@ -185,7 +187,8 @@ class EpisodeRunner:
                 log.info("step %d: %s -> %s", len(keyframes), step.action,
                          "ok" if step.result.success else step.result.failure_reason)
 
-            result = run_episode(instruction, world, self.agent, task, max_steps=self.max_steps, on_step=keep)
+            result = run_episode(instruction, world, self.agent, task, max_steps=self.max_steps, on_step=keep,
+                                 track=self.track, mode=self.mode)
             first = result.initial.images.get(self.cameras[0]) if result.initial is not None else None
             if first is not None:
                 keyframes.insert(0, first.rgb)

@@ -19,6 +19,7 @@ import numpy as np
 
 from muble.core.errors import ConfigError, SceneValidationError, unknown_name
 from muble.core.interfaces import Instruction, Task
+from muble.core.observation import agent_program
 from muble.core.scene import SceneGraph
 
 log = logging.getLogger(__name__)
@@ -39,9 +40,10 @@ class EpisodeSpec:
 
 
 def agent_instruction(instruction: Instruction) -> Instruction:
-    """The instruction as an agent receives it: the stored ground-truth action list left out."""
+    """The instruction as an agent receives it: the stored ground-truth action list left out, and the program
+    without the outputs and inputs recorded on the ground truth (``muble.core.observation.agent_program``)."""
     extra = {k: v for k, v in instruction.extra.items() if k not in GROUND_TRUTH_KEYS}
-    return Instruction(instruction.instruction, list(instruction.program), instruction.template_id,
+    return Instruction(instruction.instruction, agent_program(instruction.program), instruction.template_id,
                        instruction.task_id, instruction.image_filename, instruction.image_index, instruction.split,
                        extra)
 

@@ -25,18 +25,45 @@ EvalJob = IndexJob
 def build_components(config: dict[str, Any]) -> dict[str, Any]:
     """The configured plugins, once per process and config; no renderer unless ``evaluation.render``, and no task
     (each instruction names its own template)."""
-    return cached_components(config, renderer=bool(config["evaluation"]["render"]), task=False)
+    from muble.episode.components import benchmark_settings
+
+    images = benchmark_settings(config)[1] != "graph"  # masks and image modes show the agent the renderer's frames
+    return cached_components(config, renderer=bool(config["evaluation"]["render"]) or images, task=False)
 
 
 def _record(job: EvalJob) -> dict[str, Any]:
     """The fields of a result known before anything is read; the data fills in the rest."""
     return {"split": job.split, "index": job.index, "template": UNKNOWN, "task": None, "instruction": None,
-            "ground_truth_primitives": 0, "file": None}
+            "ground_truth_primitives": 0, "ground_truth_measurements": 0, "file": None}
 
 
 def _failed(out: dict[str, Any], outcome: Outcome, error: str, file: str | None) -> dict[str, Any]:
-    return {**out, "outcome": outcome.value, "primitives": [], "answer": None, "error": error, "timing": None,
-            "keyframes": [], "file": file}
+    return {**out, "outcome": outcome.value, "primitives": [], "measurements": 0, "answer": None, "error": error,
+            "timing": None, "keyframes": [], "file": file}
+
+
+def measuring_primitives() -> set[str]:
+    """The registered primitives that measure a property of an object (``PrimitiveAction.measures``: a weight, a
+    stiffness). Counting their calls tells how much an agent measured beside what the task needed; the registry
+    says which they are, so a plugin's own measuring primitive counts too."""
+    from muble.plugins.registry import get_registry
+
+    registry = get_registry()
+    return {name for name in registry.names("primitive")
+            if getattr(registry.get("primitive", name).record.factory, "measures", None)}
+
+
+def ground_truth_counts(record: dict[str, Any]) -> dict[str, int]:
+    """``ground_truth_primitives`` and ``ground_truth_measurements`` of a stored instruction record: the length of
+    its ground-truth action sequence (the oracle's plan, ``[name, params]`` per primitive) and how many of those
+    actions measure. Names in the original release's spelling count as the primitives they stand for."""
+    from muble.core.action_names import from_original
+
+    actions = record.get("ground_truth_actions", [])
+    measuring = measuring_primitives()
+    measured = sum(1 for a in actions if isinstance(a, (list, tuple)) and a and isinstance(a[0], str)
+                   and from_original(a[0]) in measuring)
+    return {"ground_truth_primitives": len(actions), "ground_truth_measurements": measured}
 
 
 def _describe(job: EvalJob, e: BaseException) -> str:
@@ -94,7 +121,9 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
             write_bytes_atomic(folder / f"frame_{i:04d}.png", png_bytes(rgb))
             written.append(str(folder / f"frame_{i:04d}.png"))
     t = output.timing
+    measuring = measuring_primitives()
     return {**out, "outcome": result.outcome.value, "primitives": [str(a) for a in result.actions],
+            "measurements": sum(1 for a in result.actions if a.name in measuring),
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
             "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None}
@@ -106,8 +135,7 @@ def _instruction_checked(job: EvalJob, out: dict[str, Any], record: dict[str, An
     from muble.core.scene_io import in_file
     from muble.plugins.registry import get_registry
 
-    out.update(task=instruction.task_id, instruction=instruction.instruction,
-               ground_truth_primitives=len(record.get("ground_truth_actions", [])))
+    out.update(task=instruction.task_id, instruction=instruction.instruction, **ground_truth_counts(record))
     registry = get_registry()
     if instruction.template_id not in registry.names("task"):
         error = in_file(SceneValidationError(unknown_name("template", instruction.template_id, registry.names("task")),

@@ -39,6 +39,9 @@ class Snoop(Agent):
             self.found.append(f"instruction records {sorted(instruction.extra)}")
         if any("output" in step for step in instruction.program):
             self.found.append("the program's recorded outputs")
+        for k, step in enumerate(instruction.program):
+            if step.get("input") is not None:  # the previous step's result, computed on the ground truth
+                self.found.append(f"step {k} ({step['type']}) input {step['input']}")
 
     def reset(self, instruction, observation):
         self._inspect_instruction(instruction)
