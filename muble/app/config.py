@@ -127,7 +127,7 @@ class ObservationMode(str, Enum):
 class BenchmarkConfig:
     """Which protocol, track and observation mode a run follows; stamped on every report."""
 
-    protocol: str | None = None  # a frozen protocol of muble_conf/protocol (protocol=shopvrb2_v1), or none
+    protocol: str | None = None  # set by protocol=NAME (muble_conf/protocol): the protocol results are labelled with
     split: str = "mini"  # with a protocol: the protocol split `muble generate` writes
     track: Track = Track.program
     mode: ObservationMode = ObservationMode.graph
@@ -149,6 +149,7 @@ class MubleConfig:
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     benchmark: BenchmarkConfig = field(default_factory=BenchmarkConfig)
+    protocol: Any = None  # the frozen protocol's splits (muble_conf/protocol, muble.dataset.protocol), or none
     seed: int = bounded(0, ge=0)  # numpy seeds are non-negative
     scene_index: int = bounded(0, ge=0)
     dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing

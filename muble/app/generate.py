@@ -22,6 +22,7 @@ from muble.dataset.executors import run_all
 from muble.dataset.identity import check_or_store_identity
 from muble.dataset.lock import RunLock
 from muble.dataset.production import IndexJob, produce_index, split_seed
+from muble.dataset.protocol import PROTOCOL_FILE, check_data, select_split
 
 log = logging.getLogger(__name__)
 
@@ -83,6 +84,7 @@ def job(cfg: DictConfig) -> dict:
     import muble
 
     root = Path(cfg.dataset.root)
+    protocol_split = select_split(cfg)  # protocol=NAME: the split benchmark.split names, at its frozen size
     sizes = split_sizes(cfg)
     root.mkdir(parents=True, exist_ok=True)
     config = OmegaConf.to_container(cfg, resolve=True)
@@ -118,6 +120,12 @@ def job(cfg: DictConfig) -> dict:
         manifest = make_manifest(seeds, dataset_config_record(config), files=checksums(root))
         write_bytes_atomic(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True).encode())
     print(f"muble generate: {produced} scenes in {root}")
+    if protocol_split is not None and cfg.dataset.num_shards == 1:
+        stamp = check_data(cfg, root, protocol_split)  # a recorded hash that differs is an error (exit 2)
+        write_bytes_atomic(root / PROTOCOL_FILE.format(split=protocol_split),
+                           json.dumps(stamp, indent=2, sort_keys=True).encode())
+        verdict = {True: "matches the recorded hash", None: "no hash recorded for this split"}[stamp["matches"]]
+        print(f"protocol {stamp['protocol']} split {protocol_split}: data sha256 {stamp['data_sha256']} ({verdict})")
     return produced
 
 

@@ -65,7 +65,9 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     from muble.generation.task_mix import suited_scene, template_weights
     from muble.plugins.registry import get_registry
 
-    cfg = job.config
+    from muble.dataset.protocol import split_config
+
+    cfg = split_config(job.config, job.split)  # a protocol split's own object set and generator settings
     ds = cfg["dataset"]
     layout = DatasetLayout(Path(ds["root"]), job.split)
     out = layout.split_dir
