@@ -1,8 +1,9 @@
 """The ``muble`` command.
 
 ``muble [run] [OVERRIDES…]`` runs one episode (the main job); ``muble plugins`` lists every registered plugin;
-``muble generate``, ``muble eval`` and ``muble render`` are the dataset, evaluation and rendering jobs. Every job is
-a Hydra application: overrides such as ``renderer=blender`` and multirun (``-m``) work the same for each.
+``muble generate``, ``muble eval`` and ``muble render`` are the dataset, evaluation and rendering jobs, and
+``muble compare`` sets evaluation runs side by side. Every job is a Hydra application: overrides such as
+``renderer=blender`` and multirun (``-m``) work the same for each.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "render": ("muble.app.render", "render a scene file or an episode's keyframes to PNGs and a GIF"),
     "generate": ("muble.app.generate", "generate the SHOP-VRB2 dataset (sharded, resumable)"),
     "eval": ("muble.app.evaluate", "evaluate an agent over a dataset split"),
+    "compare": ("muble.app.compare", "compare `muble eval` runs: success with 95% intervals, paired McNemar tests"),
     "export": ("muble.app.export", "export a split's sequences as a LeRobot dataset (needs muble[lerobot])"),
     "serve": ("muble.app.serve", "serve episodes to an agent in another process (JSON protocol over ZeroMQ)"),
 }

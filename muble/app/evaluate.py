@@ -10,10 +10,12 @@ instruction, on the scene with its ``image_filename``/``image_index``, reported 
 instruction file.
 
 Writes under the run's output folder: ``episodes_<split>.jsonl`` (one result per index, appended as each episode
-finishes), ``report.json`` (success per task type, failure taxonomy, the entries with bad data, timing, manifest),
-``success_<split>.png`` and ``summary.md``; the results table of each split is printed. Every index the dataset
-records gets an outcome, unreadable files included (``invalid_data``). A run into a folder that holds an
-interrupted evaluation with the same settings (``hydra.run.dir=DIR``) resumes it.
+finishes), ``report.json`` (success per task type with its 95% interval, efficiency, failure taxonomy, the entries
+with bad data, timing, manifest), ``results.json`` (the versioned results file runs are shared and compared in,
+``muble.evaluation.results``), ``success_<split>.png`` and ``summary.md``; the results table of each split is
+printed. Every output names the protocol, track and observation mode the run followed (``benchmark.*``). Every
+index the dataset records gets an outcome, unreadable files included (``invalid_data``). A run into a folder that
+holds an interrupted evaluation with the same settings (``hydra.run.dir=DIR``) resumes it.
 """
 from __future__ import annotations
 
@@ -34,7 +36,9 @@ from muble.dataset.production import cached_components
 from muble.evaluation.episodes import EvalJob, evaluate_index
 from muble.evaluation.files import check_files, uses_files
 from muble.evaluation.plot import success_bar_chart
-from muble.evaluation.report import OVERALL, bad_entry_table, failure_table, markdown, success_table, summarize
+from muble.evaluation.report import (OVERALL, bad_entry_table, failure_table, markdown, run_stamp, success_table,
+                                     summarize)
+from muble.evaluation.results import RESULTS_FILE, results_document
 from muble.evaluation.resume import RECORDS, EpisodeLog, claim_folder, run_settings
 from muble.evaluation.split import SplitIndices, check_split
 
@@ -60,6 +64,17 @@ def check_config(cfg: DictConfig) -> Path:
     if cfg.evaluation.limit < 0:
         raise ConfigError(f"evaluation.limit must be >= 0 (0 = every index), got {cfg.evaluation.limit}")
     return root
+
+
+def benchmark_stamp(cfg: DictConfig) -> dict[str, Any]:
+    """What the run followed, as plain values: ``protocol`` (None without one), ``protocol_split`` (the protocol's
+    split; None without a protocol, where ``benchmark.split`` means nothing), ``track`` and ``mode``."""
+    from muble.episode.components import benchmark_settings
+
+    track, mode = benchmark_settings(cfg)
+    protocol = cfg.benchmark.protocol
+    return {"protocol": protocol, "protocol_split": cfg.benchmark.split if protocol else None, "track": track,
+            "mode": mode}
 
 
 def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
@@ -108,11 +123,15 @@ def job(cfg: DictConfig) -> dict[str, Any]:
     # The configured plugins (but a renderer) are built here once, so a bad option stops the run before any episode.
     cached_components(config, renderer=False, task=False)
     claim_folder(out_dir, run_settings(config, dataset_sha), list(found))
-    report: dict[str, Any] = {"agent": cfg.agent.name, "dataset": dataset, "splits": {}}
+    stamp = benchmark_stamp(cfg)
+    report: dict[str, Any] = {"agent": cfg.agent.name, "dataset": dataset, "protocol": stamp["protocol"],
+                              "track": stamp["track"], "mode": stamp["mode"], "splits": {}}
     plots: dict[str, str] = {}
     written: dict[str, str] = {}
+    split_records: dict[str, list[dict[str, Any]]] = {}
     for split in found:
         records = evaluate_split(cfg, config, found[split], out_dir)
+        split_records[split] = records
         name = RECORDS.format(split=split)
         written[name] = sha256_file(out_dir / name)
         summary = summarize(records, list(cfg.dataset.templates))
@@ -125,7 +144,8 @@ def job(cfg: DictConfig) -> dict[str, Any]:
             plots[split] = f"success_{split}.png"
             written[plots[split]] = write_bytes_atomic(
                 out_dir / plots[split], success_bar_chart(rates, f"{cfg.agent.name} on {split}: success rate"))
-        print(success_table(summary, f"agent {cfg.agent.name}, split {split} ({dataset})"))
+        print(success_table(summary, f"agent {cfg.agent.name}, split {split} ({dataset}); "
+                                     f"{run_stamp(stamp['protocol'], stamp['track'], stamp['mode'])}"))
         print()
         print(failure_table(summary))
         print()
@@ -138,6 +158,13 @@ def job(cfg: DictConfig) -> dict[str, Any]:
     seeds = {"seed": cfg.seed, "agent": config["agent"],
              "episodes": "stored scene + instruction per index; each worker replays them deterministically"}
     report["manifest"] = make_manifest(seeds, config, dataset_manifest_sha256=dataset_sha, files=written)
+    run = {**stamp, "data_sha256": dataset_sha, "agent": cfg.agent.name, "agent_config": config["agent"],
+           "seed": cfg.seed, "dataset": dataset}
+    results = results_document(run=run, manifest=report["manifest"],
+                               splits={split: (report["splits"][split], split_records[split]) for split in found})
+    # ``written`` is the manifest's file list, so report.json lists results.json with its sha256 too.
+    written[RESULTS_FILE] = write_bytes_atomic(out_dir / RESULTS_FILE,
+                                               json.dumps(results, indent=2, sort_keys=True).encode())
     write_bytes_atomic(out_dir / "report.json", json.dumps(report, indent=2, sort_keys=True).encode())
     overall = {split: s[OVERALL]["success_rate"] for split, s in report["splits"].items()}
     print(f"muble eval: report in {out_dir / 'report.json'}; success rate "

@@ -1,4 +1,5 @@
-"""A bar chart of success rates drawn with Pillow (no plotting library needed)."""
+"""Charts of success rates drawn with Pillow (no plotting library needed): a bar chart of one run, and the rates of
+several runs side by side with their 95% intervals."""
 from __future__ import annotations
 
 import io
@@ -9,6 +10,9 @@ _BAR = (52, 101, 164)
 _OVERALL_BAR = (204, 102, 0)
 _AXIS = (60, 60, 60)
 _GRID = (225, 225, 225)
+# One colour per run of a comparison, in order (a colour-blind-safe qualitative palette), then repeated.
+_RUN_COLOURS = [(0, 114, 178), (230, 159, 0), (0, 158, 115), (204, 121, 167), (86, 180, 233), (213, 94, 0),
+                (240, 228, 66), (0, 0, 0)]
 
 
 def _font(size: int):
@@ -16,6 +20,87 @@ def _font(size: int):
         return ImageFont.load_default(size=size)
     except TypeError:  # Pillow < 10.1 has only the fixed bitmap font
         return ImageFont.load_default()
+
+
+def _label_height(names: list[str], font) -> int:
+    draw = ImageDraw.Draw(Image.new("L", (1, 1)))
+    return max([int(draw.textlength(n, font=font)) for n in names] + [0])
+
+
+def _rotated_label(img: Image.Image, name: str, x_centre: float, y_top: int, label_h: int, font) -> None:
+    """``name`` written upwards, right-aligned to ``y_top``, centred on ``x_centre``: long template names fit
+    under narrow columns. Drawn on its own transparent strip, then turned 90 degrees."""
+    strip = Image.new("RGBA", (label_h + 4, 20), (255, 255, 255, 0))
+    ImageDraw.Draw(strip).text((label_h + 2, 10), name, fill=_AXIS, font=font, anchor="rm")
+    turned = strip.rotate(90, expand=True)
+    img.paste(turned, (int(x_centre - 10), y_top), turned)
+
+
+def _percent_axis(draw: ImageDraw.ImageDraw, left: int, right: int, top: int, plot_h: int, font) -> None:
+    y0 = top + plot_h
+    for pct in range(0, 101, 20):
+        y = y0 - plot_h * pct / 100
+        draw.line([(left, y), (right, y)], fill=_GRID if pct else _AXIS)
+        draw.text((left - 8, y), f"{pct}%", fill=_AXIS, font=font, anchor="rm")
+    draw.line([(left, top), (left, y0)], fill=_AXIS)
+
+
+def _png(img: Image.Image) -> bytes:
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def interval_chart(groups: dict[str, dict[str, tuple[float, float, float] | None]], title: str) -> bytes:
+    """PNG bytes of several runs' success rates per group (task type): ``groups[group][run] = (rate, low, high)``,
+    fractions in [0, 1], or None where the run has no episode of that group. Each run is a dot at its rate with a
+    bar from ``low`` to ``high`` (its 95% interval), in its own colour, side by side within the group; a legend
+    names the runs. Overlapping bars are the eye's first test of a difference; the paired test is in the text."""
+    names = list(groups)
+    runs = list(dict.fromkeys(run for per_run in groups.values() for run in per_run))
+    step, pad, left, plot_h = 20, 20, 70, 300
+    label_font, small, title_font = _font(14), _font(12), _font(18)
+    draw = ImageDraw.Draw(Image.new("L", (1, 1)))
+    legend_h = 22 * len(runs) + 8
+    top = 50 + legend_h
+    group_w = max(step * len(runs), 24) + 2 * pad
+    label_h = _label_height(names, label_font)
+    legend_w = max([int(draw.textlength(r, font=label_font)) for r in runs] + [0])
+    title_w = int(draw.textlength(title, font=title_font))
+    width = max(left + len(names) * group_w + 20, left + 34 + legend_w + 20, left + title_w + 20, 360)
+    height = top + plot_h + label_h + 30
+    img = Image.new("RGB", (width, height), "white")
+    draw = ImageDraw.Draw(img)
+    draw.text((left, 12), title, fill=_AXIS, font=title_font)
+    for i, run in enumerate(runs):
+        y = 44 + 22 * i
+        colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
+        draw.line([(left, y + 8), (left + 24, y + 8)], fill=colour, width=3)
+        draw.ellipse([left + 8, y + 4, left + 16, y + 12], fill=colour)
+        draw.text((left + 34, y + 8), run, fill=_AXIS, font=label_font, anchor="lm")
+    y0 = top + plot_h
+    _percent_axis(draw, left, width - 10, top, plot_h, small)
+
+    def y_of(fraction: float) -> float:
+        return y0 - plot_h * min(max(float(fraction), 0.0), 1.0)
+
+    for g, name in enumerate(names):
+        x_group = left + g * group_w
+        if g:
+            draw.line([(x_group, top), (x_group, y0)], fill=_GRID)
+        for i, run in enumerate(runs):
+            point = groups[name].get(run)
+            if point is None:
+                continue
+            rate, low, high = point
+            x = x_group + pad + step * i + step / 2
+            colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
+            draw.line([(x, y_of(low)), (x, y_of(high))], fill=colour, width=2)
+            for bound in (low, high):
+                draw.line([(x - 4, y_of(bound)), (x + 4, y_of(bound))], fill=colour, width=2)
+            draw.ellipse([x - 4, y_of(rate) - 4, x + 4, y_of(rate) + 4], fill=colour)
+        _rotated_label(img, name, x_group + group_w / 2, y0 + 6, label_h, label_font)
+    return _png(img)
 
 
 def success_bar_chart(rates: dict[str, float], title: str, highlight: str | None = "overall") -> bytes:
@@ -26,7 +111,7 @@ def success_bar_chart(rates: dict[str, float], title: str, highlight: str | None
     names = list(rates)
     bar_w, gap, left, top, plot_h = 48, 20, 70, 50, 300
     label_font, small, title_font = _font(14), _font(12), _font(18)
-    label_h = max([int(ImageDraw.Draw(Image.new("L", (1, 1))).textlength(n, font=label_font)) for n in names] + [0])
+    label_h = _label_height(names, label_font)
     width = left + len(names) * (bar_w + gap) + gap
     height = top + plot_h + label_h + 30
     width = max(width, 360)
@@ -34,11 +119,7 @@ def success_bar_chart(rates: dict[str, float], title: str, highlight: str | None
     draw = ImageDraw.Draw(img)
     draw.text((left, 12), title, fill=_AXIS, font=title_font)
     y0 = top + plot_h
-    for pct in range(0, 101, 20):
-        y = y0 - plot_h * pct / 100
-        draw.line([(left, y), (width - 10, y)], fill=_GRID if pct else _AXIS)
-        draw.text((left - 8, y), f"{pct}%", fill=_AXIS, font=small, anchor="rm")
-    draw.line([(left, top), (left, y0)], fill=_AXIS)
+    _percent_axis(draw, left, width - 10, top, plot_h, small)
     for i, name in enumerate(names):
         rate = min(max(float(rates[name]), 0.0), 1.0)
         x = left + gap + i * (bar_w + gap)
@@ -47,11 +128,57 @@ def success_bar_chart(rates: dict[str, float], title: str, highlight: str | None
             draw.rectangle([x, y0 - plot_h * rate, x + bar_w, y0], fill=colour)
         draw.text((x + bar_w / 2, y0 - plot_h * rate - 4), f"{100 * rate:.0f}%", fill=_AXIS, font=small,
                   anchor="mb")
-        # Rotated label: drawn on its own transparent strip, then turned 90 degrees.
-        strip = Image.new("RGBA", (label_h + 4, 20), (255, 255, 255, 0))
-        ImageDraw.Draw(strip).text((label_h + 2, 10), name, fill=_AXIS, font=label_font, anchor="rm")
-        turned = strip.rotate(90, expand=True)
-        img.paste(turned, (int(x + bar_w / 2 - 10), y0 + 6), turned)
-    buf = io.BytesIO()
-    img.save(buf, format="PNG")
-    return buf.getvalue()
+        _rotated_label(img, name, x + bar_w / 2, y0 + 6, label_h, label_font)
+    return _png(img)
+
+
+def interval_chart(groups: dict[str, dict[str, tuple[float, float, float] | None]], title: str) -> bytes:
+    """PNG bytes of several runs' success rates per group (task type): ``groups[group][run] = (rate, low, high)``,
+    fractions in [0, 1], or None where the run has no episode of that group. Each run is a dot at its rate with a
+    bar from ``low`` to ``high`` (its 95% interval), in its own colour, side by side within the group; a legend
+    names the runs. Overlapping bars are the eye's first test of a difference; the paired test is in the text."""
+    names = list(groups)
+    runs = list(dict.fromkeys(run for per_run in groups.values() for run in per_run))
+    step, pad, left, plot_h = 20, 20, 70, 300
+    label_font, small, title_font = _font(14), _font(12), _font(18)
+    draw = ImageDraw.Draw(Image.new("L", (1, 1)))
+    legend_h = 22 * len(runs) + 8
+    top = 50 + legend_h
+    group_w = max(step * len(runs), 24) + 2 * pad
+    label_h = _label_height(names, label_font)
+    legend_w = max([int(draw.textlength(r, font=label_font)) for r in runs] + [0])
+    title_w = int(draw.textlength(title, font=title_font))
+    width = max(left + len(names) * group_w + 20, left + 34 + legend_w + 20, left + title_w + 20, 360)
+    height = top + plot_h + label_h + 30
+    img = Image.new("RGB", (width, height), "white")
+    draw = ImageDraw.Draw(img)
+    draw.text((left, 12), title, fill=_AXIS, font=title_font)
+    for i, run in enumerate(runs):
+        y = 44 + 22 * i
+        colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
+        draw.line([(left, y + 8), (left + 24, y + 8)], fill=colour, width=3)
+        draw.ellipse([left + 8, y + 4, left + 16, y + 12], fill=colour)
+        draw.text((left + 34, y + 8), run, fill=_AXIS, font=label_font, anchor="lm")
+    y0 = top + plot_h
+    _percent_axis(draw, left, width - 10, top, plot_h, small)
+
+    def y_of(fraction: float) -> float:
+        return y0 - plot_h * min(max(float(fraction), 0.0), 1.0)
+
+    for g, name in enumerate(names):
+        x_group = left + g * group_w
+        if g:
+            draw.line([(x_group, top), (x_group, y0)], fill=_GRID)
+        for i, run in enumerate(runs):
+            point = groups[name].get(run)
+            if point is None:
+                continue
+            rate, low, high = point
+            x = x_group + pad + step * i + step / 2
+            colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
+            draw.line([(x, y_of(low)), (x, y_of(high))], fill=colour, width=2)
+            for bound in (low, high):
+                draw.line([(x - 4, y_of(bound)), (x + 4, y_of(bound))], fill=colour, width=2)
+            draw.ellipse([x - 4, y_of(rate) - 4, x + 4, y_of(rate) + 4], fill=colour)
+        _rotated_label(img, name, x_group + group_w / 2, y0 + 6, label_h, label_font)
+    return _png(img)

@@ -1,7 +1,14 @@
-"""From per-episode records to the benchmark's results: success per task type, failure taxonomy, timing.
+"""From per-episode records to the benchmark's results: success per task type with its 95% interval, efficiency,
+failure taxonomy, timing.
 
 Everything here is a pure function of the records (sorted by index), so the same episodes give the same report
 whichever executor or worker count produced them; wall-time figures are kept in their own ``timing`` block.
+
+Efficiency is told beside success in two numbers. ``spl`` (success weighted by primitive count, after the "success
+weighted by path length" of navigation benchmarks) is the mean over episodes with a ground-truth plan of
+``success * gt / max(gt, used)``: 1 for an agent that always succeeds with no more primitives than the oracle's
+plan, less for detours, 0 for failures. ``measurement_ratio`` is the measurements (weighing, squeezing) an agent
+made over those the ground-truth plans needed: above 1 it measures more than the task asks, below 1 it guesses.
 """
 from __future__ import annotations
 
@@ -9,6 +16,7 @@ from collections import Counter
 from typing import Any, Iterable
 
 from muble.core.types import Outcome
+from muble.evaluation.stats import wilson
 
 OVERALL = "overall"
 OUTCOMES = [o.value for o in Outcome]
@@ -22,8 +30,36 @@ def _rate(successes: int, episodes: int) -> float:
     return successes / episodes if episodes else 0.0
 
 
+def spl(records: list[dict[str, Any]]) -> float | None:
+    """Success weighted by primitive count over the records with a ground-truth plan; None when none has one."""
+    planned = [r for r in records if r.get("ground_truth_primitives", 0) > 0]
+    if not planned:
+        return None
+    return sum((r["outcome"] == Outcome.SUCCESS.value) * r["ground_truth_primitives"]
+               / max(r["ground_truth_primitives"], len(r["primitives"])) for r in planned) / len(planned)
+
+
+def measurement_ratio(records: list[dict[str, Any]]) -> float | None:
+    """Measurements made over measurements the ground-truth plans needed; None when none was needed. Records
+    written before measurements were counted are left out of both sums."""
+    counted = [r for r in records if "measurements" in r and "ground_truth_measurements" in r]
+    needed = sum(r["ground_truth_measurements"] for r in counted)
+    return sum(r["measurements"] for r in counted) / needed if needed else None
+
+
+def _row(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """One row of the results table: counts, rate with its Wilson 95% interval, efficiency, outcome counts."""
+    counts = Counter(r["outcome"] for r in records)
+    successes = counts[Outcome.SUCCESS.value]
+    low, high = wilson(successes, len(records))
+    return {"episodes": len(records), "successes": successes, "success_rate": _rate(successes, len(records)),
+            "ci_low": low, "ci_high": high, "spl": spl(records), "measurement_ratio": measurement_ratio(records),
+            "outcomes": {o: counts[o] for o in OUTCOMES}}
+
+
 def summarize(records: Iterable[dict[str, Any]], templates: list[str] | None = None) -> dict[str, Any]:
-    """Success rate per template and overall, outcome counts (all taxonomy classes, zeros included), timing.
+    """Success rate with its 95% interval, efficiency and outcome counts (all taxonomy classes, zeros included)
+    per template and overall; timing.
 
     ``templates`` fixes the row order (the configured template mix); templates met only in the records follow, and
     the ``unknown`` row (entries whose instruction could not be read) comes last. Entries with bad data count in
@@ -33,17 +69,8 @@ def summarize(records: Iterable[dict[str, Any]], templates: list[str] | None = N
     seen = [r["template"] for r in records]
     extra = sorted(set(seen) - set(templates or []) - {UNKNOWN})
     order = [t for t in (templates or []) if t in seen] + extra + ([UNKNOWN] if UNKNOWN in seen else [])
-    rows = {}
-    for template in order:
-        rs = [r for r in records if r["template"] == template]
-        counts = Counter(r["outcome"] for r in rs)
-        rows[template] = {"episodes": len(rs), "successes": counts[Outcome.SUCCESS.value],
-                          "success_rate": _rate(counts[Outcome.SUCCESS.value], len(rs)),
-                          "outcomes": {o: counts[o] for o in OUTCOMES}}
-    counts = Counter(r["outcome"] for r in records)
-    overall = {"episodes": len(records), "successes": counts[Outcome.SUCCESS.value],
-               "success_rate": _rate(counts[Outcome.SUCCESS.value], len(records)),
-               "outcomes": {o: counts[o] for o in OUTCOMES}}
+    rows = {template: _row([r for r in records if r["template"] == template]) for template in order}
+    overall = _row(records)
     timed = [r["timing"] for r in records if r.get("timing")]
     timing = {part: sum(t[part] for t in timed) for part in ("physics", "planning", "rendering", "total")}
     timing["episodes"] = len(timed)
@@ -57,19 +84,37 @@ def summarize(records: Iterable[dict[str, Any]], templates: list[str] | None = N
             "bad_entries": bad}
 
 
+def run_stamp(protocol: str | None, track: str, mode: str) -> str:
+    """What a run followed, for titles: ``protocol shopvrb2_v1, track program, mode graph``."""
+    return f"protocol {protocol or 'none'}, track {track}, mode {mode}"
+
+
+def percent_interval(low: float, high: float) -> str:
+    """``[12.3%, 45.6%]``."""
+    return f"[{100 * low:.1f}%, {100 * high:.1f}%]"
+
+
+def _ratio(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
 def success_table(summary: dict[str, Any], title: str = "") -> str:
-    """The results table: one row per task type and an overall row (success rate in percent)."""
-    rows = [(t, s["episodes"], s["successes"], s["success_rate"]) for t, s in summary["templates"].items()]
-    o = summary[OVERALL]
-    rows.append((OVERALL, o["episodes"], o["successes"], o["success_rate"]))
-    width = max(len("task type"), *(len(r[0]) for r in rows))
+    """The results table: one row per task type and an overall row: success rate in percent with its 95% Wilson
+    interval, then SPL and the measurement ratio (``-`` where no ground-truth plan says what was needed)."""
+    rows = list(summary["templates"].items()) + [(OVERALL, summary[OVERALL])]
+    width = max(len("task type"), *(len(name) for name, _ in rows))
+    cis = [percent_interval(s["ci_low"], s["ci_high"]) for _, s in rows]
+    ci_width = max(len("95% CI"), *(len(c) for c in cis))
+    rule = f"{'-' * width}  --------  ---------  ------------  {'-' * ci_width}  ----  -----------"
     lines = [title] if title else []
-    lines.append(f"{'task type'.ljust(width)}  episodes  successes  success rate")
-    lines.append(f"{'-' * width}  --------  ---------  ------------")
-    for i, (name, n, k, rate) in enumerate(rows):
+    lines.append(f"{'task type'.ljust(width)}  episodes  successes  success rate  {'95% CI'.ljust(ci_width)}   SPL"
+                 "  meas. ratio")
+    lines.append(rule)
+    for i, ((name, s), ci) in enumerate(zip(rows, cis)):
         if i == len(rows) - 1:
-            lines.append(f"{'-' * width}  --------  ---------  ------------")
-        lines.append(f"{name.ljust(width)}  {n:8d}  {k:9d}  {100 * rate:11.1f}%")
+            lines.append(rule)
+        lines.append(f"{name.ljust(width)}  {s['episodes']:8d}  {s['successes']:9d}  {100 * s['success_rate']:11.1f}%"
+                     f"  {ci.ljust(ci_width)}  {_ratio(s.get('spl')):>4}  {_ratio(s.get('measurement_ratio')):>11}")
     return "\n".join(lines)
 
 
@@ -101,16 +146,25 @@ def bad_entry_table(summary: dict[str, Any], error_width: int = 100) -> str:
 
 def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
     """A Markdown summary of a report: per split, the success table, the failure taxonomy, timing and plot."""
-    lines = [f"# Evaluation of agent `{report['agent']}`", "",
-             f"Dataset `{report['dataset']}`; seeds and versions in `report.json`.", ""]
+    stamp = run_stamp(report.get("protocol"), report.get("track", "program"), report.get("mode", "graph"))
+    lines = [f"# Evaluation of agent `{report['agent']}` ({stamp})", "",
+             f"Dataset `{report['dataset']}`; seeds and versions in `report.json`, the shareable results in "
+             "`results.json`. Success rates with their 95% Wilson score interval; SPL is success weighted by "
+             "primitive count against the ground-truth plan, the measurement ratio the weighings and squeezes "
+             "made over those the plans needed.", ""]
     for split, summary in report["splits"].items():
-        lines += [f"## Split `{split}`", "", "| task type | episodes | successes | success rate |",
-                  "|---|---:|---:|---:|"]
+        lines += [f"## Split `{split}`", "",
+                  "| task type | episodes | successes | success rate | 95% CI | SPL | meas. ratio |",
+                  "|---|---:|---:|---:|---:|---:|---:|"]
         for t, s in summary["templates"].items():
-            lines.append(f"| {t} | {s['episodes']} | {s['successes']} | {100 * s['success_rate']:.1f}% |")
+            lines.append(f"| {t} | {s['episodes']} | {s['successes']} | {100 * s['success_rate']:.1f}% | "
+                         f"{percent_interval(s['ci_low'], s['ci_high'])} | {_ratio(s.get('spl'))} | "
+                         f"{_ratio(s.get('measurement_ratio'))} |")
         o = summary[OVERALL]
         lines += [f"| **{OVERALL}** | **{o['episodes']}** | **{o['successes']}** | "
-                  f"**{100 * o['success_rate']:.1f}%** |", "", "| failure class | episodes |", "|---|---:|"]
+                  f"**{100 * o['success_rate']:.1f}%** | **{percent_interval(o['ci_low'], o['ci_high'])}** | "
+                  f"**{_ratio(o.get('spl'))}** | **{_ratio(o.get('measurement_ratio'))}** |", "",
+                  "| failure class | episodes |", "|---|---:|"]
         lines += [f"| {c} | {n} |" for c, n in summary["failures"].items()]
         if summary.get("skipped"):
             lines += ["", f"{len(summary['skipped'])} indices skipped: no template of the mix applied to their scene."]

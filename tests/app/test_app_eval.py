@@ -70,7 +70,11 @@ def test_oracle_eval_writes_table_report_plot_and_summary(oracle_run):
     for template in summary["templates"]:
         assert template in result.stdout
     overall_row = next(line for line in result.stdout.splitlines() if line.startswith(OVERALL))
-    assert overall_row.split()[1:] == ["3", str(overall["successes"]), f"{100 * overall['success_rate']:.1f}%"]
+    assert overall_row.split()[1:4] == ["3", str(overall["successes"]), f"{100 * overall['success_rate']:.1f}%"]
+    assert f"[{100 * overall['ci_low']:.1f}%, {100 * overall['ci_high']:.1f}%]" in overall_row
+    results = json.loads((out / "results.json").read_text())
+    assert (results["format"], results["version"], results["agent"]) == ("muble-results", 1, "oracle")
+    assert [e["index"] for e in results["splits"]["val"]["episodes"]] == [0, 1, 2]
     with Image.open(out / "success_val.png") as img:
         assert img.size[0] >= 200 and img.size[1] >= 200
     md = (out / "summary.md").read_text()
@@ -276,6 +280,6 @@ def test_summary_counts_every_class_and_orders_rows_by_the_template_mix():
     assert summary["failures"]["timeout"] == 1 and summary["failures"]["broken_scene"] == 0
     assert summary["timing"]["episodes_per_hour_per_worker"] == pytest.approx(900.0)
     table = success_table(summary)
-    assert table.splitlines()[-1].split() == [OVERALL, "3", "1", "33.3%"]
+    assert table.splitlines()[-1].split() == [OVERALL, "3", "1", "33.3%", "[6.1%,", "79.2%]", "-", "-"]
     png = success_bar_chart({"move_single": 0.5, OVERALL: 1 / 3}, "t")
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
