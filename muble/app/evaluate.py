@@ -33,6 +33,7 @@ from muble.core.layout import DatasetLayout
 from muble.core.manifest import make_manifest, sha256_file
 from muble.dataset.executors import run_all
 from muble.dataset.production import cached_components
+from muble.dataset.protocol import check_data, select_split
 from muble.evaluation.episodes import EvalJob, evaluate_index
 from muble.evaluation.files import check_files, uses_files
 from muble.evaluation.plot import success_bar_chart
@@ -106,6 +107,7 @@ def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
 
 
 def job(cfg: DictConfig) -> dict[str, Any]:
+    protocol_split = select_split(cfg)  # protocol=NAME: evaluate the split benchmark.split names
     root = check_config(cfg)
     out_dir = Path(cfg.output.dir)
     config = OmegaConf.to_container(cfg, resolve=True)
@@ -120,12 +122,20 @@ def job(cfg: DictConfig) -> dict[str, Any]:
         found = {split: check_split(DatasetLayout(root, split)) for split in cfg.dataset.splits}
         dataset_sha = sha256_file(dataset_manifest) if dataset_manifest.is_file() else None
         dataset = str(root)
+    protocol_data = None
+    if protocol_split is not None:
+        if uses_files(cfg.dataset):
+            raise ConfigError("protocol= evaluates a protocol split written by `muble generate protocol=...`; "
+                              "leave out dataset.scenes_file and dataset.instructions_file, or protocol=")
+        # Results are labelled with the protocol only on its data: a differing hash stops here (exit 2).
+        protocol_data = check_data(cfg, root, protocol_split)
     # The configured plugins (but a renderer) are built here once, so a bad option stops the run before any episode.
     cached_components(config, renderer=False, task=False)
     claim_folder(out_dir, run_settings(config, dataset_sha), list(found))
     stamp = benchmark_stamp(cfg)
     report: dict[str, Any] = {"agent": cfg.agent.name, "dataset": dataset, "protocol": stamp["protocol"],
-                              "track": stamp["track"], "mode": stamp["mode"], "splits": {}}
+                              "track": stamp["track"], "mode": stamp["mode"], "protocol_data": protocol_data,
+                              "splits": {}}
     plots: dict[str, str] = {}
     written: dict[str, str] = {}
     split_records: dict[str, list[dict[str, Any]]] = {}
@@ -158,7 +168,9 @@ def job(cfg: DictConfig) -> dict[str, Any]:
     seeds = {"seed": cfg.seed, "agent": config["agent"],
              "episodes": "stored scene + instruction per index; each worker replays them deterministically"}
     report["manifest"] = make_manifest(seeds, config, dataset_manifest_sha256=dataset_sha, files=written)
-    run = {**stamp, "data_sha256": dataset_sha, "agent": cfg.agent.name, "agent_config": config["agent"],
+    # A protocol split is named by its data hash (the same on every machine); other data by its manifest's sha256.
+    data_sha = protocol_data["data_sha256"] if protocol_data else dataset_sha
+    run = {**stamp, "data_sha256": data_sha, "agent": cfg.agent.name, "agent_config": config["agent"],
            "seed": cfg.seed, "dataset": dataset}
     results = results_document(run=run, manifest=report["manifest"],
                                splits={split: (report["splits"][split], split_records[split]) for split in found})

@@ -1,5 +1,5 @@
-"""Charts of success rates drawn with Pillow (no plotting library needed): a bar chart of one run, and the rates of
-several runs side by side with their 95% intervals."""
+"""Charts of success rates: a bar chart of one run (Pillow), and the rates of several runs side by side with their
+95% intervals (matplotlib)."""
 from __future__ import annotations
 
 import io
@@ -51,58 +51,6 @@ def _png(img: Image.Image) -> bytes:
     return buf.getvalue()
 
 
-def interval_chart(groups: dict[str, dict[str, tuple[float, float, float] | None]], title: str) -> bytes:
-    """PNG bytes of several runs' success rates per group (task type): ``groups[group][run] = (rate, low, high)``,
-    fractions in [0, 1], or None where the run has no episode of that group. Each run is a dot at its rate with a
-    bar from ``low`` to ``high`` (its 95% interval), in its own colour, side by side within the group; a legend
-    names the runs. Overlapping bars are the eye's first test of a difference; the paired test is in the text."""
-    names = list(groups)
-    runs = list(dict.fromkeys(run for per_run in groups.values() for run in per_run))
-    step, pad, left, plot_h = 20, 20, 70, 300
-    label_font, small, title_font = _font(14), _font(12), _font(18)
-    draw = ImageDraw.Draw(Image.new("L", (1, 1)))
-    legend_h = 22 * len(runs) + 8
-    top = 50 + legend_h
-    group_w = max(step * len(runs), 24) + 2 * pad
-    label_h = _label_height(names, label_font)
-    legend_w = max([int(draw.textlength(r, font=label_font)) for r in runs] + [0])
-    title_w = int(draw.textlength(title, font=title_font))
-    width = max(left + len(names) * group_w + 20, left + 34 + legend_w + 20, left + title_w + 20, 360)
-    height = top + plot_h + label_h + 30
-    img = Image.new("RGB", (width, height), "white")
-    draw = ImageDraw.Draw(img)
-    draw.text((left, 12), title, fill=_AXIS, font=title_font)
-    for i, run in enumerate(runs):
-        y = 44 + 22 * i
-        colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
-        draw.line([(left, y + 8), (left + 24, y + 8)], fill=colour, width=3)
-        draw.ellipse([left + 8, y + 4, left + 16, y + 12], fill=colour)
-        draw.text((left + 34, y + 8), run, fill=_AXIS, font=label_font, anchor="lm")
-    y0 = top + plot_h
-    _percent_axis(draw, left, width - 10, top, plot_h, small)
-
-    def y_of(fraction: float) -> float:
-        return y0 - plot_h * min(max(float(fraction), 0.0), 1.0)
-
-    for g, name in enumerate(names):
-        x_group = left + g * group_w
-        if g:
-            draw.line([(x_group, top), (x_group, y0)], fill=_GRID)
-        for i, run in enumerate(runs):
-            point = groups[name].get(run)
-            if point is None:
-                continue
-            rate, low, high = point
-            x = x_group + pad + step * i + step / 2
-            colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
-            draw.line([(x, y_of(low)), (x, y_of(high))], fill=colour, width=2)
-            for bound in (low, high):
-                draw.line([(x - 4, y_of(bound)), (x + 4, y_of(bound))], fill=colour, width=2)
-            draw.ellipse([x - 4, y_of(rate) - 4, x + 4, y_of(rate) + 4], fill=colour)
-        _rotated_label(img, name, x_group + group_w / 2, y0 + 6, label_h, label_font)
-    return _png(img)
-
-
 def success_bar_chart(rates: dict[str, float], title: str, highlight: str | None = "overall") -> bytes:
     """PNG bytes of one vertical bar per entry of ``rates`` (fractions in [0, 1]), labelled with percentages.
 
@@ -133,52 +81,42 @@ def success_bar_chart(rates: dict[str, float], title: str, highlight: str | None
 
 
 def interval_chart(groups: dict[str, dict[str, tuple[float, float, float] | None]], title: str) -> bytes:
-    """PNG bytes of several runs' success rates per group (task type): ``groups[group][run] = (rate, low, high)``,
-    fractions in [0, 1], or None where the run has no episode of that group. Each run is a dot at its rate with a
-    bar from ``low`` to ``high`` (its 95% interval), in its own colour, side by side within the group; a legend
-    names the runs. Overlapping bars are the eye's first test of a difference; the paired test is in the text."""
+    """PNG bytes of several runs' success rates per group (task type), drawn with matplotlib:
+    ``groups[group][run] = (rate, low, high)``, fractions in [0, 1], or None where the run has no episode of that
+    group. Each run is a dot at its rate with an error bar from ``low`` to ``high`` (its 95% interval), in its own
+    colour, side by side within the group; a legend names the runs. Overlapping bars are the eye's first test of a
+    difference; the paired test is in the text."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, never a display
+    from matplotlib.figure import Figure
+
     names = list(groups)
     runs = list(dict.fromkeys(run for per_run in groups.values() for run in per_run))
-    step, pad, left, plot_h = 20, 20, 70, 300
-    label_font, small, title_font = _font(14), _font(12), _font(18)
-    draw = ImageDraw.Draw(Image.new("L", (1, 1)))
-    legend_h = 22 * len(runs) + 8
-    top = 50 + legend_h
-    group_w = max(step * len(runs), 24) + 2 * pad
-    label_h = _label_height(names, label_font)
-    legend_w = max([int(draw.textlength(r, font=label_font)) for r in runs] + [0])
-    title_w = int(draw.textlength(title, font=title_font))
-    width = max(left + len(names) * group_w + 20, left + 34 + legend_w + 20, left + title_w + 20, 360)
-    height = top + plot_h + label_h + 30
-    img = Image.new("RGB", (width, height), "white")
-    draw = ImageDraw.Draw(img)
-    draw.text((left, 12), title, fill=_AXIS, font=title_font)
-    for i, run in enumerate(runs):
-        y = 44 + 22 * i
-        colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
-        draw.line([(left, y + 8), (left + 24, y + 8)], fill=colour, width=3)
-        draw.ellipse([left + 8, y + 4, left + 16, y + 12], fill=colour)
-        draw.text((left + 34, y + 8), run, fill=_AXIS, font=label_font, anchor="lm")
-    y0 = top + plot_h
-    _percent_axis(draw, left, width - 10, top, plot_h, small)
-
-    def y_of(fraction: float) -> float:
-        return y0 - plot_h * min(max(float(fraction), 0.0), 1.0)
-
-    for g, name in enumerate(names):
-        x_group = left + g * group_w
-        if g:
-            draw.line([(x_group, top), (x_group, y0)], fill=_GRID)
-        for i, run in enumerate(runs):
-            point = groups[name].get(run)
-            if point is None:
+    fig = Figure(figsize=(max(6.0, 0.9 * len(names) + 2.5), 4.8), dpi=110)
+    ax = fig.add_subplot()
+    width = 0.8 / max(len(runs), 1)
+    for k, run in enumerate(runs):
+        xs, ys, lows, highs = [], [], [], []
+        for g, group in enumerate(names):
+            value = groups[group].get(run)
+            if value is None:
                 continue
-            rate, low, high = point
-            x = x_group + pad + step * i + step / 2
-            colour = _RUN_COLOURS[i % len(_RUN_COLOURS)]
-            draw.line([(x, y_of(low)), (x, y_of(high))], fill=colour, width=2)
-            for bound in (low, high):
-                draw.line([(x - 4, y_of(bound)), (x + 4, y_of(bound))], fill=colour, width=2)
-            draw.ellipse([x - 4, y_of(rate) - 4, x + 4, y_of(rate) + 4], fill=colour)
-        _rotated_label(img, name, x_group + group_w / 2, y0 + 6, label_h, label_font)
-    return _png(img)
+            rate, low, high = value
+            xs.append(g - 0.4 + width * (k + 0.5))
+            ys.append(100 * rate)
+            lows.append(100 * (rate - low))
+            highs.append(100 * (high - rate))
+        colour = tuple(c / 255 for c in _RUN_COLOURS[k % len(_RUN_COLOURS)])
+        ax.errorbar(xs, ys, yerr=[lows, highs], fmt="o", color=colour, capsize=3, label=run)
+    ax.set_xticks(range(len(names)), names, rotation=35, ha="right", fontsize=8)
+    ax.set_ylim(-2, 102)
+    ax.set_ylabel("success rate (%), 95% Wilson interval")
+    ax.set_title(title, fontsize=10)
+    ax.grid(axis="y", color="#e1e1e1")
+    ax.set_axisbelow(True)
+    ax.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
