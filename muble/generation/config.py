@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_LENS_MM, DEFAULT_POSITION, DEFAULT_ROTATION_DEG, DEFAULT_WIDTH
+from muble.core.ranges import bounded
 from muble.core.table import ROBOT_CLEARANCE, TABLE_X, TABLE_Y
 
 
@@ -20,6 +21,10 @@ class GeneratorConfig:
     (``muble_conf/generator/*.yaml`` names them): ``object_set``, the ``renderer`` that draws the segmentation for the
     visibility checks and the masks (it gets ``width`` and ``height`` besides ``renderer_options`` and is set up
     with MuJoCo models), and the ``reach_primitive`` asked whether each object can be grasped.
+
+    The held-out options move each scene's camera (``camera_jitter_m`` metres per axis, ``camera_jitter_deg``
+    degrees per Euler angle) and lamps (``lamp_jitter``: metres per axis, and the energy factor's spread around 1),
+    each from a random stream of its own (``muble.generation.staging``); at 0 every scene is as without them.
     """
 
     object_set: str = ""
@@ -59,6 +64,9 @@ class GeneratorConfig:
     image_width: int = DEFAULT_WIDTH
     image_height: int = DEFAULT_HEIGHT
     lens_mm: float = DEFAULT_LENS_MM
+    camera_jitter_m: float = bounded(0.0, ge=0)  # m, uniform per axis
+    camera_jitter_deg: float = bounded(0.0, ge=0)  # degrees, uniform per EulerXYZ angle
+    lamp_jitter: float = bounded(0.0, ge=0)  # m per axis; energy factor in [1 - j, 1 + j]
 
 
 def register_generator_config() -> None:

@@ -23,13 +23,25 @@ from muble.core.scene import SceneGraph, SceneObject
 from muble.generation import checks, ground_truth
 from muble.generation.config import GeneratorConfig
 from muble.generation.placement import Placement, TableLayout, shared_collision_meshes
+from muble.generation.staging import (CAMERA_STREAM, LAMP_STREAM, LAMPS, jitter_stream, jittered_camera,
+                                      jittered_lamps)
 from muble.generation.view import shared_view
 
 log = logging.getLogger(__name__)
 
-# Key, back and fill lamps (metres, robot frame) that the Blender renderer lights the table with.
-LAMPS = {"Lamp_Key": [3.2, -2.1, 2.2], "Lamp_Back": [-1.8, 2.0, 2.3], "Lamp_Fill": [-2.4, -3.0, 2.5]}
 WEIGHT_RESAMPLES = 30
+
+
+@dataclasses.dataclass(frozen=True)
+class Staging:
+    """The camera and lamps of one scene, and what follows from the camera: its table directions. ``jittered``
+    says whether the camera differs from the generator's default one (the view model is then re-aimed)."""
+
+    camera: CameraParams
+    directions: dict[str, list[float]]
+    lamps: dict[str, list[float]]
+    lamp_energy: dict[str, float] | None
+    jittered: bool
 
 
 def _named(name: str, option: str) -> str:
@@ -99,6 +111,9 @@ class SceneGenerator:
             raise ConfigError("layout_tries and placement_tries must be >= 1")
         if not 0 < cfg.occlusion_scale <= 1:
             raise ConfigError(f"occlusion_scale must be in (0, 1], got {cfg.occlusion_scale}")
+        for option in ("camera_jitter_m", "camera_jitter_deg", "lamp_jitter"):
+            if not getattr(cfg, option) >= 0:
+                raise ConfigError(f"{option} must be >= 0 (0 = none), got {getattr(cfg, option)}")
 
     # --- renderers --------------------------------------------------------------------------------------------
     def _renderer_for(self, camera: CameraParams):
@@ -107,10 +122,12 @@ class SceneGenerator:
         options = {**self.config.renderer_options, "width": camera.width, "height": camera.height}
         return get_registry().create("renderer", _named(self.config.renderer, "renderer"), options)
 
-    def _draw(self, renderer, models, placements):
-        """Segmentation of a layout: the shared view model is re-posed; a renderer's setup returns at once for the
-        view model it already has (the ``Renderer`` contract)."""
-        view, data = self._view.pose(models, placements)
+    def _draw(self, renderer, models, placements, staging: Staging | None = None):
+        """Segmentation of a layout seen by the scene's camera (``staging``; none: the configured camera): the
+        shared view model is re-posed (and re-aimed for a jittered camera); a renderer's setup returns at once for
+        the view model it already has (the ``Renderer`` contract)."""
+        jittered = staging is not None and staging.jittered
+        view, data = self._view.pose(models, placements, staging.camera if jittered else None)
         renderer.setup(None, view)
         return renderer.render(data, checks.CAMERA_NAME)
 
@@ -125,6 +142,21 @@ class SceneGenerator:
             if r is not None:
                 r.close()
         self._renderer = self._mask_renderer = None
+
+    # --- camera and lamps --------------------------------------------------------------------------------------
+    def staging(self, index: int) -> Staging:
+        """The camera and lamps of scene ``index``: the configured ones, each moved by its jitter option from a
+        stream of its own (``muble.generation.staging``), so the objects and their layout do not change."""
+        cfg = self.config
+        camera, directions, jittered = self.camera, self.directions, False
+        if cfg.camera_jitter_m > 0 or cfg.camera_jitter_deg > 0:
+            camera = jittered_camera(self.camera, cfg.camera_rotation, jitter_stream(self.seed, index, CAMERA_STREAM),
+                                     cfg.camera_jitter_m, cfg.camera_jitter_deg)
+            directions, jittered = ground_truth.directions(camera), True
+        lamps, energy = {k: list(v) for k, v in LAMPS.items()}, None
+        if cfg.lamp_jitter > 0:
+            lamps, energy = jittered_lamps(LAMPS, jitter_stream(self.seed, index, LAMP_STREAM), cfg.lamp_jitter)
+        return Staging(camera, directions, lamps, energy, jittered)
 
     # --- sampling ---------------------------------------------------------------------------------------------
     def _sample_specs(self, rng: np.random.Generator, count: int | None = None) -> list[ObjectSpec] | None:
@@ -169,6 +201,7 @@ class SceneGenerator:
         """
         cfg = self.config
         rng = np.random.default_rng([self.seed, int(index)] + ([int(sample)] if sample else []))
+        staging = self.staging(index)
         reasons: collections.Counter[str] = collections.Counter()
         for _ in range(cfg.layout_tries):
             specs = self._sample_specs(rng, objects)
@@ -185,10 +218,10 @@ class SceneGenerator:
             if placements is None:
                 reasons["placement"] += 1
                 continue
-            if accept is not None and not accept(self._scene(index, specs, models, placements, None)):
+            if accept is not None and not accept(self._scene(index, specs, models, placements, None, staging)):
                 reasons["not accepted"] += 1
                 continue
-            frame = self._draw(self.renderer, models, placements)
+            frame = self._draw(self.renderer, models, placements, staging)
             t4 = time.perf_counter()
             self.timings["render"] += t4 - t2
             need = cfg.min_visible_pixels * (self.check_camera.width * self.check_camera.height) / (
@@ -202,7 +235,7 @@ class SceneGenerator:
                 if np.any(moved > cfg.stability_tolerance):
                     reasons["stability"] += 1
                     continue
-            scene = self._scene(index, specs, models, placements, None)
+            scene = self._scene(index, specs, models, placements, None, staging)
             pairs = stacks(scene) if stacks is not None and cfg.stack_check else []
             if pairs:
                 t5 = time.perf_counter()
@@ -221,7 +254,7 @@ class SceneGenerator:
                     log.debug("scene %d: layout rejected: %s", index, unreachable)
                     continue
             if cfg.masks:
-                self._apply_masks(scene, self._masks(models, placements, frame))
+                self._apply_masks(scene, self._masks(models, placements, frame, staging))
             self.failures.update(reasons)
             return scene
         self.failures.update(reasons)
@@ -231,12 +264,12 @@ class SceneGenerator:
             "objects, lower generator.margin or generator.min_visible_pixels, or widen reach_x/reach_y",
             index=int(index), reasons=dict(reasons))
 
-    def _masks(self, models, placements, frame) -> np.ndarray:
+    def _masks(self, models, placements, frame, staging: Staging) -> np.ndarray:
         if self.check_camera is self.camera:
             return frame.segmentation
         if self._mask_renderer is None:
             self._mask_renderer = self._renderer_for(self.camera)
-        return self._draw(self._mask_renderer, models, placements).segmentation
+        return self._draw(self._mask_renderer, models, placements, staging).segmentation
 
     @staticmethod
     def _apply_masks(scene: SceneGraph, segmentation: np.ndarray) -> None:
@@ -247,7 +280,7 @@ class SceneGenerator:
             obj.mask = mask
         scene.table = {"mask": table_mask}
 
-    def _scene(self, index, specs, models, placements, segmentation) -> SceneGraph:
+    def _scene(self, index, specs, models, placements, segmentation, staging: Staging) -> SceneGraph:
         cfg = self.config
         objects = []
         masks = None
@@ -262,7 +295,7 @@ class SceneGenerator:
                 material=spec.material, colour=spec.colour, position=p.position, orientation=p.quat,
                 weight_gt=spec.weight_g, stackable=bool(model.stackable), stack_base=bool(model.stack_base),
                 pickupable=bool(model.pickupable), rotation=math.degrees(p.yaw) % 360.0,
-                pixel_coords=ground_truth.pixel_coords(self.camera, p.position),
+                pixel_coords=ground_truth.pixel_coords(staging.camera, p.position),
                 movability="portable" if model.pickupable else "stationary",
                 bbox={"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])},
                 scale_factor=float(spec.scale),
@@ -272,10 +305,12 @@ class SceneGenerator:
         name = f"SHOPVRB2_{cfg.split}_{index:06d}.png"
         scene = SceneGraph(
             objects=objects, split=cfg.split, image_index=int(index), image_filename=name,
-            directions=self.directions, camera_params=self.camera.to_scene_params(),
-            lamp_params={k: list(v) for k, v in LAMPS.items()},
-            relationships=ground_truth.relationships([o.position for o in objects], self.directions),
-            extra={"generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set}},
+            directions=staging.directions, camera_params=staging.camera.to_scene_params(),
+            lamp_params={k: list(v) for k, v in staging.lamps.items()},
+            relationships=ground_truth.relationships([o.position for o in objects], staging.directions),
+            # Lamp energy factors (``lamp_jitter``) sit beside lamp_params, which maps lamp names to positions.
+            extra={**({"lamp_energy": dict(staging.lamp_energy)} if staging.lamp_energy is not None else {}),
+                   "generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set}},
         )
         if masks is not None:
             scene.table = {"mask": table_mask}

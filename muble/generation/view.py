@@ -8,6 +8,8 @@ setting its colour and pose, and hiding unused slots. Only a mesh never seen bef
 
 What is drawn for a layout does not depend on which meshes were met before: the slots draw the same triangles
 in object order, and the depth range (``stat.extent``) is fixed from the table, not from the stored meshes.
+A scene whose camera was jittered (``GeneratorConfig.camera_jitter_m``/``camera_jitter_deg``) is drawn by the
+same model with its camera moved there; the next layout without one puts the compiled camera back.
 """
 from __future__ import annotations
 
@@ -80,6 +82,8 @@ class ViewScene:
         self._slot_mocap = np.array([model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"obj{i}")]
                                      for i in range(self.slots)])
         model.geom_sameframe[self._slot_geom] = 0  # the geom offset changes with the mesh it draws
+        self._camera_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAME)
+        self._compiled_camera = (model.cam_pos[self._camera_id].copy(), model.cam_quat[self._camera_id].copy())
         self.model = model
         self.data = mujoco.MjData(model)
         self.version += 1
@@ -100,13 +104,28 @@ class ViewScene:
             self._compile()
         return [self._index[k] for k in keys]
 
-    def pose(self, models: list[ObjectModel], placements: list[Placement]):
-        """Load a layout (at most ``slots`` objects); returns the (model, data) to render."""
+    def _aim(self, camera: CameraParams | None) -> None:
+        """Point the model's camera where ``camera`` stands, or (``None``) where it was compiled."""
+        m, cam = self.model, self._camera_id
+        if camera is None:
+            m.cam_pos[cam], m.cam_quat[cam] = self._compiled_camera
+            return
+        if not np.isclose(camera.fovy_deg, self.camera.fovy_deg):
+            raise ValueError(f"the view was made for a {self.camera.fovy_deg:.3f} degree field of view, not "
+                             f"{camera.fovy_deg:.3f}: only the camera's pose can change")
+        quat = camera.mujoco_quat
+        m.cam_pos[cam] = camera.position
+        m.cam_quat[cam] = quat / np.linalg.norm(quat)
+
+    def pose(self, models: list[ObjectModel], placements: list[Placement], camera: CameraParams | None = None):
+        """Load a layout (at most ``slots`` objects), seen from ``camera``'s pose (``None``: the view's own
+        camera); returns the (model, data) to render."""
         import mujoco
 
         if len(models) > self.slots:
             raise ValueError(f"{len(models)} objects but the view has {self.slots} slots")
         ids = self._mesh_ids(models)
+        self._aim(camera)
         m, d = self.model, self.data
         n = len(models)
         slot_geom, store_geom = self._slot_geom, self._store_geom[ids]

@@ -23,9 +23,11 @@ from muble import ConfigError, ObjectSet
 from muble.core.errors import unknown_name
 from muble.core.objects import GraspFrame, MeshPart, ObjectModel, ObjectSpec
 from muble.core.object_physics import realised_damping, realised_stiffness
+from muble.core.ranges import bounded
 
 from muble_plugins.objects.build_cache import built_geometry
 from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F401 - re-exported for callers
+from muble_plugins.objects.heldout import check_property_range, sample_range_part, sampled_categories
 
 log = logging.getLogger(__name__)
 
@@ -197,25 +199,49 @@ def default_cache_dir() -> str:
 
 
 class CatalogueObjectSet(ObjectSet):
-    """An ``ObjectSet`` backed by a table of ``Category`` entries."""
+    """An ``ObjectSet`` backed by a table of ``Category`` entries.
+
+    The held-out options restrict what ``sample`` draws without touching what ``build`` builds (a scene that
+    names an excluded model still loads): ``exclude_models``/``only_models`` name models of the catalogue's
+    ``variants``, ``exclude_finishes``/``only_finishes`` colour-material combinations ("red plastic"); a
+    category left without a model or a finish is not sampled. ``property_range`` ("all", "inner", "outer")
+    chooses the part of each weight range (linear) and stiffness range (log space) that is sampled
+    (``muble_plugins.objects.heldout``). At their defaults every draw is the one the catalogue always made.
+    """
 
     set_name = ""
     catalogue: dict[str, Category] = {}
 
     def __init__(self, cache_dir: str | None = "", categories: list[str] | None = None,
-                 damping_ratio: float = 1.0):
+                 damping_ratio: float = 1.0, exclude_models: list[str] | None = None,
+                 only_models: list[str] | None = None, exclude_finishes: list[str] | None = None,
+                 only_finishes: list[str] | None = None, property_range: str = "all",
+                 inner_fraction: float = 0.6):
         # "" = the default cache folder, None = no disk cache.
         self.cache = MeshCache(default_cache_dir() if cache_dir == "" else cache_dir)
         self.damping_ratio = damping_ratio
-        self._enabled = list(categories) if categories else list(self.catalogue)
-        for name in self._enabled:
+        check_property_range(property_range, inner_fraction)
+        self.property_range = property_range
+        self.inner_fraction = float(inner_fraction)
+        enabled = list(categories) if categories else list(self.catalogue)
+        for name in enabled:
             self._category(name)
+        self._sampled = sampled_categories(self.catalogue, self.set_name, exclude_models or [], only_models or [],
+                                           exclude_finishes or [], only_finishes or [])
+        self._enabled = [name for name in enabled if name in self._sampled]
+        if not self._enabled:
+            raise ConfigError(f"{self.set_name}: the model and finish filters leave none of the categories "
+                              f"{enabled} to sample; exclude fewer models or finishes")
 
     def categories(self) -> list[str]:
+        """The categories ``sample`` draws from: the ``categories`` option less those the filters empty."""
         return list(self._enabled)
 
     def models(self, category: str) -> list[str]:
-        return list(self._category(category).variants)
+        """The models ``sample`` draws for ``category`` (after ``exclude_models``/``only_models``)."""
+        self._category(category)
+        sampled = self._sampled.get(category)
+        return list(sampled.models) if sampled else []
 
     def _category(self, name: str) -> Category:
         if name not in self.catalogue:
@@ -225,15 +251,21 @@ class CatalogueObjectSet(ObjectSet):
     def sample(self, rng: np.random.Generator, category: str | None = None) -> ObjectSpec:
         name = category if category is not None else self._enabled[int(rng.integers(len(self._enabled)))]
         cat = self._category(name)
-        model = list(cat.variants)[int(rng.integers(len(cat.variants)))]
-        finish = cat.finishes[int(rng.integers(len(cat.finishes)))]
+        choice = self._sampled.get(name)
+        if choice is None:
+            raise ConfigError(f"{self.set_name} category '{name}' has no model or finish left to sample: the "
+                              "exclude_/only_ options remove all of them")
+        # One draw per attribute, in this order: the sampled stream of a scene depends on it.
+        model = choice.models[int(rng.integers(len(choice.models)))]
+        finish = choice.finishes[int(rng.integers(len(choice.finishes)))]
         colour = finish.colours[int(rng.integers(len(finish.colours)))]
         size = cat.sizes[int(rng.integers(len(cat.sizes)))]
         scale = SIZE_SCALES[size]
         low, high = finish.weight_g
-        weight = float(rng.uniform(low, high)) * scale**cat.mass_exponent
+        weight = sample_range_part(rng, low, high, self.property_range, self.inner_fraction) * scale**cat.mass_exponent
         k_low, k_high = STIFFNESS_RANGE[finish.material]
-        stiffness = float(math.exp(rng.uniform(math.log(k_low), math.log(k_high))))
+        stiffness = math.exp(sample_range_part(rng, math.log(k_low), math.log(k_high), self.property_range,
+                                               self.inner_fraction))
         return ObjectSpec(object_set=self.set_name, category=name, model=model, colour=colour,
                           material=finish.material, size=size, shape=cat.variants[model][0], scale=scale,
                           weight_g=round(weight, 1), stiffness=round(stiffness, 1),
@@ -288,3 +320,11 @@ class ObjectSetConfig:
     cache_dir: str | None = ""  # "" = $MUBLE_CACHE_DIR or ~/.cache/muble/objects; null = no disk cache
     categories: list[str] = field(default_factory=list)  # empty = every category of the set
     damping_ratio: float = 1.0  # contact damping relative to critical
+    # Held-out conditions (docs/objects.md): what sampling may draw. Empty lists and "all" leave every scene as it
+    # was. Models as in the catalogue's variants ("mug2"), finishes as "colour material" ("red plastic").
+    exclude_models: list[str] = field(default_factory=list)
+    only_models: list[str] = field(default_factory=list)  # empty = every model
+    exclude_finishes: list[str] = field(default_factory=list)
+    only_finishes: list[str] = field(default_factory=list)  # empty = every finish
+    property_range: str = "all"  # all | inner | outer: the part of each weight and stiffness range sampled
+    inner_fraction: float = bounded(0.6, gt=0, lt=1)  # the middle share of each range that "inner" keeps
