@@ -25,6 +25,14 @@ def dataset_identity(config: dict[str, Any]) -> dict[str, Any]:
     object set, robot, renderer, planner, agent …)."""
     identity = {k: v for k, v in config.items() if k not in _NOT_IDENTITY}
     identity["dataset"] = {k: v for k, v in config.get("dataset", {}).items() if k not in _NOT_IDENTITY_DATASET}
+    if identity.get("protocol"):
+        # What a protocol's splits hold, not its bookkeeping: recording a split's hash or size (which index range
+        # is produced) changes no index, so a protocol's splits share one dataset folder across those edits.
+        protocol = identity["protocol"]
+        identity["protocol"] = {
+            "name": protocol.get("name"), "version": protocol.get("version"), "common": protocol.get("common"),
+            "splits": {name: {k: v for k, v in (spec or {}).items() if k in ("objects", "generator")}
+                       for name, spec in (protocol.get("splits") or {}).items()}}
     return identity
 
 

@@ -128,10 +128,12 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
 
     world.worldbody.append(_camera_element(FRONT_CAMERA, scene.camera_params))
     names.cameras = {FRONT_CAMERA: FRONT_CAMERA, WRIST_CAMERA: robot_model.naming_prefix + "eye_in_hand"}
+    energy = scene.extra.get("lamp_energy") or {}  # per lamp, relative to its default brightness
     for lamp, pos in (scene.lamp_params or {}).items():
         if isinstance(pos, (list, tuple)) and len(pos) == 3:
+            diffuse = 0.4 * float(energy.get(lamp, 1.0))
             ET.SubElement(world.worldbody, "light", name=f"lamp_{lamp}", pos=_fmt(pos), dir=_fmt(-np.asarray(pos)),
-                          directional="false", castshadow="true", diffuse="0.4 0.4 0.4")
+                          directional="false", castshadow="true", diffuse=_fmt([diffuse] * 3))
 
     missing = [o.id for o in scene.objects if o.id not in models]
     if missing:

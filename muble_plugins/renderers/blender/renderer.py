@@ -132,7 +132,7 @@ class BlenderRenderer(Renderer):
             self._objects.append(obj)
         centre, radius = self._stage_extent(model, labels)
         if getattr(scene, "lamp_params", None):
-            build_scene_lamps(collection, scene.lamp_params, centre, cfg)
+            build_scene_lamps(collection, scene.lamp_params, centre, cfg, scene.extra.get("lamp_energy"))
         else:
             rng = np.random.default_rng([cfg.seed, int(scene.image_index)])
             build_lights(collection, centre, radius, cfg, rng)

@@ -164,16 +164,18 @@ def _area_light(collection: Any, name: str, location: Any, target: Any, power: f
 
 
 def build_scene_lamps(collection: Any, lamps: dict[str, Any], target: np.ndarray,
-                      cfg: BlenderRendererConfig) -> list[Any]:
+                      cfg: BlenderRendererConfig, energy: dict[str, float] | None = None) -> list[Any]:
     """The scene file's key, fill and back lamps where it placed them, aimed at ``target``; no jitter (the
-    generator decides where lamps go). Lamps whose name names no role are lit like a fill."""
+    generator decides where lamps go, and ``energy``, the scene's ``lamp_energy``, how much brighter or dimmer
+    than its role's power each one is). Lamps whose name names no role are lit like a fill."""
     lights = []
     for name, position in sorted(lamps.items()):
         if not isinstance(position, (list, tuple)) or len(position) != 3:
             continue
         power, size = LAMP_ROLES[_lamp_role(name) or "fill"]
+        factor = float((energy or {}).get(name, 1.0))
         lights.append(_area_light(collection, str(name).lower(), np.asarray(position, dtype=float), target,
-                                  power * cfg.light_energy, size))
+                                  power * cfg.light_energy * factor, size))
     return lights
 
 
