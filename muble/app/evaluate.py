@@ -128,7 +128,7 @@ def job(cfg: DictConfig) -> dict[str, Any]:
             raise ConfigError("protocol= evaluates a protocol split written by `muble generate protocol=...`; "
                               "leave out dataset.scenes_file and dataset.instructions_file, or protocol=")
         # Results are labelled with the protocol only on its data: a differing hash stops here (exit 2).
-        protocol_data = check_data(cfg, root, protocol_split)
+        protocol_data = {k: v for k, v in check_data(cfg, root, protocol_split).items() if k != "files"}
     # The configured plugins (but a renderer) are built here once, so a bad option stops the run before any episode.
     cached_components(config, renderer=False, task=False)
     claim_folder(out_dir, run_settings(config, dataset_sha), list(found))

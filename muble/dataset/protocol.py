@@ -10,7 +10,9 @@ benchmark.split=SPLIT`` evaluates it and labels the report with the protocol onl
 recorded one. The data hash is the sha256 of the split's *data manifest*: the canonical JSON of
 ``{relative path: sha256}`` of its scene and instruction files (``data_manifest``), which hold everything that
 decides an episode; images, package versions and run times are left out, so the hash says whether two machines
-evaluate the same episodes.
+evaluate the same episodes. The manifest itself is recorded beside the protocol's config
+(``muble_conf/protocol/<name>.<split>.json``), so a mismatch names the files that differ, and part of a split can
+be checked against it.
 """
 from __future__ import annotations
 
@@ -101,8 +103,38 @@ def data_manifest(root: str | Path, split: str) -> dict[str, str]:
 
 def data_hash(root: str | Path, split: str) -> str:
     """The sha256 of the split's data manifest as canonical JSON (sorted keys, no spaces)."""
-    text = json.dumps(data_manifest(root, split), sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+    return manifest_hash(data_manifest(root, split))
+
+
+def manifest_hash(files: dict[str, str]) -> str:
+    return hashlib.sha256(json.dumps(files, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def recorded_manifest(protocol: dict[str, Any], split: str) -> dict[str, str] | None:
+    """The data manifest recorded beside the protocol's config when the split was frozen
+    (``muble_conf/protocol/<name>.<split>.json``), None if none was."""
+    from importlib import resources
+
+    try:
+        text = (resources.files("muble_conf") / "protocol" / f"{protocol['name']}.{split}.json").read_text()
+    except (FileNotFoundError, OSError):
+        return None
+    return json.loads(text)["files"]
+
+
+def _differences(recorded: dict[str, str] | None, found: dict[str, str], limit: int = 5) -> str:
+    """Which of ``found``'s files differ from the recorded manifest, and how many recorded files are missing."""
+    if recorded is None:
+        return ""
+    changed = sorted(k for k in found if recorded.get(k) != found[k])
+    missing = len(set(recorded) - set(found))
+    parts = []
+    if changed:
+        shown = ", ".join(changed[:limit]) + (f" and {len(changed) - limit} more" if len(changed) > limit else "")
+        parts.append(f"{len(changed)} of its files differ from the recorded ones: {shown}")
+    if missing:
+        parts.append(f"{missing} recorded files are missing")
+    return f" ({'; '.join(parts)})" if parts else ""
 
 
 def check_data(cfg: Any, root: str | Path, split: str) -> dict[str, Any]:
@@ -111,13 +143,15 @@ def check_data(cfg: Any, root: str | Path, split: str) -> dict[str, Any]:
     other data must not carry the protocol's name."""
     protocol = protocol_of(cfg)
     spec = split_spec(protocol, split)
-    found = data_hash(root, split)
+    files = data_manifest(root, split)
+    found = manifest_hash(files)
     recorded = spec.get("sha256")
     if recorded and recorded != found:
         raise ConfigError(
             f"the data of split '{split}' in {root} is not protocol {protocol['name']}'s: its data hash is {found}, "
-            f"the protocol records {recorded}. Regenerate it into an empty folder with `muble generate "
+            f"the protocol records {recorded}{_differences(recorded_manifest(protocol, split), files)}. Regenerate it into an empty folder with `muble generate "
             f"protocol={protocol['name']} benchmark.split={split} dataset.root=DIR` and no other generator, objects, "
             "seed or dataset overrides, or evaluate without protocol= (the report then carries no protocol)")
     return {"protocol": protocol["name"], "version": protocol.get("version"), "split": split,
-            "data_sha256": found, "recorded_sha256": recorded, "matches": recorded == found if recorded else None}
+            "data_sha256": found, "recorded_sha256": recorded, "matches": recorded == found if recorded else None,
+            "files": files}
