@@ -1,13 +1,20 @@
-"""The third-party example package: discovered through its entry point only, listed, selectable."""
+"""The third-party example package: discovered through its entry point only, listed, selectable; its primitive,
+task and agent work in the symbolic and the physical world."""
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from muble import ActionResult, Observation, Outcome, get_registry
+from muble.core.observation import agent_instruction
+from muble.episode.loop import run_episode
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "docs" / "examples" / "muble-example-plugin"
@@ -56,7 +63,7 @@ def test_example_is_invisible_without_installation(tmp_path):
 def test_example_primitive_and_task_are_registered(example_site):
     rows = json.loads(run(["plugins", "--json"], example_site).stdout)
     found = {(r["kind"], r["name"]) for r in rows if r["distribution"] == "muble-example-plugin"}
-    assert {("primitive", "tap"), ("task", "touch")} <= found
+    assert {("primitive", "tap"), ("task", "touch"), ("agent", "greedy")} <= found
 
 
 @pytest.mark.slow
@@ -70,7 +77,97 @@ def test_example_task_is_solved_by_the_builtin_oracle_with_physics(example_site,
     assert config["agent"]["name"] == "oracle" and config["task"]["name"] == "touch"
 
 
-def test_example_uses_only_the_public_api():
-    source = (EXAMPLE / "muble_example_plugin" / "touch.py").read_text()
+@pytest.mark.parametrize("module", ["touch.py", "agent.py"])
+def test_example_uses_only_the_public_api(module):
+    source = (EXAMPLE / "muble_example_plugin" / module).read_text()
     imports = [line.split()[1] for line in source.splitlines() if line.startswith(("import ", "from "))]
-    assert all(name in ("__future__", "dataclasses", "numpy", "muble") for name in imports), imports
+    allowed = ("__future__", "collections.abc", "dataclasses", "logging", "numpy", "muble")
+    assert all(name in allowed for name in imports), imports
+
+
+@pytest.fixture
+def greedy_agent(monkeypatch):
+    """The example package's agent class, loaded from its source file. Not through sys.path: a registry built
+    while the package is importable would list its plugins for every later test of the process."""
+    name = "example_greedy_agent"
+    spec = importlib.util.spec_from_file_location(name, EXAMPLE / "muble_example_plugin" / "agent.py")
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, name, module)  # dataclasses look their module up by name
+    spec.loader.exec_module(module)
+    return module.GreedyAgent
+
+
+@pytest.fixture(scope="module")
+def symbolic_episodes():
+    """(template, instruction, scene) of every built-in template over a few synthetic scenes."""
+    from muble_plugins.tasks.synthetic import sample_scenes
+
+    registry = get_registry()
+    out = []
+    for scene in sample_scenes(31, 6):
+        for name in registry.names("task"):
+            task = registry.create("task", name)
+            out += [(name, ins, scene) for ins in task.generate(scene, np.random.default_rng([31, scene.image_index]))]
+    return out
+
+
+def test_greedy_solves_the_single_object_templates_and_stops_on_the_others(greedy_agent, symbolic_episodes):
+    """In the symbolic world, on the program track: it finds its target by the program's words alone (the loop
+    gives it the program without recorded outputs), and attempts nothing it cannot do."""
+    from muble_plugins.tasks.episodes import run_symbolic_episode
+
+    solved = set()
+    for name, ins, scene in symbolic_episodes:
+        result = run_symbolic_episode(ins, scene, greedy_agent())
+        if name in ("measure_weight_single", "pick_up_lightest"):
+            assert result.outcome is Outcome.SUCCESS, (ins.instruction, [str(a) for a in result.actions])
+            solved.add(name)
+        else:
+            assert result.actions == [], (ins.instruction, [str(a) for a in result.actions])
+    assert solved == {"measure_weight_single", "pick_up_lightest"}
+
+
+def test_greedy_does_nothing_on_the_language_track(greedy_agent, symbolic_episodes):
+    from muble_plugins.tasks.success import check
+    from muble_plugins.tasks.symbolic import SymbolicWorld
+
+    name, ins, scene = next(e for e in symbolic_episodes if e[0] == "measure_weight_single")
+    result = run_episode(ins, SymbolicWorld(scene), greedy_agent(), check, track="language")
+    assert result.actions == [] and result.outcome is not Outcome.SUCCESS
+
+
+def test_greedy_stops_after_a_failed_primitive(greedy_agent, symbolic_episodes):
+    name, ins, scene = next(e for e in symbolic_episodes if e[0] == "measure_weight_single")
+    agent, told = greedy_agent(), agent_instruction(ins)
+    agent.reset(told, Observation(scene=scene))
+    first = agent.act(told, Observation(scene=scene))
+    assert first.name == "move"
+    failed = Observation(scene=scene, last_result=ActionResult(False, failure_reason="no collision-free path"),
+                         step=1)
+    assert agent.act(told, failed) is None
+    assert agent.act(told, Observation(scene=scene, step=2)) is None  # and stays stopped
+
+
+@pytest.mark.slow
+def test_greedy_succeeds_under_muble_eval_on_a_generated_split(example_site, tmp_path):
+    """The third-party agent under ``muble eval`` for real: generated measure_weight_single episodes, physics,
+    the judge; it weighs each target once and answers with the grams it measured."""
+    data = tmp_path / "data"
+    generated = run(["generate", "dataset.splits=[val]", "dataset.sizes=[2]", "dataset.sequences=false",
+                     f"dataset.root={data}", "dataset.templates=[measure_weight_single]", "dataset.workers=1",
+                     f"hydra.run.dir={tmp_path / 'generate'}"], example_site, MUJOCO_GL="egl")
+    assert generated.returncode == 0, generated.stderr[-3000:]
+    out = tmp_path / "eval"
+    evaluated = run(["eval", "agent=greedy", f"dataset.root={data}", "dataset.workers=1", f"hydra.run.dir={out}"],
+                    example_site, MUJOCO_GL="egl")
+    assert evaluated.returncode == 0, evaluated.stderr[-3000:]
+    report = json.loads((out / "report.json").read_text())
+    assert report["agent"] == "greedy" and report["track"] == "program" and report["mode"] == "graph"
+    overall = report["splits"]["val"]["overall"]
+    assert overall["episodes"] == 2 and overall["successes"] == 2, report["splits"]["val"]
+    records = [json.loads(line) for line in (out / "episodes_val.jsonl").read_text().splitlines()]
+    assert [r["outcome"] for r in records] == ["success", "success"]
+    for r in records:
+        assert r["template"] == "measure_weight_single" and r["measurements"] == 1
+        assert [p.split("(")[0] for p in r["primitives"]] == ["move", "approach", "close_gripper", "lift", "weigh"]
+        assert len(r["answer"]) == 1 and r["answer"][0] > 0

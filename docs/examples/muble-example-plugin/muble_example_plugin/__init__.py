@@ -2,7 +2,9 @@
 
 It registers a sensor, ``contact_count`` (how many contacts MuJoCo reports at the current step), with
 ``conf/sensors/with_contacts.yaml`` so that ``muble sensors=with_contacts`` selects it from the command line; and a
-primitive, ``tap``, with a task, ``touch``, that the built-in oracle solves (``muble task=touch``; see touch.py).
+primitive, ``tap``, with a task, ``touch``, that the built-in oracle solves (``muble task=touch``; see touch.py); and
+an agent, ``greedy``, a rule-based reasoner for the single-object templates (``muble eval agent=greedy``, with
+``conf/agent/greedy.yaml``; see agent.py).
 """
 from __future__ import annotations
 
@@ -56,3 +58,11 @@ def muble_register_tasks():
     from muble_example_plugin.touch import Touch, TouchConfig
 
     return [muble.PluginRecord("touch", Touch, "touch the object the instruction names", TouchConfig)]
+
+
+@muble.hookimpl
+def muble_register_agents():
+    from muble_example_plugin.agent import GreedyAgent, GreedyConfig
+
+    return [muble.PluginRecord("greedy", GreedyAgent, "grasps, lifts and weighs the object the program's words name",
+                               GreedyConfig)]
