@@ -1,0 +1,141 @@
+"""What a ``reset`` may ask for, checked before anything is built, and error text fit to leave the server.
+
+``EpisodeRequest.check`` runs on the server's request loop, so it does only cheap work: the shape of the
+``episode`` document, its object count against the server's bound, the template's existence, whether the named
+stored episode exists. A data episode's scene and instruction are parsed here too (pure validation, milliseconds
+for the objects the bound admits), so bad data is answered at once. ``build`` does the expensive part (scene
+generation, loading, plugin instances) on a worker thread.
+
+``public_text`` strips server-side paths from any message that goes into a reply: a client learns which file
+of an episode is at fault, never where the server keeps it.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from muble.core.errors import MubleError
+from muble.core.layout import DatasetLayout
+from muble.episode.sources import EpisodeFactory, EpisodeSpec
+from muble.remote.protocol import ProtocolError
+
+_SPLIT_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+# An absolute path of two or more parts, not inside a word ("val/3" and "1/2" are left alone).
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.~-])/(?:[^\s/'\"():,;]+/)+([^\s/'\"():,;]*)")
+EPISODE_FORMS = "{scene_index[, template]}, {split, index} or {scene, instruction}"
+
+
+def dataset_root(cfg: Any) -> Path | None:
+    """The folder of stored episodes this server was started with, or None when none was named (the default
+    ``dataset.root`` of ``muble run`` is a Hydra run folder, which a server does not have)."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        root = cfg.dataset.root
+    except (OmegaConfBaseException, AttributeError, KeyError, ValueError):
+        return None
+    return Path(str(root)) if root else None
+
+
+def public_text(message: str, root: Path | None = None) -> str:
+    """``message`` without server-side paths: the dataset folder becomes ``dataset.root``, any other absolute
+    path its last part."""
+    text = str(message)
+    if root is not None:
+        for form in {str(root.resolve()), str(root)}:
+            if form not in ("", ".", "/"):
+                text = text.replace(form, "dataset.root")
+    return _ABSOLUTE_PATH.sub(lambda m: "…/" + m.group(1), text)
+
+
+@dataclass
+class EpisodeRequest:
+    """A checked ``episode`` document: ``kind`` is ``generated``, ``stored`` or ``data``."""
+
+    kind: str
+    document: dict[str, Any]
+
+    @classmethod
+    def check(cls, episode: Any, factory: EpisodeFactory, root: Path | None, max_objects: int) -> "EpisodeRequest":
+        """Raise ``ProtocolError`` unless ``episode`` names an episode this server can start."""
+        if not isinstance(episode, dict):
+            raise ProtocolError("bad_request", f"'episode' must be an object: {EPISODE_FORMS}")
+        keys = set(episode)
+        if keys in ({"scene_index", "template"}, {"scene_index"}):
+            index, template = episode["scene_index"], episode.get("template")
+            if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < 2**31:
+                raise ProtocolError("bad_request", "'scene_index' must be an integer in [0, 2**31)")
+            if template is not None:
+                _known_template(template, factory)
+            return cls("generated", episode)
+        if keys == {"split", "index"}:
+            _stored_exists(episode["split"], episode["index"], root)
+            return cls("stored", episode)
+        if keys == {"scene", "instruction"}:
+            _check_data(episode["scene"], episode["instruction"], factory, max_objects)
+            return cls("data", episode)
+        raise ProtocolError("bad_request", f"'episode' keys {sorted(map(str, keys))[:6]} name no episode; give "
+                            + EPISODE_FORMS)
+
+    def build(self, factory: EpisodeFactory, root: Path | None, max_objects: int) -> EpisodeSpec:
+        """The episode's scene, instruction and task (the slow part: run it off the request loop)."""
+        d = self.document
+        if self.kind == "generated":
+            templates = [d["template"]] if d.get("template") is not None else None
+            spec = factory.generated(d["scene_index"], templates)
+            if spec is None:
+                raise ProtocolError("episode_error", f"no instruction of {templates or 'the template mix'} applies "
+                                    f"to scene {d['scene_index']}; choose another scene_index or template")
+        elif self.kind == "stored":
+            spec = factory.stored(d["split"], d["index"], root)
+        else:
+            spec = factory.from_data(d["scene"], d["instruction"])
+        if len(spec.scene.objects) > max_objects:
+            raise ProtocolError("too_large", f"the scene has {len(spec.scene.objects)} objects; this server runs "
+                                f"scenes of at most {max_objects} (muble serve --max-objects)")
+        return spec
+
+
+def _known_template(template: Any, factory: EpisodeFactory) -> str:
+    if not isinstance(template, str):
+        raise ProtocolError("bad_request", "'template' must be a template name (a string)")
+    if template not in factory.templates:
+        raise ProtocolError("not_found", f"no template '{template[:60]}' on this server; hello lists the "
+                            f"templates: {', '.join(factory.templates)}")
+    return template
+
+
+def _stored_exists(split: Any, index: Any, root: Path | None) -> None:
+    if not isinstance(split, str) or not _SPLIT_NAME.match(split):
+        raise ProtocolError("bad_request", "'split' must be a plain name (letters, digits, '_', '-'), e.g. \"val\"")
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < 2**31:
+        raise ProtocolError("bad_request", "'index' must be an integer in [0, 2**31)")
+    if root is None or not root.is_dir():
+        raise ProtocolError("not_found", "this server has no dataset of stored episodes; start it with "
+                            "`muble serve dataset.root=DIR` (a folder `muble generate` wrote), or ask for a "
+                            "generated episode {scene_index, template}")
+    layout = DatasetLayout(root, split)
+    if not layout.split_dir.is_dir():
+        raise ProtocolError("not_found", f"the server's dataset has no split '{split}'")
+    if not (layout.split_dir / layout.scene(index)).is_file() or \
+            not (layout.split_dir / layout.instruction(index)).is_file():
+        raise ProtocolError("not_found", f"the server's dataset has no episode {index} in split '{split}'")
+
+
+def _check_data(scene: Any, instruction: Any, factory: EpisodeFactory, max_objects: int) -> None:
+    from muble.core.instructions_io import instruction_from_dict
+    from muble.core.scene_io import scene_from_dict
+
+    if not isinstance(scene, dict) or not isinstance(scene.get("objects"), list):
+        raise ProtocolError("bad_request", "'scene' must be a SHOP-VRB2 scene object with an 'objects' list")
+    if len(scene["objects"]) > max_objects:
+        raise ProtocolError("too_large", f"the scene has {len(scene['objects'])} objects; this server runs scenes "
+                            f"of at most {max_objects} (muble serve --max-objects)")
+    try:
+        scene_from_dict(scene)
+        parsed = instruction_from_dict(instruction)
+    except MubleError as e:
+        raise ProtocolError("episode_error", f"the episode's data is not valid SHOP-VRB2: {e}"[:600]) from None
+    _known_template(parsed.template_id, factory)
