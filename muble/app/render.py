@@ -121,13 +121,15 @@ def _check_name(registry: Any, kind: str, name: str, flag: str) -> None:
 def main(argv: list[str]) -> int:
     from muble.core.atomic import check_output_folder, staged_folder
     from muble.core.keyframe_states import read_keyframe_states
-    from muble.core.scene_io import load_scene
+    from muble.core.scene_io import check_input_file, load_scene
     from muble.plugins.registry import get_registry, validate_params
 
     args = _parser().parse_args(argv)
     # Everything the command line names is checked before the first file is written.
     check_output_folder(args.out, "--out")
     scene = load_scene(args.scene)
+    if args.keyframes:
+        check_input_file(args.keyframes)  # a FIFO, device or huge file is refused before it is opened
     states = read_keyframe_states(args.keyframes) if args.keyframes else None
     camera = args.camera or (states.camera if states else None) or "front"
     object_set = args.object_set or (states.object_set if states else None)

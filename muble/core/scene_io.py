@@ -4,14 +4,28 @@ from __future__ import annotations
 import codecs
 import json
 import math
+import os
+import stat
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from muble.core.atomic import write_bytes_atomic
-from muble.core.errors import SceneValidationError
+from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.scene import RLE, SceneGraph, SceneObject
+
+# Bounds on what an input file may hold, checked before the work they bound. A SHOP-VRB2 scene has at most 10
+# objects and MuBlE's generator places 3-7, so 1,000 leaves room for any hand-made scene while a scene of
+# 10,000 (minutes of model building, gigabytes of memory) is refused at once.
+MAX_OBJECTS = 1000
+# Positions and extents are metres in the scene frame, the table about 1 m from the origin: anything beyond this
+# is a unit or data error, not a scene (1e308 would pass as finite yet break every later step).
+MAX_COORDINATE_M = 100.0
+# The largest input file read (bytes), unless MUBLE_MAX_INPUT_BYTES says otherwise: a combined scene file of the
+# 1,000-scene splits is about 40 MiB, so 256 MiB is generous, and well under what parsing it costs in memory.
+MAX_INPUT_BYTES_ENV = "MUBLE_MAX_INPUT_BYTES"
+DEFAULT_MAX_INPUT_BYTES = 256 << 20
 
 _OBJ_REQUIRED_STR = ("file", "name", "shape", "size", "material", "colour")
 _OBJ_REQUIRED_BOOL = ("stackable", "stack_base", "pickupable")
@@ -38,21 +52,37 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def _number(x: Any, *, obj: int | None, field: str, positive: bool = False) -> float:
+def _number(x: Any, *, obj: int | None, field: str, positive: bool = False, bound: float | None = None) -> float:
+    """``x`` as a finite float (positive, within +-``bound`` when asked); numbers in messages are short."""
     if not _is_number(x):
-        raise SceneValidationError(f"expected a number, got {type(x).__name__} {x!r:.40}", obj=obj, field=field)
-    value = float(x)
+        raise SceneValidationError(f"expected a number, got {type(x).__name__} {_short(x)}", obj=obj, field=field)
+    try:
+        value = float(x)
+    except OverflowError:  # an integer too large for a float
+        raise SceneValidationError("must be finite, got an integer too large for a number", obj=obj,
+                                   field=field) from None
     if not math.isfinite(value):
         raise SceneValidationError(f"must be finite, got {value}", obj=obj, field=field)
     if positive and value <= 0:
-        raise SceneValidationError(f"must be positive, got {value}", obj=obj, field=field)
+        raise SceneValidationError(f"must be positive, got {value:.6g}", obj=obj, field=field)
+    if bound is not None and abs(value) > bound:
+        raise SceneValidationError(f"must lie within +-{bound:g} m of the scene origin (the table is about 1 m "
+                                   f"away), got {value:.6g}: check the units", obj=obj, field=field)
     return value
 
 
-def _vector(x: Any, n: int, *, obj: int | None, field: str) -> np.ndarray:
+def _short(x: Any) -> str:
+    """A value's repr cut to 40 characters, without converting a huge integer to text first."""
+    if isinstance(x, int) and not isinstance(x, bool) and abs(x) > 10**40:
+        return "(an integer of more than 40 digits)"
+    return f"{x!r:.40}"
+
+
+def _vector(x: Any, n: int, *, obj: int | None, field: str, bound: float | None = None) -> np.ndarray:
     if not isinstance(x, list) or len(x) != n:
-        raise SceneValidationError(f"expected a list of {n} numbers, got {x!r:.60}", obj=obj, field=field)
-    return np.array([_number(v, obj=obj, field=field) for v in x], dtype=float)
+        got = f"a list of {len(x)}" if isinstance(x, list) else _short(x)  # no repr of a huge list
+        raise SceneValidationError(f"expected a list of {n} numbers, got {got}", obj=obj, field=field)
+    return np.array([_number(v, obj=obj, field=field, bound=bound) for v in x], dtype=float)
 
 
 def _string(x: Any, *, obj: int | None, field: str) -> str:
@@ -83,9 +113,9 @@ def _bbox(x: Any, *, obj: int) -> dict[str, float] | list:
     if isinstance(x, dict):
         if set(x) != {"x", "y", "z"}:
             raise SceneValidationError("bbox extents need exactly the keys x, y, z", obj=obj, field="bbox")
-        return {k: _number(x[k], obj=obj, field="bbox") for k in ("x", "y", "z")}
+        return {k: _number(x[k], obj=obj, field="bbox", bound=MAX_COORDINATE_M) for k in ("x", "y", "z")}
     if isinstance(x, list) and len(x) == 8:
-        return [_vector(c, 3, obj=obj, field="bbox").tolist() for c in x]
+        return [_vector(c, 3, obj=obj, field="bbox", bound=MAX_COORDINATE_M).tolist() for c in x]
     raise SceneValidationError("bbox must be extents {x, y, z} or a list of 8 corners", obj=obj, field="bbox")
 
 
@@ -108,7 +138,7 @@ def object_from_dict(d: Any, index: int) -> SceneObject:
             raise SceneValidationError("missing required field", obj=index, field=key)
     strings = {k: _string(d[k], obj=index, field=k) for k in _OBJ_REQUIRED_STR}
     flags = {k: _bool(d[k], obj=index, field=k) for k in _OBJ_REQUIRED_BOOL}
-    position = _vector(d["3d_coords"], 3, obj=index, field="3d_coords")
+    position = _vector(d["3d_coords"], 3, obj=index, field="3d_coords", bound=MAX_COORDINATE_M)
     orientation = _vector(d["orientation"], 4, obj=index, field="orientation")
     norm = float(np.linalg.norm(orientation))
     if abs(norm - 1.0) > 1e-2:
@@ -200,6 +230,10 @@ def scene_from_dict(d: Any) -> SceneGraph:
         raise SceneValidationError("missing required field", field="objects")
     if not isinstance(d["objects"], list):
         raise SceneValidationError("expected a list of objects", field="objects")
+    if len(d["objects"]) > MAX_OBJECTS:
+        raise SceneValidationError(f"the scene has {len(d['objects'])} objects; a scene may hold at most "
+                                   f"{MAX_OBJECTS} (SHOP-VRB2 scenes have up to 10): remove objects or split the "
+                                   "scene", field="objects")
     objects = [object_from_dict(o, i) for i, o in enumerate(d["objects"])]
     seen: dict[int, int] = {}
     for i, o in enumerate(objects):
@@ -292,18 +326,92 @@ def _ends_early(text: str) -> bool:
     return in_string or depth > 0 or not text.strip()
 
 
+def max_input_bytes() -> int:
+    """The largest input file MuBlE reads: ``MUBLE_MAX_INPUT_BYTES`` (a number of bytes) or 256 MiB."""
+    text = os.environ.get(MAX_INPUT_BYTES_ENV, "").strip()
+    if not text:
+        return DEFAULT_MAX_INPUT_BYTES
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value <= 0:
+        raise ConfigError(f"{MAX_INPUT_BYTES_ENV}={text[:40]!r} is not a positive number of bytes; set it to e.g. "
+                          f"{2 * DEFAULT_MAX_INPUT_BYTES} or unset it (default {DEFAULT_MAX_INPUT_BYTES})")
+    return value
+
+
+def _file_kind(mode: int) -> str:
+    kinds = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character "
+             "device"), (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
+def _size(n: int) -> str:
+    return f"{n / (1 << 30):.1f} GiB" if n >= 1 << 30 else f"{n / (1 << 20):.1f} MiB"
+
+
+def _unreadable(path: str | Path, e: OSError) -> SceneValidationError:
+    what = "does not exist" if isinstance(e, FileNotFoundError) else f"cannot be read ({e.strerror or e})"
+    return SceneValidationError(f"{path} {what}")
+
+
+def _check_input(path: str | Path, st: os.stat_result, limit: int) -> None:
+    if not stat.S_ISREG(st.st_mode):
+        raise SceneValidationError(f"{path} cannot be read as a file: it is {_file_kind(st.st_mode)}, not a regular "
+                                   "file; pass the path of a file")
+    if st.st_size > limit:
+        raise SceneValidationError(f"{path} has {_size(st.st_size)}; MuBlE reads input files of at most "
+                                   f"{_size(limit)}: check that this is the file meant, or raise the limit "
+                                   f"with {MAX_INPUT_BYTES_ENV}=BYTES")
+
+
+def check_input_file(path: str | Path) -> int:
+    """The size of an input file after checking, without opening it, that it is a regular file (not a FIFO,
+    device or folder, which could block or never end) within ``max_input_bytes()``; ``SceneValidationError``
+    naming the file and what to change otherwise."""
+    limit = max_input_bytes()
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise _unreadable(path, e) from e
+    _check_input(path, st, limit)
+    return st.st_size
+
+
+def read_input_bytes(path: str | Path) -> bytes:
+    """The bytes of an input file, read only if ``check_input_file`` passes; the file is opened without blocking
+    and checked again, so one swapped for a FIFO or device meanwhile is refused too, and at most the limit is
+    read even from a file that grows."""
+    check_input_file(path)
+    limit = max_input_bytes()
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as e:
+        raise _unreadable(path, e) from e
+    with os.fdopen(fd, "rb") as f:
+        _check_input(path, os.fstat(fd), limit)
+        os.set_blocking(fd, True)
+        try:
+            raw = f.read(limit + 1)
+        except OSError as e:
+            raise _unreadable(path, e) from e
+    if len(raw) > limit:
+        raise SceneValidationError(f"{path} grew beyond {_size(limit)} while it was read; MuBlE reads input files "
+                                   f"of at most that: pass a finished file, or raise the limit with "
+                                   f"{MAX_INPUT_BYTES_ENV}=BYTES")
+    return raw
+
+
 def read_json(path: str | Path) -> Any:
     """The value in a JSON file, strictly: UTF-8 text (a UTF-8 byte-order mark is allowed) holding one JSON value,
     without ``NaN`` or ``Infinity`` (not JSON, though Python's json module writes them).
 
     Anything else raises ``SceneValidationError`` naming the file and what is wrong with it: missing or unreadable,
-    UTF-16 or binary, truncated or malformed.
+    not a regular file (a FIFO, a device) or over the size limit (``read_input_bytes``), UTF-16 or binary,
+    truncated or malformed.
     """
-    try:
-        raw = Path(path).read_bytes()
-    except OSError as e:
-        what = "does not exist" if isinstance(e, FileNotFoundError) else f"cannot be read ({e.strerror or e})"
-        raise SceneValidationError(f"{path} {what}") from e
+    raw = read_input_bytes(path)
     if _looks_utf16(raw):
         raise SceneValidationError(f"{path} is UTF-16 text; JSON files must be UTF-8: save it again as UTF-8")
     try:

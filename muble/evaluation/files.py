@@ -130,9 +130,14 @@ def check_files(dataset: Any) -> tuple[str, list[int], str]:
         raise ConfigError(f"cannot read the files to evaluate: {e}") from e
     if not files.instructions:
         raise ConfigError(f"{instructions_file} holds no instruction to evaluate")
+    from muble.core.scene_io import read_input_bytes
+
     digest = hashlib.sha256()
     for path in (scenes_file, instructions_file):
         p = Path(path)
         for f in (sorted(p.glob("*.json")) if p.is_dir() else [p]):
-            digest.update(f.read_bytes())
+            try:
+                digest.update(read_input_bytes(f))  # bounded and typed, as the loaders read it
+            except MubleError as e:
+                raise ConfigError(f"cannot read the files to evaluate: {e}") from e
     return split_name(instructions_file), list(range(len(files.instructions))), digest.hexdigest()
