@@ -1,0 +1,154 @@
+"""The ``llm`` agent: each step one chat completion, turned into the next primitive, an answer or a stop.
+
+Per step the agent renders the step message (``prompts/step.md``) under the episode's system prompt
+(``prompts/system.md``), asks the endpoint (``muble_plugins.llm.endpoint``) and parses the reply
+(``muble_plugins.llm.reply``). A reply that is not one valid decision is sent back with the error, up to
+``max_retries`` times; after that the agent returns an ``UnusableReply``, which is no action, so the action loop
+ends the episode as ``invalid_action`` with the reason in the record's error. An endpoint that times out or keeps
+failing raises, which ends the episode as ``agent_error``. After an answer the agent stops: the answer is the
+query's end.
+
+``stats()`` gives the episode's counters (requests, replies, parse failures, re-asks, HTTP retries, tokens in and
+out, latency); ``muble eval`` stores them on the episode's record and sums them in the report.
+"""
+from __future__ import annotations
+
+import logging
+import re
+from pathlib import Path
+from typing import Any
+
+from muble import ActionCall, Agent, Answer, Instruction, Observation
+
+from muble_plugins.llm.config import ImagePolicy
+from muble_plugins.llm.endpoint import Endpoint, EpisodeStats, ExchangeLog
+from muble_plugins.llm.examples import load_examples, pick_examples
+from muble_plugins.llm.prompt import (GRAPH, RETRY_FIELDS, STEP_FIELDS, SYSTEM_FIELDS, PromptTemplate, Turn,
+                                      examples_text, history_text, image_parts, object_form, primitives_text,
+                                      program_text, result_text, scene_text, view_of)
+from muble_plugins.llm.reply import ReplyError, decision_schema, parse_reply
+
+log = logging.getLogger(__name__)
+
+LOG_FOLDER = "llm_logs"  # in the run's output folder, when agent.log_dir is not set
+
+
+class UnusableReply:
+    """The decision of a step whose replies could not be used: not an action, so the episode ends as
+    ``invalid_action``; its text (what the action loop records) says why."""
+
+    def __init__(self, reason: str, tries: int) -> None:
+        self.reason, self.tries = reason, tries
+
+    def __repr__(self) -> str:
+        return f"{self.reason} (reply {self.tries})"
+
+
+class LlmAgent(Agent):
+    """Plans with a chat model behind an OpenAI-compatible endpoint; see the module's docstring."""
+
+    def __init__(self, base_url: str = "http://127.0.0.1:8080/v1", model: str = "local",
+                 api_key_env: str = "OPENAI_API_KEY", temperature: float = 0.0, max_tokens: int = 256,
+                 timeout: float = 60.0, max_retries: int = 2, http_retries: int = 4, max_backoff: float = 30.0,
+                 schema: bool = True, system_prompt: str | None = None, step_prompt: str | None = None,
+                 history: int = 8, images: str | ImagePolicy = ImagePolicy.auto, examples: int = 0,
+                 examples_root: str | None = None, examples_split: str = "train", log_dir: str | None = None) -> None:
+        self.endpoint = Endpoint(base_url, model, api_key_env, temperature, max_tokens, timeout, http_retries,
+                                 max_backoff)
+        self.max_retries, self.schema, self.history = max_retries, schema, history
+        self.images = ImagePolicy(getattr(images, "value", images))
+        # Prompt files are read and checked now, so a wrong path or placeholder stops the run before any episode.
+        self.system_template = PromptTemplate.load(system_prompt, "system.md", SYSTEM_FIELDS)
+        self.step_template = PromptTemplate.load(step_prompt, "step.md", STEP_FIELDS)
+        self.retry_template = PromptTemplate.load(None, "retry.md", RETRY_FIELDS)
+        self.examples = examples
+        self.example_pool = load_examples(Path(examples_root), examples_split) if examples and examples_root \
+            else []
+        if examples and not examples_root:
+            from muble import ConfigError
+
+            raise ConfigError("agent.examples needs agent.examples_root: a dataset folder written by `muble "
+                              "generate` with ground-truth sequences (its agent.examples_split split)")
+        self.log_dir = Path(log_dir) if log_dir else None
+        self.output_dir: Path | None = None  # set by muble eval: the logs then go beside its records
+        self.record = ExchangeLog()
+        self.episode_stats = EpisodeStats()
+        self.turns: list[Turn] = []
+        self.system = ""
+        self.answered = False
+        self.view = GRAPH
+
+    # The episode's parts -------------------------------------------------------------------------------------
+
+    def reset(self, instruction: Instruction, observation: Observation) -> None:
+        self.episode_stats = EpisodeStats()
+        self.turns = []
+        self.answered = False
+        self.view = view_of(observation)
+        chosen = pick_examples(self.example_pool, instruction.template_id, self.examples)
+        self.system = self.system_template.render(
+            primitives=primitives_text(self.view), object_form=object_form(self.view),
+            examples=examples_text(chosen, program_track=bool(instruction.program)))
+        self.record.open(self._log_path(instruction))
+        self.record.write("episode", instruction=instruction.instruction, template=instruction.template_id,
+                          split=instruction.split, index=instruction.image_index, view=self.view,
+                          model=self.endpoint.model, base_url=self.endpoint.base_url, schema=self.schema)
+
+    def _log_path(self, instruction: Instruction) -> Path | None:
+        folder = self.log_dir or (self.output_dir / LOG_FOLDER if self.output_dir is not None else None)
+        if folder is None:
+            return None
+        stem = f"{instruction.split or 'episode'}_{instruction.image_index:06d}_{instruction.template_id}"
+        return folder / (re.sub(r"[^A-Za-z0-9_.-]", "_", stem) + ".jsonl")
+
+    def stats(self) -> dict[str, float]:
+        """This episode's counters (see ``EpisodeStats``); read by ``muble eval`` after the episode."""
+        return self.episode_stats.as_dict()
+
+    # One step ------------------------------------------------------------------------------------------------
+
+    def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | UnusableReply | None:
+        if self.turns and self.turns[-1].result is None and isinstance(self.turns[-1].decision, ActionCall):
+            self.turns[-1].result = observation.last_result
+        if self.answered:
+            self.record.write("decision", decision="stop", why="answered")
+            return None
+        messages = [{"role": "system", "content": self.system},
+                    {"role": "user", "content": self._step_content(instruction, observation)}]
+        ids = [o.id for o in getattr(observation.scene, "objects", []) or []]
+        schema = decision_schema(self.view, ids) if self.schema else None
+        tries = 0
+        while True:
+            tries += 1
+            reply = self.endpoint.ask(messages, schema, self.episode_stats, self.record)
+            try:
+                return self._decided(parse_reply(reply.text, self.view, ids))
+            except ReplyError as e:
+                error = str(e)
+            self.episode_stats.parse_failures += 1
+            self.record.write("unusable", error=error, tries=tries)
+            if tries > self.max_retries:
+                self.episode_stats.invalid_end = 1
+                return UnusableReply(error, tries)
+            self.episode_stats.reasks += 1
+            messages += [{"role": "assistant", "content": reply.text},
+                         {"role": "user", "content": self.retry_template.render(error=error)}]
+
+    def _decided(self, decision: ActionCall | Answer | None) -> ActionCall | Answer | None:
+        self.episode_stats.decisions += 1
+        self.record.write("decision", decision=None if decision is None else
+                          (str(decision) if isinstance(decision, ActionCall) else {"answer": decision.value}))
+        if decision is not None:
+            self.turns.append(Turn(decision))
+        self.answered = isinstance(decision, Answer)
+        return decision
+
+    def _step_content(self, instruction: Instruction, observation: Observation) -> Any:
+        text = self.step_template.render(
+            instruction=instruction.instruction, program=program_text(instruction), scene=scene_text(observation),
+            history=history_text(self.turns, self.history), last_result=result_text(observation.last_result),
+            step=str(observation.step + 1))
+        send = self.images is ImagePolicy.always or (self.images is ImagePolicy.auto and self.view != GRAPH)
+        if send and observation.images:
+            return [{"type": "text", "text": text}, *image_parts(observation)]
+        return text

@@ -1,0 +1,217 @@
+"""One OpenAI-compatible chat-completions endpoint, asked with bounded time and bounded retries, every exchange
+recorded.
+
+``Endpoint.ask`` sends one request with the official ``openai`` client (its own retries off, so every retry is
+decided and counted here). HTTP 429 and 5xx replies and dropped connections are transient: the request is sent
+again after the wait the server's Retry-After asks for (capped at ``max_backoff``), or else 1, 2, 4 … s, at most
+``http_retries`` times; then ``EndpointError``. A request that exceeds ``timeout`` raises ``EndpointTimeout`` at
+once: a server that does not answer in time will not answer the next one either, and the episode must end. Other
+HTTP errors (400, 401, 404) raise ``EndpointError`` with the server's message. Each of these ends the episode as
+``agent_error`` (the action loop turns an agent's exception into that outcome), never the evaluation.
+
+Every request body (images shortened to their size; the key is in a header and never written) and every reply or
+error goes as one JSON line into the episode's log file, with its latency and token counts.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+from dataclasses import dataclass, field
+from email.utils import parsedate_to_datetime
+from pathlib import Path
+from typing import Any, Callable
+
+log = logging.getLogger(__name__)
+
+NO_KEY = "no-key"  # sent when the key's variable is unset: local servers want none, the client wants something
+FIRST_BACKOFF = 1.0  # s; doubled after each transient failure without Retry-After
+
+
+class EndpointError(RuntimeError):
+    """The endpoint could not give a reply (after the retries transient failures get)."""
+
+
+class EndpointTimeout(EndpointError):
+    """A request got no complete reply within the configured timeout."""
+
+
+@dataclass
+class Reply:
+    """The text of one completion and what it cost."""
+
+    text: str
+    tokens_in: int
+    tokens_out: int
+    seconds: float
+
+
+@dataclass
+class EpisodeStats:
+    """Per-episode counters of the agent's exchanges with the endpoint (numbers only, summed in reports)."""
+
+    requests: int = 0  # HTTP requests sent, retries included
+    replies: int = 0  # completions received
+    parse_failures: int = 0  # replies that were not one valid decision (each is re-asked or ends the episode)
+    reasks: int = 0  # re-asks sent after such replies
+    http_retries: int = 0  # requests sent again after 429, 5xx or a dropped connection
+    timeouts: int = 0
+    tokens_in: int = 0
+    tokens_out: int = 0
+    latency_s: float = 0.0  # seconds spent waiting for the endpoint, backoff included
+    decisions: int = 0
+    invalid_end: int = 0  # 1 when the episode ended on a reply that could not be used after every re-ask
+
+    def as_dict(self) -> dict[str, float]:
+        return dict(self.__dict__)
+
+
+def retry_after(headers: Any) -> float | None:
+    """Seconds a Retry-After (or retry-after-ms) header asks to wait, or None."""
+    if headers is None:
+        return None
+    millis = headers.get("retry-after-ms")
+    if millis:
+        try:
+            return float(millis) / 1000.0
+        except ValueError:
+            pass
+    value = headers.get("retry-after")
+    if not value:
+        return None
+    try:
+        return float(value)
+    except ValueError:
+        try:
+            return max(0.0, parsedate_to_datetime(value).timestamp() - time.time())
+        except (TypeError, ValueError):
+            return None
+
+
+def loggable(body: dict[str, Any]) -> dict[str, Any]:
+    """The request body as logged: data URLs of images replaced by their length."""
+    def shorten(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {k: shorten(v) for k, v in value.items()}
+        if isinstance(value, list):
+            return [shorten(v) for v in value]
+        if isinstance(value, str) and value.startswith("data:image/"):
+            return f"{value[:value.find(',') + 1]}<{len(value)} characters>"
+        return value
+    return shorten(body)
+
+
+@dataclass
+class ExchangeLog:
+    """The JSONL file of one episode's requests and replies (no file when ``path`` is None)."""
+
+    path: Path | None = None
+    _file: Any = field(default=None, repr=False)
+
+    def open(self, path: Path | None) -> None:
+        self.close()
+        self.path = path
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = path.open("w", encoding="utf-8")
+
+    def write(self, kind: str, **entry: Any) -> None:
+        if self._file is None:
+            return
+        self._file.write(json.dumps({"time": round(time.time(), 3), "kind": kind, **entry}, default=str) + "\n")
+        self._file.flush()
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+        self._file = None
+
+
+class Endpoint:
+    """The chat-completions endpoint of one agent (one client per worker process, made on first use)."""
+
+    def __init__(self, base_url: str, model: str, api_key_env: str, temperature: float, max_tokens: int,
+                 timeout: float, http_retries: int, max_backoff: float,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        self.base_url, self.model, self.api_key_env = base_url, model, api_key_env
+        self.temperature, self.max_tokens, self.timeout = temperature, max_tokens, timeout
+        self.http_retries, self.max_backoff = http_retries, max_backoff
+        self.sleep = sleep
+        self._client: Any = None
+
+    def client(self) -> Any:
+        if self._client is None:
+            try:
+                import openai
+            except ImportError as e:
+                from muble import ConfigError
+
+                raise ConfigError('agent=llm needs the openai client: pip install "muble[llm]"') from e
+            key = os.environ.get(self.api_key_env) if self.api_key_env else None
+            self._client = openai.OpenAI(base_url=self.base_url, api_key=key or NO_KEY, timeout=self.timeout,
+                                         max_retries=0)
+        return self._client
+
+    def ask(self, messages: list[dict[str, Any]], schema: dict[str, Any] | None, stats: EpisodeStats,
+            record: ExchangeLog) -> Reply:
+        """One completion of ``messages`` (constrained to ``schema`` when given); raises ``EndpointTimeout`` or
+        ``EndpointError`` when none can be had."""
+        import openai
+
+        body: dict[str, Any] = {"model": self.model, "messages": messages, "temperature": self.temperature,
+                                "max_tokens": self.max_tokens}
+        if schema is not None:
+            body["response_format"] = {"type": "json_schema",
+                                       "json_schema": {"name": "decision", "schema": schema, "strict": False}}
+        backoff = FIRST_BACKOFF
+        start = time.monotonic()
+        attempt = -1
+        try:
+            while True:
+                attempt += 1
+                stats.requests += 1
+                record.write("request", attempt=attempt, base_url=self.base_url, body=loggable(body))
+                sent = time.monotonic()
+                try:
+                    completion = self.client().chat.completions.create(**body)
+                except openai.APITimeoutError as e:
+                    stats.timeouts += 1
+                    record.write("error", attempt=attempt, error="timeout", seconds=time.monotonic() - sent)
+                    raise EndpointTimeout(f"no reply from {self.base_url} within {self.timeout:g} s "
+                                          "(agent.timeout)") from e
+                except (openai.APIConnectionError, openai.APIStatusError) as e:
+                    status = getattr(e, "status_code", None)
+                    transient = status is None or status == 429 or status >= 500
+                    wait = retry_after(getattr(getattr(e, "response", None), "headers", None))
+                    record.write("error", attempt=attempt, status=status, error=f"{type(e).__name__}: {e}"[:500],
+                                 retry_after=wait, seconds=time.monotonic() - sent)
+                    what = f"HTTP {status}" if status is not None else "connection failed"
+                    if not transient:
+                        raise EndpointError(f"{self.base_url}: {what}: {e}") from e
+                    if attempt == self.http_retries:
+                        raise EndpointError(f"{self.base_url}: {what} after {attempt + 1} tries "
+                                            f"(agent.http_retries={self.http_retries}): {e}") from e
+                    delay = min(self.max_backoff, backoff if wait is None else wait)
+                    log.info("%s: %s; trying again in %.1f s", self.base_url, what, delay)
+                    stats.http_retries += 1
+                    self.sleep(delay)
+                    backoff *= 2
+                    continue
+                return self._reply(completion, time.monotonic() - sent, stats, record)
+        finally:
+            stats.latency_s += time.monotonic() - start
+
+    @staticmethod
+    def _reply(completion: Any, seconds: float, stats: EpisodeStats, record: ExchangeLog) -> Reply:
+        choice = completion.choices[0] if getattr(completion, "choices", None) else None
+        text = (choice.message.content if choice is not None and choice.message is not None else None) or ""
+        usage = getattr(completion, "usage", None)
+        tokens_in = int(getattr(usage, "prompt_tokens", 0) or 0)
+        tokens_out = int(getattr(usage, "completion_tokens", 0) or 0)
+        stats.replies += 1
+        stats.tokens_in += tokens_in
+        stats.tokens_out += tokens_out
+        record.write("reply", text=text, finish_reason=getattr(choice, "finish_reason", None),
+                     tokens_in=tokens_in, tokens_out=tokens_out, seconds=round(seconds, 3))
+        return Reply(text, tokens_in, tokens_out, seconds)
