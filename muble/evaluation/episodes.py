@@ -2,6 +2,12 @@
 
 ``evaluate_index`` runs in any worker (local process, Ray task or the driver) and returns a plain record, so
 results are the same whichever executor ran them. The task that judges an episode is the instruction's template.
+
+Two optional members of an agent are read here, so any agent can use them: an ``output_dir`` attribute is set to
+the run's output folder before each episode (an agent that keeps files of its own, such as the ``llm`` agent's
+request logs, puts them beside the records), and ``stats()``, called after the episode, returns that episode's
+counters (a mapping of names to numbers: tokens, requests, retries …), stored in the record's ``agent_stats`` and
+summed per task type in the report (``muble.evaluation.report.agent_totals``).
 """
 from __future__ import annotations
 
@@ -104,6 +110,10 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     registry = get_registry()
     task = registry.create("task", instruction.template_id, {})
     runner = episode_runner(OmegaConf.create(cfg), build_components(cfg))
+    agent = getattr(runner, "agent", None)
+    output_dir = (cfg.get("output") or {}).get("dir")
+    if output_dir and hasattr(agent, "output_dir"):
+        agent.output_dir = Path(output_dir)
     try:
         output = runner.execute(scene, instruction, task)
     except SceneValidationError as e:  # the runner could not build the scene: an object model or mass refused
@@ -126,7 +136,22 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
             "measurements": sum(1 for a in result.actions if a.name in measuring),
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
-            "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None}
+            "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None,
+            "agent_stats": agent_stats(agent)}
+
+
+def agent_stats(agent: Any) -> dict[str, float] | None:
+    """The agent's counters of the episode just run (its optional ``stats()``), numbers only; None without."""
+    stats = getattr(agent, "stats", None)
+    if not callable(stats):
+        return None
+    try:
+        values = stats()
+    except Exception:  # noqa: BLE001 - an agent's bookkeeping must not cost the episode's record
+        log.exception("agent.stats() raised; the record has no agent_stats")
+        return None
+    return {str(k): float(v) for k, v in dict(values or {}).items()
+            if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
 
 def _instruction_checked(job: EvalJob, out: dict[str, Any], record: dict[str, Any], instruction: Any,

@@ -9,6 +9,11 @@ weighted by path length" of navigation benchmarks) is the mean over episodes wit
 ``success * gt / max(gt, used)``: 1 for an agent that always succeeds with no more primitives than the oracle's
 plan, less for detours, 0 for failures. ``measurement_ratio`` is the measurements (weighing, squeezing) an agent
 made over those the ground-truth plans needed: above 1 it measures more than the task asks, below 1 it guesses.
+
+An agent that counts its own costs (``stats()``, e.g. tokens and requests of a model behind an endpoint) has them
+summed per task type and overall in ``agent_stats`` (``agent_totals``), with two figures derived from the usual
+names: tokens per success (``tokens_in`` + ``tokens_out`` over the successes) and the parse-failure rate
+(``parse_failures`` over ``replies``).
 """
 from __future__ import annotations
 
@@ -47,6 +52,26 @@ def measurement_ratio(records: list[dict[str, Any]]) -> float | None:
     return sum(r["measurements"] for r in counted) / needed if needed else None
 
 
+def agent_totals(records: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The agent's counters (``agent_stats`` of each record) summed and per episode, with tokens per success and
+    the parse-failure rate where the counters have those names; None when no record has counters."""
+    counted = [r for r in records if r.get("agent_stats")]
+    if not counted:
+        return None
+    totals: dict[str, float] = {}
+    for r in counted:
+        for key, value in r["agent_stats"].items():
+            totals[key] = totals.get(key, 0.0) + float(value)
+    successes = sum(r["outcome"] == Outcome.SUCCESS.value for r in counted)
+    tokens = totals.get("tokens_in", 0.0) + totals.get("tokens_out", 0.0)
+    replies = totals.get("replies", 0.0)
+    return {"episodes": len(counted), "totals": totals,
+            "per_episode": {k: v / len(counted) for k, v in totals.items()},
+            "tokens_per_success": tokens / successes if successes and "tokens_in" in totals else None,
+            "parse_failure_rate": totals["parse_failures"] / replies if replies and "parse_failures" in totals
+            else None}
+
+
 def _row(records: list[dict[str, Any]]) -> dict[str, Any]:
     """One row of the results table: counts, rate with its Wilson 95% interval, efficiency, outcome counts."""
     counts = Counter(r["outcome"] for r in records)
@@ -78,10 +103,14 @@ def summarize(records: Iterable[dict[str, Any]], templates: list[str] | None = N
     primitives = [len(r["primitives"]) for r in records]
     bad = [{"index": r["index"], "file": r.get("file"), "template": r["template"], "outcome": r["outcome"],
             "error": r.get("error")} for r in records if r["outcome"] in BAD_DATA]
+    agent = agent_totals(records)
     return {"templates": rows, OVERALL: overall, "failures": {o: n for o, n in overall["outcomes"].items()
                                                              if o != Outcome.SUCCESS.value},
             "mean_primitives": sum(primitives) / len(primitives) if primitives else 0.0, "timing": timing,
-            "bad_entries": bad}
+            "bad_entries": bad,
+            "agent_stats": None if agent is None else
+            {"templates": {t: agent_totals([r for r in records if r["template"] == t]) for t in order},
+             OVERALL: agent}}
 
 
 def run_stamp(protocol: str | None, track: str, mode: str) -> str:
@@ -144,6 +173,28 @@ def bad_entry_table(summary: dict[str, Any], error_width: int = 100) -> str:
     return "\n".join(lines)
 
 
+def _figure(value: float | None, form: str) -> str:
+    return "-" if value is None else format(value, form)
+
+
+def agent_lines(stats: dict[str, Any] | None) -> list[str]:
+    """Markdown lines of the agent's own counters (none when the agent reports none): per task type and overall,
+    tokens in and out per episode, tokens per success, the parse-failure rate and endpoint seconds per episode."""
+    if not stats:
+        return []
+    lines = ["", "| task type | tokens in / episode | tokens out / episode | tokens / success | parse failures | "
+             "agent latency / episode (s) |", "|---|---:|---:|---:|---:|---:|"]
+    for name, s in [*stats["templates"].items(), (OVERALL, stats[OVERALL])]:
+        if s is None:
+            continue
+        per = s["per_episode"]
+        rate = s["parse_failure_rate"]
+        lines.append(f"| {name} | {_figure(per.get('tokens_in'), '.0f')} | {_figure(per.get('tokens_out'), '.0f')} | "
+                     f"{_figure(s['tokens_per_success'], '.0f')} | "
+                     f"{'-' if rate is None else f'{100 * rate:.1f}%'} | {_figure(per.get('latency_s'), '.1f')} |")
+    return lines
+
+
 def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
     """A Markdown summary of a report: per split, the success table, the failure taxonomy, timing and plot."""
     stamp = run_stamp(report.get("protocol"), report.get("track", "program"), report.get("mode", "graph"))
@@ -181,6 +232,7 @@ def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
                       f"{t['physics'] / t['episodes']:.1f} s, planning {t['planning'] / t['episodes']:.1f} s, "
                       f"rendering {t['rendering'] / t['episodes']:.1f} s); "
                       f"{t['episodes_per_hour_per_worker']:.0f} episodes per hour per worker."]
+        lines += agent_lines(summary.get("agent_stats"))
         if split in plots:
             lines += ["", f"![success rate per task type, split {split}]({plots[split]})"]
         lines.append("")
