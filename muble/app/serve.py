@@ -11,12 +11,13 @@ anything is built: a bad one exits with code 2 and one paragraph saying what is 
 from __future__ import annotations
 
 import argparse
+import functools
 import ipaddress
 import logging
 import math
+import signal
 import socket
-import sys
-from typing import Callable
+from typing import Any, Callable
 
 from muble.remote.protocol import DEFAULT_HOST, DEFAULT_PORT, HARD_LIMIT_BYTES, MAX_REQUEST_BYTES, PROTOCOL
 
@@ -25,6 +26,7 @@ log = logging.getLogger(__name__)
 MAX_SESSIONS_LIMIT = 64  # episodes open at once: each holds a MuJoCo world (and a renderer) in memory
 MAX_OBJECTS_LIMIT = 1000  # the scene files' own bound (muble.core.scene_io.MAX_OBJECTS)
 MIN_REQUEST_BYTES = 1024  # a reset of a generated scene fits; less would refuse every request
+LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s: %(message)s"
 
 
 def _integer(low: int, high: int) -> Callable[[str], int]:
@@ -97,10 +99,21 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def episode_factory(overrides: tuple[str, ...], render: bool, verbose: bool) -> Any:
+    """The ``EpisodeFactory`` of ``muble serve``'s config, built inside the simulation process (a fresh
+    interpreter: the command line's quiet logging is set up here again)."""
+    from muble.app.config import compose
+    from muble.app.quiet import quiet_third_party
+    from muble.episode.sources import EpisodeFactory
+
+    quiet_third_party(verbose)
+    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format=LOG_FORMAT)
+    return EpisodeFactory(compose("run", list(overrides)), render=render)
+
+
 def main(argv: list[str]) -> int:
     from muble.app.config import compose
     from muble.app.usage import USAGE_EXIT_CODE, explain_config_error, report
-    from muble.episode.sources import EpisodeFactory
     from muble.remote.server import EpisodeServer
 
     args = parser().parse_args(argv)
@@ -112,16 +125,15 @@ def main(argv: list[str]) -> int:
             raise
         report("muble serve", message)
         return USAGE_EXIT_CODE
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s: %(message)s")
-    factory = EpisodeFactory(cfg, render=not args.no_render)
-    try:
-        server = EpisodeServer(factory, args.host, args.port, max_sessions=args.max_sessions,
-                               session_timeout=args.session_timeout, max_request_bytes=args.max_request_bytes,
-                               max_objects=args.max_objects, step_timeout=args.step_timeout)
-    except BaseException:
-        factory.close()
-        raise
+    verbose = logging.getLogger().isEnabledFor(logging.DEBUG)
+    logging.basicConfig(level=logging.INFO, format=LOG_FORMAT)
+    build = functools.partial(episode_factory, tuple(args.overrides), not args.no_render, verbose)
+    server = EpisodeServer(cfg, build, render=not args.no_render, host=args.host, port=args.port,
+                           max_sessions=args.max_sessions, session_timeout=args.session_timeout,
+                           max_request_bytes=args.max_request_bytes, max_objects=args.max_objects,
+                           step_timeout=args.step_timeout)
     print(f"muble serve: listening on {server.endpoint}", flush=True)
+    signal.signal(signal.SIGTERM, _stop)  # `kill` stops as Ctrl-C does: episodes closed, nothing left behind
     try:
         server.serve(idle_exit=args.idle_exit)
     except KeyboardInterrupt:
@@ -129,3 +141,7 @@ def main(argv: list[str]) -> int:
     finally:
         server.close()
     return 0
+
+
+def _stop(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt

@@ -4,7 +4,7 @@
 ``episode`` document, its object count against the server's bound, the template's existence, whether the named
 stored episode exists. A data episode's scene and instruction are parsed here too (pure validation, milliseconds
 for the objects the bound admits), so bad data is answered at once. ``build`` does the expensive part (scene
-generation, loading, plugin instances) on a worker thread.
+generation, loading, plugin instances) in the simulation process.
 
 ``public_text`` strips server-side paths from any message that goes into a reply: a client learns which file
 of an episode is at fault, never where the server keeps it.
@@ -21,7 +21,8 @@ from muble.core.layout import DatasetLayout
 from muble.episode.sources import EpisodeFactory, EpisodeSpec
 from muble.remote.protocol import ProtocolError
 
-_SPLIT_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+# A split the server may name: one folder name (muble.core.layout.SPLIT_NAME) without dots.
+_SPLIT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 # An absolute path of two or more parts, not inside a word ("val/3" and "1/2" are left alone).
 _ABSOLUTE_PATH = re.compile(r"(?<![\w.~-])/(?:[^\s/'\"():,;]+/)+([^\s/'\"():,;]*)")
 EPISODE_FORMS = "{scene_index[, template]}, {split, index} or {scene, instruction}"
@@ -58,8 +59,9 @@ class EpisodeRequest:
     document: dict[str, Any]
 
     @classmethod
-    def check(cls, episode: Any, factory: EpisodeFactory, root: Path | None, max_objects: int) -> "EpisodeRequest":
-        """Raise ``ProtocolError`` unless ``episode`` names an episode this server can start."""
+    def check(cls, episode: Any, templates: list[str], root: Path | None, max_objects: int) -> "EpisodeRequest":
+        """Raise ``ProtocolError`` unless ``episode`` names an episode this server can start (``templates``: the
+        registered ones)."""
         if not isinstance(episode, dict):
             raise ProtocolError("bad_request", f"'episode' must be an object: {EPISODE_FORMS}")
         keys = set(episode)
@@ -68,13 +70,13 @@ class EpisodeRequest:
             if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < 2**31:
                 raise ProtocolError("bad_request", "'scene_index' must be an integer in [0, 2**31)")
             if template is not None:
-                _known_template(template, factory)
+                _known_template(template, templates)
             return cls("generated", episode)
         if keys == {"split", "index"}:
             _stored_exists(episode["split"], episode["index"], root)
             return cls("stored", episode)
         if keys == {"scene", "instruction"}:
-            _check_data(episode["scene"], episode["instruction"], factory, max_objects)
+            _check_data(episode["scene"], episode["instruction"], templates, max_objects)
             return cls("data", episode)
         raise ProtocolError("bad_request", f"'episode' keys {sorted(map(str, keys))[:6]} name no episode; give "
                             + EPISODE_FORMS)
@@ -98,18 +100,19 @@ class EpisodeRequest:
         return spec
 
 
-def _known_template(template: Any, factory: EpisodeFactory) -> str:
+def _known_template(template: Any, templates: list[str]) -> str:
     if not isinstance(template, str):
         raise ProtocolError("bad_request", "'template' must be a template name (a string)")
-    if template not in factory.templates:
+    if template not in templates:
         raise ProtocolError("not_found", f"no template '{template[:60]}' on this server; hello lists the "
-                            f"templates: {', '.join(factory.templates)}")
+                            f"templates: {', '.join(templates)}")
     return template
 
 
 def _stored_exists(split: Any, index: Any, root: Path | None) -> None:
     if not isinstance(split, str) or not _SPLIT_NAME.match(split):
-        raise ProtocolError("bad_request", "'split' must be a plain name (letters, digits, '_', '-'), e.g. \"val\"")
+        raise ProtocolError("bad_request", "'split' must be a plain name (letters, digits, '_', '-', starting with a "
+                            "letter or digit), e.g. \"val\"")
     if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < 2**31:
         raise ProtocolError("bad_request", "'index' must be an integer in [0, 2**31)")
     if root is None or not root.is_dir():
@@ -124,7 +127,7 @@ def _stored_exists(split: Any, index: Any, root: Path | None) -> None:
         raise ProtocolError("not_found", f"the server's dataset has no episode {index} in split '{split}'")
 
 
-def _check_data(scene: Any, instruction: Any, factory: EpisodeFactory, max_objects: int) -> None:
+def _check_data(scene: Any, instruction: Any, templates: list[str], max_objects: int) -> None:
     from muble.core.instructions_io import instruction_from_dict
     from muble.core.scene_io import scene_from_dict
 
@@ -138,4 +141,4 @@ def _check_data(scene: Any, instruction: Any, factory: EpisodeFactory, max_objec
         parsed = instruction_from_dict(instruction)
     except MubleError as e:
         raise ProtocolError("episode_error", f"the episode's data is not valid SHOP-VRB2: {e}"[:600]) from None
-    _known_template(parsed.template_id, factory)
+    _known_template(parsed.template_id, templates)
