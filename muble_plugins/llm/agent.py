@@ -20,7 +20,7 @@ from typing import Any
 
 from muble import ActionCall, Agent, Answer, Instruction, Observation
 
-from muble_plugins.llm.config import ImagePolicy
+from muble_plugins.llm.config import ImagePolicy, SchemaForm
 from muble_plugins.llm.endpoint import Endpoint, EpisodeStats, ExchangeLog
 from muble_plugins.llm.examples import load_examples, pick_examples
 from muble_plugins.llm.prompt import (GRAPH, RETRY_FIELDS, STEP_FIELDS, SYSTEM_FIELDS, PromptTemplate, Turn,
@@ -50,11 +50,12 @@ class LlmAgent(Agent):
     def __init__(self, base_url: str = "http://127.0.0.1:8080/v1", model: str = "local",
                  api_key_env: str = "OPENAI_API_KEY", temperature: float = 0.0, max_tokens: int = 256,
                  timeout: float = 60.0, max_retries: int = 2, http_retries: int = 4, max_backoff: float = 30.0,
-                 schema: bool = True, system_prompt: str | None = None, step_prompt: str | None = None,
+                 schema: bool = True, schema_form: str | SchemaForm = SchemaForm.json_schema,
+                 system_prompt: str | None = None, step_prompt: str | None = None,
                  history: int = 8, images: str | ImagePolicy = ImagePolicy.auto, examples: int = 0,
                  examples_root: str | None = None, examples_split: str = "train", log_dir: str | None = None) -> None:
         self.endpoint = Endpoint(base_url, model, api_key_env, temperature, max_tokens, timeout, http_retries,
-                                 max_backoff)
+                                 max_backoff, SchemaForm(getattr(schema_form, "value", schema_form)).value)
         self.max_retries, self.schema, self.history = max_retries, schema, history
         self.images = ImagePolicy(getattr(images, "value", images))
         # Prompt files are read and checked now, so a wrong path or placeholder stops the run before any episode.

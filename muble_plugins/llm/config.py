@@ -15,6 +15,14 @@ class ImagePolicy(str, Enum):
     never = "never"
 
 
+class SchemaForm(str, Enum):
+    """How the JSON schema is sent as ``response_format``: servers accept one form or the other."""
+
+    json_schema = "json_schema"  # OpenAI's {"type": "json_schema", "json_schema": {"schema": ...}}: OpenAI, vLLM,
+    # Ollama, LM Studio, llama.cpp's llama-server
+    json_object = "json_object"  # {"type": "json_object", "schema": ...}: llama-cpp-python's server
+
+
 @dataclass
 class LlmConfig:
     """Where the endpoint is, how to ask it and what to tell it.
@@ -35,7 +43,8 @@ class LlmConfig:
     max_retries: int = bounded(2, ge=0)  # re-asks after an unparseable or invalid reply, per step
     http_retries: int = bounded(4, ge=0)  # retries after 429, 5xx or a dropped connection, per request
     max_backoff: float = bounded(30.0, ge=0)  # the longest wait between two tries (Retry-After included), s
-    schema: bool = True  # send a JSON-schema response_format (vLLM, llama.cpp, Ollama, OpenAI); false: parse text
+    schema: bool = True  # constrain replies with a JSON-schema response_format; false: parse the text
+    schema_form: SchemaForm = SchemaForm.json_schema
     system_prompt: str | None = None  # path of the system prompt template; None: prompts/system.md of the package
     step_prompt: str | None = None  # path of the per-step message template; None: prompts/step.md of the package
     history: int = bounded(8, ge=0)  # past steps shown in each step's message

@@ -89,6 +89,13 @@ def retry_after(headers: Any) -> float | None:
             return None
 
 
+def response_format(schema: dict[str, Any], form: str) -> dict[str, Any]:
+    """The ``response_format`` that constrains a reply to ``schema``, in the form the server accepts."""
+    if form == "json_object":
+        return {"type": "json_object", "schema": schema}
+    return {"type": "json_schema", "json_schema": {"name": "decision", "schema": schema, "strict": False}}
+
+
 def loggable(body: dict[str, Any]) -> dict[str, Any]:
     """The request body as logged: data URLs of images replaced by their length."""
     def shorten(value: Any) -> Any:
@@ -132,11 +139,12 @@ class Endpoint:
     """The chat-completions endpoint of one agent (one client per worker process, made on first use)."""
 
     def __init__(self, base_url: str, model: str, api_key_env: str, temperature: float, max_tokens: int,
-                 timeout: float, http_retries: int, max_backoff: float,
+                 timeout: float, http_retries: int, max_backoff: float, schema_form: str = "json_schema",
                  sleep: Callable[[float], None] = time.sleep) -> None:
         self.base_url, self.model, self.api_key_env = base_url, model, api_key_env
         self.temperature, self.max_tokens, self.timeout = temperature, max_tokens, timeout
         self.http_retries, self.max_backoff = http_retries, max_backoff
+        self.schema_form = schema_form
         self.sleep = sleep
         self._client: Any = None
 
@@ -162,8 +170,7 @@ class Endpoint:
         body: dict[str, Any] = {"model": self.model, "messages": messages, "temperature": self.temperature,
                                 "max_tokens": self.max_tokens}
         if schema is not None:
-            body["response_format"] = {"type": "json_schema",
-                                       "json_schema": {"name": "decision", "schema": schema, "strict": False}}
+            body["response_format"] = response_format(schema, self.schema_form)
         backoff = FIRST_BACKOFF
         start = time.monotonic()
         attempt = -1
@@ -188,7 +195,10 @@ class Endpoint:
                                  retry_after=wait, seconds=time.monotonic() - sent)
                     what = f"HTTP {status}" if status is not None else "connection failed"
                     if not transient:
-                        raise EndpointError(f"{self.base_url}: {what}: {e}") from e
+                        hint = ("; if the server does not take this response_format, set agent.schema_form "
+                                "(json_schema or json_object) or agent.schema=false") \
+                            if "response_format" in body else ""
+                        raise EndpointError(f"{self.base_url}: {what}: {e}{hint}") from e
                     if attempt == self.http_retries:
                         raise EndpointError(f"{self.base_url}: {what} after {attempt + 1} tries "
                                             f"(agent.http_retries={self.http_retries}): {e}") from e

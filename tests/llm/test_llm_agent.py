@@ -110,6 +110,17 @@ def test_replaying_the_oracle_solves_every_template(server, tmp_path, template, 
     assert kinds.count("request") == kinds.count("reply") == len(replies) and kinds[0] == "episode"
 
 
+def test_the_schema_goes_in_the_form_the_server_takes(server, tmp_path):
+    server.play(fallback=Reply('{"stop": true}'))
+    episode(agent_for(server, tmp_path, schema_form="json_object"))
+    form = server.requests[0]["response_format"]
+    assert form["type"] == "json_object" and "anyOf" in form["schema"]
+    server.play(fallback=Reply('{"stop": true}'))
+    episode(agent_for(server, tmp_path))
+    form = server.requests[0]["response_format"]
+    assert form["type"] == "json_schema" and "anyOf" in form["json_schema"]["schema"]
+
+
 def test_the_history_reports_results_and_is_bounded(server, tmp_path):
     replies, _ = oracle_replies("stack_simple")
     server.play(*[Reply(r) for r in replies])
@@ -210,6 +221,7 @@ def test_a_client_error_is_not_retried(server, tmp_path):
     server.play(fallback=Status(400, message="response_format is not supported"))
     result, _ = episode(agent_for(server, tmp_path))
     assert result.outcome is Outcome.AGENT_ERROR and "HTTP 400" in result.error and len(server.requests) == 1
+    assert "agent.schema_form" in result.error
 
 
 def test_the_key_is_sent_but_never_logged(server, tmp_path, monkeypatch):
