@@ -163,8 +163,12 @@ def observation_reply(token: str, images: str, step: Any, root: Path | None) -> 
     from muble.remote.episodes import public_text
 
     observation = step.observation
+    plain_observation = observation_to_plain(observation)
+    # Every object names its id first: the id, not the position in the list, is what a call's target gives.
+    scene = plain_observation["scene"]
+    scene["objects"] = [{"id": int(o.id), **d} for o, d in zip(observation.scene.objects, scene["objects"])]
     reply: dict[str, Any] = {"type": "observation", "session": token, "done": step.done,
-                             "observation": observation_to_plain(observation), "images": []}
+                             "observation": plain_observation, "images": []}
     binary: list[bytes] = []
     if images != "none":
         for camera, frame in observation.images.items():

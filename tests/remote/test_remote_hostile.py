@@ -295,7 +295,10 @@ def test_a_thousand_fuzz_messages_get_precise_errors_and_the_server_serves_on(se
         assert server.process.poll() is None, "the server stopped"
         assert {"bad_request", "too_large", "unsupported_protocol", "busy", "unknown_session"} <= set(codes), codes
         assert holder.hello()["open_sessions"] == 1
-        assert holder.observe().header["session"] == holder.session  # the holder's episode is untouched
+        observed = holder.observe().header  # the holder's episode is untouched
+        assert observed["session"] == holder.session and observed["observation"]["last_result"] is None
+        objects = observed["observation"]["scene"]["objects"]
+        assert [o["id"] for o in objects] == list(range(len(objects)))  # every object names its id
 
 
 # --------------------------------------------------------------------------------------- vanishing clients
@@ -329,6 +332,42 @@ def test_clients_that_vanish_mid_reset_leave_no_session_behind(soak_server, zmq_
         record = run_agent(get_registry().create("agent", "oracle", {}), client,
                            {"scene_index": 0, "template": "measure_weight_single"})
     assert record["outcome"] == "success", record
+    assert soak_server.process.poll() is None
+
+
+def simulation_pid(server: ServerProcess) -> int:
+    """The simulation process among the server's children (the other is multiprocessing's resource tracker)."""
+    pid = server.process.pid
+    children = open(f"/proc/{pid}/task/{pid}/children").read().split()
+    found = [int(c) for c in children if b"spawn_main" in open(f"/proc/{c}/cmdline", "rb").read()]
+    assert len(found) == 1, children
+    return found[0]
+
+
+def test_a_crashed_simulation_costs_its_episodes_not_the_server(soak_server, zmq_context):
+    """A native crash (here: SIGKILL) of the simulation process mid-reset: the reset is answered with an error,
+    a fresh simulation process starts, and the next episode runs."""
+    import signal
+
+    client = Dealer(zmq_context, soak_server.endpoint, timeout_ms=300_000)
+    try:
+        client.socket.send_multipart([b"", text(request("reset", id="doomed", episode={
+            "scene_index": 1, "template": "measure_weight_single"}, images="none"))])
+        time.sleep(1.0)
+        os.kill(simulation_pid(soak_server), signal.SIGKILL)
+        reply = client.socket.recv_multipart()
+        answer = json.loads(reply[1])
+        assert answer["type"] == "error" and answer["id"] == "doomed", answer
+        assert answer["error"]["code"] == "episode_error" and "simulation" in answer["error"]["message"]
+        answer, _ = client.ask([text(request("hello"))])
+        assert answer["type"] == "hello" and answer["open_sessions"] == 0
+        answer, _ = client.ask([text(request("reset", episode={"scene_index": 0, "template": "measure_weight_single"},
+                                             images="none"))])
+        assert answer["type"] == "observation" and not answer["done"], answer
+        answer, _ = client.ask([text(request("close", session=answer["session"]))])
+        assert answer["type"] == "closed"
+    finally:
+        client.close()
     assert soak_server.process.poll() is None
 
 
