@@ -18,7 +18,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from muble import ActionCall, Agent, Answer, Instruction, Observation
+from muble import ActionCall, Agent, Answer, ConfigError, Instruction, Observation
 
 from muble_plugins.llm.config import ImagePolicy, SchemaForm
 from muble_plugins.llm.endpoint import Endpoint, EpisodeStats, ExchangeLog
@@ -62,14 +62,11 @@ class LlmAgent(Agent):
         self.system_template = PromptTemplate.load(system_prompt, "system.md", SYSTEM_FIELDS)
         self.step_template = PromptTemplate.load(step_prompt, "step.md", STEP_FIELDS)
         self.retry_template = PromptTemplate.load(None, "retry.md", RETRY_FIELDS)
-        self.examples = examples
-        self.example_pool = load_examples(Path(examples_root), examples_split) if examples and examples_root \
-            else []
         if examples and not examples_root:
-            from muble import ConfigError
-
             raise ConfigError("agent.examples needs agent.examples_root: a dataset folder written by `muble "
                               "generate` with ground-truth sequences (its agent.examples_split split)")
+        self.examples = examples
+        self.example_pool = load_examples(Path(examples_root), examples_split) if examples else []
         self.log_dir = Path(log_dir) if log_dir else None
         self.output_dir: Path | None = None  # set by muble eval: the logs then go beside its records
         self.record = ExchangeLog()

@@ -25,6 +25,9 @@ from typing import Any, Callable
 
 log = logging.getLogger(__name__)
 
+# The HTTP client logs a line per request at INFO; the episode's log has each request already, and eval's progress
+# log would drown in them.
+QUIET_LOGGERS = ("httpx", "httpx2", "openai")
 NO_KEY = "no-key"  # sent when the key's variable is unset: local servers want none, the client wants something
 FIRST_BACKOFF = 1.0  # s; doubled after each transient failure without Retry-After
 
@@ -156,6 +159,8 @@ class Endpoint:
                 from muble import ConfigError
 
                 raise ConfigError('agent=llm needs the openai client: pip install "muble[llm]"') from e
+            for name in QUIET_LOGGERS:
+                logging.getLogger(name).setLevel(max(logging.WARNING, logging.getLogger(name).level))
             key = os.environ.get(self.api_key_env) if self.api_key_env else None
             self._client = openai.OpenAI(base_url=self.base_url, api_key=key or NO_KEY, timeout=self.timeout,
                                          max_retries=0)

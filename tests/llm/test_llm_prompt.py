@@ -134,6 +134,24 @@ def test_worked_examples_come_from_ground_truth_sequences_own_template_first():
     assert "Program: scene -> filter_colour(blue) -> query_weight" in text and '{"answer":[81.0]}' in text
 
 
+def test_examples_are_read_from_a_dataset_split(tmp_path):
+    from muble.core.layout import DatasetLayout
+
+    layout = DatasetLayout(tmp_path, "train")
+    record = {"instruction": "Pick up the red mug.", "template_id": "move_single", "program": [],
+              "task": {"task": "pick_up", "target": [0]}, "ground_truth_actions": [["move", {"target": 0}]]}
+    for rel, data in ((layout.instruction(0), record),
+                      (layout.scene(0), {"objects": [{"colour": "red", "material": "ceramic", "name": "mug"}]})):
+        (layout.split_dir / rel).parent.mkdir(parents=True, exist_ok=True)
+        (layout.split_dir / rel).write_text(json.dumps(data))
+    agent = LlmAgent(examples=1, examples_root=str(tmp_path))
+    assert agent.example_pool[0]["objects"] == ["0: red ceramic mug"]
+    with pytest.raises(ConfigError, match="no instructions folder"):
+        LlmAgent(examples=1, examples_root=str(tmp_path), examples_split="val")
+    with pytest.raises(ConfigError, match="needs agent.examples_root"):
+        LlmAgent(examples=2)
+
+
 def test_the_report_sums_agent_counters_with_tokens_per_success_and_parse_failure_rate():
     def record(index, outcome, stats):
         return {"index": index, "template": "move_single", "outcome": outcome, "primitives": [], "timing": None,
