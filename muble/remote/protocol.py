@@ -154,7 +154,8 @@ def _check_header(header: dict[str, Any]) -> None:
         raise ProtocolError("unsupported_protocol", f"this server speaks {PROTOCOL}, not {protocol[:40]!r}")
     kind = header.get("type")
     if kind not in REQUEST_TYPES:
-        raise ProtocolError("bad_request", f"unknown request type {str(kind)[:40]!r}; valid: {', '.join(REQUEST_TYPES)}")
+        raise ProtocolError("bad_request", f"unknown request type {str(kind)[:40]!r}; valid: "
+                            f"{', '.join(REQUEST_TYPES)}")
     rid = header.get("id")
     if rid is not None and echoed_id(header) is None:
         raise ProtocolError("bad_request", f"'id' must be a string or integer of at most {MAX_ID_CHARS} characters")

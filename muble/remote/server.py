@@ -48,6 +48,7 @@ DEFAULT_STEP_TIMEOUT = 600.0  # s one reset or act may take before its episode i
 # s beyond step_timeout before the simulation process is replaced: an abandoned episode's worker gets 60 s to
 # stop (muble.episode.stepped), and the reset's scene generation is not under step_timeout.
 OVERRUN_GRACE_S = 120.0
+RESTART_BACKOFF_S = 30.0  # s before a simulation process that ended while starting is tried again
 
 
 class ListenError(MubleError):
@@ -165,7 +166,8 @@ class EpisodeServer:
             poller = zmq.Poller()  # made afresh: a replaced simulation process has a new socket and sentinel
             poller.register(self.socket, zmq.POLLIN)
             poller.register(self.simulation.socket, zmq.POLLIN)
-            poller.register(self.simulation.sentinel, zmq.POLLIN)
+            if self.simulation.alive():  # an ended one's sentinel stays readable: it would spin the loop
+                poller.register(self.simulation.sentinel, zmq.POLLIN)
             events = dict(poller.poll(timeout=1000))
             if self._results():
                 last = time.monotonic()
@@ -296,16 +298,16 @@ class EpisodeServer:
             self._free(session)
 
     def _watch(self) -> None:
-        """Replace the simulation process when it has ended or overrun its time; its jobs are answered with an
-        error and every session is lost."""
+        """Replace the simulation process when it has ended or overrun its time; the requests it held are
+        answered with an error and every session is lost. One that ended while starting is retried after
+        ``RESTART_BACKOFF_S``, so a broken setup does not respawn in a loop."""
         overran = bool(self.running) and time.monotonic() - self.last_result > self.step_timeout + OVERRUN_GRACE_S
         if self.simulation.alive() and not overran:
             return
-        if self.simulation.ready or self.running or self.pending:
-            reason = (f"ran over its time limit ({self.step_timeout:g} s)" if overran else
-                      f"stopped (exit code {self.simulation.process.exitcode})")
-            log.error("the simulation process %s; %d session(s) lost; starting a new one", reason,
-                      len(self.sessions))
+        reason = (f"ran over its time limit ({self.step_timeout:g} s)" if overran else
+                  f"stopped (exit code {self.simulation.process.exitcode})")
+        if self.running or self.pending or self.sessions:
+            log.error("the simulation process %s; %d session(s) lost", reason, len(self.sessions))
             for job in [*self.running.values(), *self.pending]:
                 if job.envelope is not None:
                     self._send(job.envelope, [encode(error_header(
@@ -314,6 +316,10 @@ class EpisodeServer:
             self.running.clear()
             self.pending.clear()
             self.sessions.clear()
+        if not overran and not self.simulation.ready \
+                and time.monotonic() - self.simulation.started < RESTART_BACKOFF_S:
+            return
+        log.info("starting a new simulation process")
         self.simulation.restart()
 
     def _free(self, session: Session) -> None:

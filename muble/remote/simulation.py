@@ -213,6 +213,7 @@ class SimulationProcess:
         self.process = spawn.Process(target=simulation_main, args=(address, self.setup, os.getpid()),
                                      name="muble-simulation")
         self.process.start()
+        self.started = time.monotonic()
         self.ready = False
 
     @property

@@ -24,7 +24,7 @@ import time
 import pytest
 
 from muble import get_registry
-from muble.remote import PROTOCOL, RemoteClient, RemoteError, run_agent
+from muble.remote import PROTOCOL, RemoteClient, run_agent
 from muble.remote.protocol import ERROR_CODES, MAX_DEPTH
 
 from tests.remote.server import REPO, ServerProcess
@@ -261,7 +261,8 @@ def fuzz_messages(holder: str, rng: random.Random) -> list[list[bytes]]:
             if rng.random() < 0.5:
                 messages.append([text({**base, "pad": "z" * (MAX_REQUEST + rng.randrange(1, 1000))})])
             else:
-                many = {"scene": {"objects": [OBJECT] * rng.randrange(MAX_OBJECTS + 1, 200)}, "instruction": INSTRUCTION}
+                objects = [OBJECT] * rng.randrange(MAX_OBJECTS + 1, 200)
+                many = {"scene": {"objects": objects}, "instruction": INSTRUCTION}
                 messages.append([text(request("reset", episode=many, images="none"))])
     return messages
 
