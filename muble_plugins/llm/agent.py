@@ -35,13 +35,14 @@ LOG_FOLDER = "llm_logs"  # in the run's output folder, when agent.log_dir is not
 
 class UnusableReply:
     """The decision of a step whose replies could not be used: not an action, so the episode ends as
-    ``invalid_action``; its text (what the action loop records) says why."""
+    ``invalid_action``. Its text, which the action loop records (cut at 80 characters), names the fault first;
+    ``reason`` has the whole message, as the episode's log does."""
 
-    def __init__(self, reason: str, tries: int) -> None:
-        self.reason, self.tries = reason, tries
+    def __init__(self, kind: str, reason: str, tries: int) -> None:
+        self.kind, self.reason, self.tries = kind, reason, tries
 
     def __repr__(self) -> str:
-        return f"{self.reason} (reply {self.tries})"
+        return f"{self.kind} in {self.tries} replies (the log has them): {self.reason}"
 
 
 class LlmAgent(Agent):
@@ -122,12 +123,12 @@ class LlmAgent(Agent):
             try:
                 return self._decided(parse_reply(reply.text, self.view, ids))
             except ReplyError as e:
-                error = str(e)
+                error, kind = str(e), e.kind
             self.episode_stats.parse_failures += 1
             self.record.write("unusable", error=error, tries=tries)
             if tries > self.max_retries:
                 self.episode_stats.invalid_end = 1
-                return UnusableReply(error, tries)
+                return UnusableReply(kind, error, tries)
             self.episode_stats.reasks += 1
             messages += [{"role": "assistant", "content": reply.text},
                          {"role": "user", "content": self.retry_template.render(error=error)}]

@@ -24,7 +24,12 @@ QUOTE = 80  # characters of a reply quoted in an error
 
 
 class ReplyError(ValueError):
-    """A reply that is not one usable decision; the message says what is wrong, for the model and the record."""
+    """A reply that is not one usable decision; the message says what is wrong, for the model and the log, and
+    ``kind`` names the fault in a few words, for the episode's record."""
+
+    def __init__(self, message: str, kind: str) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def _quote(text: str) -> str:
@@ -55,8 +60,9 @@ def first_json_object(text: str) -> dict[str, Any]:
             return value
     if first_problem is not None:
         raise ReplyError(f"the JSON object in your reply does not parse ({first_problem.msg} at character "
-                         f"{first_problem.pos}): {_quote(text)}")
-    raise ReplyError(f"no JSON object in your reply: {_quote(text) if text else 'the reply is empty'}")
+                         f"{first_problem.pos}): {_quote(text)}", "JSON that does not parse")
+    raise ReplyError(f"no JSON object in your reply: {_quote(text) if text else 'the reply is empty'}",
+                     "no JSON object")
 
 
 def _relaxed(params: Sequence[Param], view: str) -> tuple[Param, ...]:
@@ -71,31 +77,32 @@ def decision_from(obj: dict[str, Any], view: str, object_ids: Sequence[int]) -> 
     keys = set(obj)
     if STOP in keys:
         if obj[STOP] is not True or keys != {STOP}:
-            raise ReplyError(f'to stop, reply {{"stop": true}} alone; got {json.dumps(obj, default=str):.120}')
+            raise ReplyError(f'to stop, reply {{"stop": true}} alone; got {json.dumps(obj, default=str):.120}',
+                             "another shape")
         return None
     if "answer" in keys:
         if keys != {"answer"}:
-            raise ReplyError(f"an answer is {{\"answer\": ...}} alone; got keys {sorted(keys)}")
+            raise ReplyError(f"an answer is {{\"answer\": ...}} alone; got keys {sorted(keys)}", "another shape")
         return Answer(obj["answer"])
     if "name" not in keys or not keys <= {"name", "params"}:
-        raise ReplyError(f"expected {FORMS}; got keys {sorted(keys)}")
+        raise ReplyError(f"expected {FORMS}; got keys {sorted(keys)}", "another shape")
     name, params = obj["name"], obj.get("params", {})
     if params is None:
         params = {}
     names = get_registry().names("primitive")
     if not isinstance(name, str) or name not in names:
         raise ReplyError(f"unknown primitive {json.dumps(name, default=str):.60}; the primitives are: "
-                         f"{', '.join(names)}")
+                         f"{', '.join(names)}", "unknown primitive")
     problem = check_call(name, _relaxed(primitive_params(name), view), params, list(object_ids))
     if problem:
-        raise ReplyError(problem)
+        raise ReplyError(problem, "invalid parameters")
     return ActionCall(name, dict(params))
 
 
 def parse_reply(text: str | None, view: str, object_ids: Sequence[int]) -> ActionCall | Answer | None:
     """The decision in a reply's text; ``ReplyError`` when there is none or it is not valid."""
     if not text or not text.strip():
-        raise ReplyError("the reply is empty")
+        raise ReplyError("the reply is empty", "empty reply")
     return decision_from(first_json_object(text), view, object_ids)
 
 

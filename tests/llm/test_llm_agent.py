@@ -138,21 +138,24 @@ def unusable_case(server, tmp_path, text: str) -> tuple:
     return result, seconds, agent.stats()
 
 
-@pytest.mark.parametrize("text,reason", [
-    ("I would first move the gripper above the mug, then grasp it.", "no JSON object"),
-    ('{"name": "move", "params": {"target": 1', "does not parse"),
-    ('{"action": "move", "object": 1}', "expected"),
-    ('{"name": "teleport", "params": {"target": 1}}', "unknown primitive"),
-    ('{"name": "move", "params": {"target": 99}}', "not in the scene"),
+@pytest.mark.parametrize("text,kind,reason", [
+    ("I would first move the gripper above the mug, then grasp it.", "no JSON object", "no JSON object"),
+    ('{"name": "move", "params": {"target": 1', "JSON that does not parse", "does not parse"),
+    ('{"action": "move", "object": 1}', "another shape", "expected"),
+    ('{"name": "teleport", "params": {"target": 1}}', "unknown primitive", "unknown primitive"),
+    ('{"name": "move", "params": {"target": 99}}', "invalid parameters", "not in the scene"),
 ], ids=["prose", "broken_json", "wrong_schema", "unknown_primitive", "unknown_object"])
-def test_an_unusable_reply_is_asked_again_then_ends_as_invalid_action(server, tmp_path, text, reason):
+def test_an_unusable_reply_is_asked_again_then_ends_as_invalid_action(server, tmp_path, text, kind, reason):
     result, seconds, stats = unusable_case(server, tmp_path, text)
     assert result.outcome is Outcome.INVALID_ACTION, (result.outcome, result.error)
-    assert reason in result.error and seconds < BOUND
+    assert f"{kind} in 3 replies" in result.error and seconds < BOUND
     assert stats["parse_failures"] == 3 and stats["reasks"] == 2 and stats["invalid_end"] == 1
-    # The re-ask carries the error back to the model.
+    # The re-ask carries the error back to the model; the log has the whole reason.
     retry = server.requests[-1]["messages"]
     assert retry[-2] == {"role": "assistant", "content": text} and reason in retry[-1]["content"]
+    (log,) = (tmp_path / "logs").glob("*.jsonl")
+    unusable = [json.loads(line) for line in log.read_text().splitlines() if '"unusable"' in line]
+    assert len(unusable) == 3 and reason in unusable[-1]["error"]
 
 
 def test_a_reply_corrected_after_a_re_ask_goes_on(server, tmp_path):
