@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import os
 import sys
 
 from muble.core.errors import MubleError
@@ -51,6 +52,24 @@ def usage() -> str:
     return USAGE.format(commands="\n".join(lines))
 
 
+# The GL backends MuJoCo accepts on this platform (its own check raises deep inside the first import that renders).
+_GL_BACKENDS = {"Linux": ("egl", "osmesa", "glx", "glfw"), "Darwin": ("cgl", "glfw"), "Windows": ("wgl", "glfw")}
+_GL_SWITCHES = ("", "enable", "enabled", "on", "true", "1", "disable", "disabled", "off", "false", "0")
+
+
+def check_gl_backend() -> str | None:
+    """Why ``MUJOCO_GL`` cannot work here (an environment error, not a bug), or None."""
+    import platform
+
+    value = os.environ.get("MUJOCO_GL", "").lower().strip()
+    valid = _GL_BACKENDS.get(platform.system(), ("glfw",))
+    if value in _GL_SWITCHES or value in valid:
+        return None
+    return (f"environment: MUJOCO_GL={os.environ['MUJOCO_GL']!r:.60} is not a GL backend MuJoCo knows on "
+            f"{platform.system()}; set MUJOCO_GL to one of {', '.join(valid)} (egl for headless rendering through "
+            "Mesa) or unset it")
+
+
 def main(argv: list[str] | None = None) -> int:
     from muble.app.quiet import quiet_third_party
 
@@ -68,6 +87,10 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"muble: unknown command '{argv[0]}'; valid commands: {', '.join(COMMANDS)}\n", file=sys.stderr)
         print(usage(), file=sys.stderr)
+        return 2
+    gl_problem = check_gl_backend()
+    if gl_problem is not None:
+        print(f"muble {command}: error: {gl_problem}", file=sys.stderr)
         return 2
     module_name, _ = COMMANDS[command]
     if verbose and command in HYDRA_COMMANDS:

@@ -78,18 +78,64 @@ def lock_path(cfg: DictConfig) -> Path:
     return Path(cfg.dataset.root) / f".muble-generate-shard{cfg.dataset.shard}of{cfg.dataset.num_shards}.lock"
 
 
+SPLITS_FILE = "dataset_splits.json"  # the sharding and each split's size the dataset was made with
+
+
+def check_or_store_layout(root: Path, cfg: DictConfig, sizes: dict[str, int]) -> dict[str, int]:
+    """Refuse a resume that would change the sharding or shrink a split (its combined file would silently lose the
+    indices past the new size); a split may grow (extending a dataset). Returns every split's size, the stored
+    ones included, and records them."""
+    path = root / SPLITS_FILE
+    stored = {"num_shards": int(cfg.dataset.num_shards), "splits": {}}
+    if path.is_file():
+        try:
+            stored = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as e:
+            raise ConfigError(f"{path} cannot be read ({e}; truncated?); restore it or pass another dataset.root") \
+                from e
+    problems = []
+    if int(stored.get("num_shards", cfg.dataset.num_shards)) != int(cfg.dataset.num_shards):
+        problems.append(f"dataset.num_shards: stored {stored['num_shards']}, requested {cfg.dataset.num_shards}")
+    for split, size in sizes.items():
+        before = stored.get("splits", {}).get(split)
+        if before is not None and size < before:
+            problems.append(f"split {split}: stored size {before}, requested {size} (it would leave out indices "
+                            f"{cfg.dataset.start + size} to {cfg.dataset.start + before - 1})")
+    if problems:
+        raise ConfigError(f"dataset.root {root} was made with other sharding or larger splits ({'; '.join(problems)})."
+                          f" Resume with its settings (recorded in {SPLITS_FILE}), or pass another dataset.root")
+    merged = {**stored.get("splits", {}), **sizes}
+    write_bytes_atomic(path, json.dumps({"num_shards": int(cfg.dataset.num_shards), "splits": merged},
+                                        indent=2, sort_keys=True).encode())
+    return merged
+
+
 def job(cfg: DictConfig) -> dict:
+    """Produce the configured splits; a run that fails before producing anything leaves no folder it made."""
+    root = Path(cfg.dataset.root)
+    fresh = not root.exists() or not any(root.iterdir())
+    try:
+        return _job(cfg, root)
+    except BaseException:
+        if fresh and root.is_dir() and not any(p.is_dir() for p in root.iterdir()):
+            import shutil
+
+            shutil.rmtree(root, ignore_errors=True)  # only its settings and lock files: nothing to resume
+        raise
+
+
+def _job(cfg: DictConfig, root: Path) -> dict:
     from tqdm import tqdm
 
     import muble
 
-    root = Path(cfg.dataset.root)
     protocol_split = select_split(cfg)  # protocol=NAME: the split benchmark.split names, at its frozen size
     sizes = split_sizes(cfg)
     root.mkdir(parents=True, exist_ok=True)
     config = OmegaConf.to_container(cfg, resolve=True)
     with RunLock(lock_path(cfg), f"dataset.root {root} (shard {cfg.dataset.shard})"):
         check_or_store_identity(root, config)  # a resume with other settings is refused before any change
+        recorded = check_or_store_layout(root, cfg, sizes)
         stale = remove_stale_temporaries(root)
         if stale:
             log.info("removed %d partial files of an interrupted run", stale)
@@ -98,10 +144,8 @@ def job(cfg: DictConfig) -> dict:
             layout, wanted = DatasetLayout(root, split), indices(cfg, size)
             todo = [i for i in wanted if not (layout.split_dir / layout.instruction(i)).exists()]
             plan[split] = (layout, wanted, todo)
-        if any(todo for _, _, todo in plan.values()) and (root / "manifest.json").exists():
-            # The manifest describes a finished dataset; until this run finishes there is none to describe.
-            (root / "manifest.json").unlink()
-            log.info("manifest.json removed until this run completes")
+        # A previous run's manifest stays until this run writes its own (atomically), so an interruption or a full
+        # disk leaves the description of what the last finished run wrote.
         produced = {}
         for split, (layout, wanted, todo) in plan.items():
             log.info("%s: %d of %d indices to produce (%d already done)", split, len(todo), len(wanted),
@@ -113,7 +157,8 @@ def job(cfg: DictConfig) -> dict:
             for done, (index, _) in enumerate(bar, start=1):
                 log.info("%s: index %d written (%d/%d)", split, index, done, len(jobs))
             if cfg.dataset.num_shards == 1:
-                write_combined(layout, wanted, muble.__version__)
+                # Every index the split holds, those of a larger earlier run included.
+                write_combined(layout, indices(cfg, recorded[split]), muble.__version__)
             produced[split] = len(wanted)
         seeds = {"seed": cfg.seed, "split_seeds": {s: split_seed(cfg.seed, s) for s in sizes},
                  "indices": "(seed, split, index) -> numpy default_rng streams; OMPL re-seeded per query"}

@@ -11,7 +11,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.config import CONFIG_MODULE, HYDRA_VERSION_BASE, register_configs, searchpath_override
-from muble.app.usage import USAGE_EXIT_CODE, explain_config_error, hydra_usage_errors, report
+from muble.app.usage import USAGE_EXIT_CODE, environment_error, explain_config_error, hydra_usage_errors, report
 from muble.core.errors import MubleError
 from muble.core.layout import check_split_name
 from muble.core.ranges import check_ranges
@@ -65,6 +65,11 @@ def run_hydra_job(config_name: str, argv: list[str], job: Callable[[DictConfig],
             report(prog, str(e))
             _remove_empty_run_folder()
             raise SystemExit(USAGE_EXIT_CODE) from e
+        except OSError as e:  # the machine's state (full disk, unwritable folder), not a bug: no traceback
+            _log_to_files(e)
+            report(prog, environment_error(e))
+            _remove_empty_run_folder()
+            raise SystemExit(USAGE_EXIT_CODE) from e
 
     saved = sys.argv
     sys.argv = [prog, *argv, *extra]
@@ -73,9 +78,16 @@ def run_hydra_job(config_name: str, argv: list[str], job: Callable[[DictConfig],
             _app()
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted; run the same command again (with the same output folder) to carry on "
+              "from what was written", file=sys.stderr)
+        return INTERRUPTED_EXIT_CODE
     finally:
         sys.argv = saved
     return 0
+
+
+INTERRUPTED_EXIT_CODE = 130  # 128 + SIGINT, as shells report it
 
 
 class _Usage(Exception):

@@ -66,6 +66,30 @@ def _unknown_key(cause: Any) -> str:
     return message
 
 
+def environment_error(ex: OSError) -> str:
+    """One paragraph naming an environment failure (a full disk, a folder that cannot be written, a path that is
+    a file) and what to change; these are the machine's state, not bugs, so no traceback."""
+    import errno
+
+    name = str(ex.filename) if getattr(ex, "filename", None) else ""
+    where = f" {name[:60]}…{name[-40:]} ({len(name)} characters)" if len(name) > 120 else (f" {name}" if name else "")
+    reason = ex.strerror or str(ex)[:300]
+    if ex.errno == errno.ENOSPC:
+        advice = ("the disk is full: free space (or point the output elsewhere) and run the same command again; "
+                  "`muble generate` and `muble eval` carry on from what was written")
+    elif ex.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        advice = "that folder cannot be written: choose a writable one (dataset.root=, output.dir=, hydra.run.dir=)"
+    elif ex.errno in (errno.EEXIST, errno.ENOTDIR):
+        advice = "a file stands where a folder is needed: choose another path"
+    elif ex.errno == errno.ENOENT:
+        advice = "a folder on that path does not exist and cannot be made (is HOME or the parent folder set?)"
+    elif ex.errno == errno.ENAMETOOLONG:
+        advice = "the path is too long: choose a shorter one"
+    else:
+        advice = "check the path and the machine's state"
+    return f"environment: cannot use{where}: {reason}; {advice}"
+
+
 def explain_config_error(ex: BaseException) -> str | None:
     """One paragraph saying what to change for a Hydra or OmegaConf config error; None for anything else."""
     from hydra.errors import ConfigCompositionException, HydraException, MissingConfigException
@@ -94,6 +118,11 @@ def explain_config_error(ex: BaseException) -> str | None:
         return _first_line(str(ex)) + detail
     if isinstance(ex, OmegaConfBaseException):
         return _first_line(getattr(ex, "msg", None) or str(ex))
+    if isinstance(ex, OSError):  # Hydra making the run folder, writing its files
+        return environment_error(ex)
+    if isinstance(ex, (ValueError, OverflowError, RecursionError)) and not isinstance(ex, OmegaConfBaseException):
+        # Raised while the command line is parsed and composed (e.g. an integer of 10,000 digits): its fault.
+        return f"cannot use the command line: {_first_line(ex)[:300]}"
     return None
 
 

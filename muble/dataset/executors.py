@@ -34,7 +34,9 @@ def _serial(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: Any) 
 
 
 def die_with_parent(parent_pid: int) -> None:
-    """Pool worker initializer: end this process as soon as ``parent_pid`` is gone."""
+    """Pool worker initializer: end this process as soon as ``parent_pid`` is gone. Ctrl-C is the parent's to
+    handle (it ends the pool and says how to resume): a worker ignores SIGINT instead of printing a traceback."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     if sys.platform.startswith("linux"):
         try:
             libc = ctypes.CDLL(None, use_errno=True)

@@ -79,7 +79,15 @@ def check_or_store_identity(root: Path, config: dict[str, Any]) -> None:
     path = root / IDENTITY_FILE
     stored = None
     if path.is_file():
-        stored = json.loads(path.read_text())
+        try:
+            stored = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as e:
+            raise ConfigError(f"{path} cannot be read ({type(e).__name__}: {e}; truncated?): it records the settings "
+                              "the dataset in that folder was made with. Restore it, or pass another dataset.root "
+                              "for a new dataset") from e
+        if not isinstance(stored, dict):
+            raise ConfigError(f"{path} holds {type(stored).__name__}, not the settings of a dataset; restore it or "
+                              "pass another dataset.root")
     elif (root / "manifest.json").is_file():  # made before identities were stored: its manifest's config
         stored = dataset_identity(json.loads((root / "manifest.json").read_text()).get("config", {}))
     if stored is None:

@@ -177,8 +177,18 @@ class MeshCache:
             return Geometry(MeshPart(data["vv"], data["vf"]), parts, frames, uv)
 
     def store(self, key: str, geometry: Geometry) -> None:
+        """Keep ``geometry`` on disk for the next run. The cache only saves time: a folder that cannot be written
+        (an unwritable HOME, a full disk) turns it off for this process, with one warning, and the run goes on."""
         if self.directory is None:
             return
+        try:
+            self._store(key, geometry)
+        except OSError as e:
+            log.warning("object mesh cache %s cannot be written (%s); meshes are rebuilt each run. Set "
+                        "MUBLE_CACHE_DIR to a writable folder to keep them", self.directory, e.strerror or e)
+            self.directory = None
+
+    def _store(self, key: str, geometry: Geometry) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         arrays = {"vv": geometry.visual.vertices, "vf": geometry.visual.faces,
                   "n_parts": np.array(len(geometry.collision_parts)),
