@@ -59,6 +59,19 @@ def die_with_parent(parent_pid: int) -> None:
 TASKS_PER_WORKER = 50
 
 
+def _pool_ignoring_sigint(context: Any, workers: int) -> Any:
+    """A pool whose workers ignore SIGINT from their first instruction: a process started while SIGINT is ignored
+    keeps it ignored (Python installs its KeyboardInterrupt handler only over the default), so a Ctrl-C that
+    reaches a worker still importing prints no traceback; the parent's own handler is back once they started."""
+    if threading.current_thread() is not threading.main_thread():
+        return context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),))
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        return context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),))
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _processes(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: Any) -> Iterator[Any]:
     """``fn`` over ``items`` in ``workers`` local processes, renewed every ``workers * TASKS_PER_WORKER`` items.
 
@@ -74,7 +87,7 @@ def _processes(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: An
     context = multiprocessing.get_context("spawn")
     batch = workers * TASKS_PER_WORKER
     for start in range(0, len(items), batch):
-        pool = context.Pool(workers, initializer=die_with_parent, initargs=(os.getpid(),))
+        pool = _pool_ignoring_sigint(context, workers)
         finished = False
         try:
             yield from pool.imap_unordered(fn, items[start:start + batch])
