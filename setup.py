@@ -11,5 +11,5 @@ conf_packages = ["muble_conf"] + [f"muble_conf.{p}" for p in find_namespace_pack
 packages = find_packages(include=["muble", "muble.*"]) + plugin_packages + conf_packages
 setup(
     packages=packages,
-    package_data={**{p: ["*.yaml", "*.json"] for p in plugin_packages}, **{p: ["*.yaml", "*.json"] for p in conf_packages}},
+    package_data={**{p: ["*.yaml", "*.json", "prompts/*.md"] for p in plugin_packages}, **{p: ["*.yaml", "*.json"] for p in conf_packages}},
 )

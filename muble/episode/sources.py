@@ -20,6 +20,7 @@ import numpy as np
 from muble.core.errors import ConfigError, SceneValidationError, unknown_name
 from muble.core.interfaces import Instruction, Task
 from muble.core.observation import agent_program
+from muble.episode.modes import check_track
 from muble.core.scene import SceneGraph
 
 log = logging.getLogger(__name__)
@@ -39,11 +40,13 @@ class EpisodeSpec:
     source: dict[str, Any]
 
 
-def agent_instruction(instruction: Instruction) -> Instruction:
+def agent_instruction(instruction: Instruction, track: str = "program") -> Instruction:
     """The instruction as an agent receives it: the stored ground-truth action list left out, and the program
-    without the outputs and inputs recorded on the ground truth (``muble.core.observation.agent_program``)."""
+    without the outputs and inputs recorded on the ground truth (``muble.core.observation.agent_program``); on
+    the ``language`` track (``muble.episode.modes``) no program at all."""
     extra = {k: v for k, v in instruction.extra.items() if k not in GROUND_TRUTH_KEYS}
-    return Instruction(instruction.instruction, agent_program(instruction.program), instruction.template_id,
+    program = [] if check_track(track) == "language" else agent_program(instruction.program)
+    return Instruction(instruction.instruction, program, instruction.template_id,
                        instruction.task_id, instruction.image_filename, instruction.image_index, instruction.split,
                        extra)
 

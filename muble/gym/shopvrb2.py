@@ -30,6 +30,7 @@ from muble.core.errors import ConfigError, PhysicsError, SceneValidationError
 from muble.core.instructions_io import instruction_to_dict
 from muble.core.types import Outcome
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
+from muble.episode.components import benchmark_settings
 from muble.episode.sources import EpisodeFactory, EpisodeSpec, agent_instruction
 from muble.episode.stepped import EpisodeStateError, Step, SteppedEpisode
 from muble.gym.config import environment_config
@@ -139,7 +140,8 @@ class ShopVRB2Env(gym.Env):
             else:
                 raise ConfigError(f"no episode of templates {self.templates} starts in {SCENE_TRIES} drawn scenes")
         self.spec_now = spec
-        info = {"instruction": instruction_to_dict(agent_instruction(spec.instruction)), "source": spec.source,
+        told = agent_instruction(spec.instruction, benchmark_settings(self.cfg)[0])  # benchmark.track
+        info = {"instruction": instruction_to_dict(told), "source": spec.source,
                 "template": spec.instruction.template_id}
         return self._observation(step), info
 
