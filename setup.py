@@ -8,8 +8,11 @@ from setuptools import find_namespace_packages, find_packages, setup
 # namespace packages): setuptools warns about data in a folder missing from ``packages``.
 plugin_packages = find_packages(include=["muble_plugins", "muble_plugins.*"])
 conf_packages = ["muble_conf"] + [f"muble_conf.{p}" for p in find_namespace_packages("muble_conf")]
-packages = find_packages(include=["muble", "muble.*"]) + plugin_packages + conf_packages
+# Data-only folders of plugins (the llm agent's prompt files) are namespace packages too.
+prompt_packages = ["muble_plugins.llm.prompts"]
+packages = find_packages(include=["muble", "muble.*"]) + plugin_packages + prompt_packages + conf_packages
 setup(
     packages=packages,
-    package_data={**{p: ["*.yaml", "*.json", "prompts/*.md"] for p in plugin_packages}, **{p: ["*.yaml", "*.json"] for p in conf_packages}},
+    package_data={**{p: ["*.yaml", "*.json"] for p in plugin_packages}, **{p: ["*.md"] for p in prompt_packages},
+                  **{p: ["*.yaml", "*.json"] for p in conf_packages}},
 )
