@@ -21,9 +21,9 @@ from typing import Any, Callable, Protocol
 from muble.core.errors import PhysicsError, PlanningError
 from muble.core.interfaces import Agent, Instruction, Task
 from muble.core.observation import agent_instruction
-from muble.episode.modes import ObservationView, express_with_pixels, resolve_pixels, track_instruction
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome
+from muble.episode.modes import ObservationView, express_with_pixels, resolve_pixels, track_instruction
 
 log = logging.getLogger(__name__)
 

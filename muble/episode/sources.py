@@ -9,6 +9,7 @@ Three sources, the same for the Gymnasium environments and the remote agent serv
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import re
 from dataclasses import dataclass
@@ -19,9 +20,8 @@ import numpy as np
 
 from muble.core.errors import ConfigError, SceneValidationError, unknown_name
 from muble.core.interfaces import Instruction, Task
-from muble.core.observation import agent_program
-from muble.episode.modes import check_track
 from muble.core.scene import SceneGraph
+from muble.episode.modes import track_instruction
 
 log = logging.getLogger(__name__)
 
@@ -42,13 +42,10 @@ class EpisodeSpec:
 
 def agent_instruction(instruction: Instruction, track: str = "program") -> Instruction:
     """The instruction as an agent receives it: the stored ground-truth action list left out, and the program
-    without the outputs and inputs recorded on the ground truth (``muble.core.observation.agent_program``); on
-    the ``language`` track (``muble.episode.modes``) no program at all."""
+    without the outputs and inputs recorded on the ground truth, or none on the ``language`` track
+    (``muble.episode.modes.track_instruction``); the instruction file's other records are kept."""
     extra = {k: v for k, v in instruction.extra.items() if k not in GROUND_TRUTH_KEYS}
-    program = [] if check_track(track) == "language" else agent_program(instruction.program)
-    return Instruction(instruction.instruction, program, instruction.template_id,
-                       instruction.task_id, instruction.image_filename, instruction.image_index, instruction.split,
-                       extra)
+    return dataclasses.replace(track_instruction(instruction, track), extra=extra)
 
 
 class EpisodeFactory:
