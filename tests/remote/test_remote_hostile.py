@@ -324,7 +324,8 @@ def test_clients_that_vanish_mid_reset_leave_no_session_behind(soak_server, zmq_
         time.sleep(rng.uniform(0.05, 0.3))  # long enough for the request to leave, far shorter than a reset
         client.close()
     with RemoteClient(soak_server.endpoint, timeout=120) as client:
-        assert client.hello()["open_sessions"] >= 1  # resets are running for clients that are gone
+        # Resets may still be running for clients that are gone (a warm simulation process may already have
+        # finished them all, its replies undeliverable): either way no session may be left.
         deadline = time.monotonic() + 180
         while client.hello()["open_sessions"] and time.monotonic() < deadline:
             time.sleep(0.5)
