@@ -106,23 +106,31 @@ def hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
 
 def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
     """The arm configuration ``ctx.HOVER`` over the first free place on ``part`` (rotated by ``attempt``) that the
-    held object can be lowered to straight, released at the first of ``RELEASE_GAPS``."""
+    held object can be lowered to straight, released at the first of ``RELEASE_GAPS``.
+
+    Every place is tried with the hand as it carries the object first; only where none can be descended to does
+    the hand turn about the vertical (each of ``CARRY_TURNS``, the object turning with it): beside a tall
+    neighbour the forearm, not the object, may be what blocks the way down, and a turned wrist bends the arm the
+    other way. ``lower`` then finds the hand over the place and goes straight down as it is turned.
+    """
     table = env.table()
     lo, hi = table.part_region(part)
-    places = placement.free_places(env, lo, hi, env.held_object)
-    if not places:
+    turns = [(yaw, rotated(placement.spread(placement.free_places(env, lo, hi, env.held_object, yaw=yaw)), attempt))
+             for yaw in CARRY_TURNS]
+    if not any(places for _, places in turns):
         raise PlanningError(f"no free space on the {part} part of the table for object {env.held_object}; "
                             "choose another part")
     reasons = []
-    for xy in rotated(placement.spread(places), attempt):
-        place = placement.place_pose(env, xy, table.top_z, RELEASE_GAPS[0])
-        top = placement.clear_top(env, xy, table.top_z, env.held_object)
-        above = np.array([place.pos[0], place.pos[1], top + placement.held_depth(env) + ctx.HOVER])
-        try:
-            q_above, _ = placement.plan_descent(env, world, place, above, table.body)
-            return q_above
-        except PlanningError as e:
-            logger.debug("no descent to %s: %s", np.round(xy, 3).tolist(), e)
-            reasons.append(f"{np.round(xy, 3).tolist()}: {e}")
+    for yaw, places in turns:
+        for xy in places:
+            place = placement.place_pose(env, xy, table.top_z, RELEASE_GAPS[0], yaw)
+            top = placement.clear_top(env, xy, table.top_z, env.held_object)
+            above = np.array([place.pos[0], place.pos[1], top + placement.held_depth(env) + ctx.HOVER])
+            try:
+                q_above, _ = placement.plan_descent(env, world, place, above, table.body)
+                return q_above
+            except PlanningError as e:
+                logger.debug("no descent to %s (turn %.0f deg): %s", np.round(xy, 3).tolist(), np.degrees(yaw), e)
+                reasons.append(f"{np.round(xy, 3).tolist()}: {e}")
     raise PlanningError(f"no free place on the {part} part of the table can be reached and descended to "
-                        f"({len(reasons)} tried): {reasons[0]}")
+                        f"({len(reasons)} places and turns tried): {reasons[0]}")

@@ -142,25 +142,29 @@ def _forbidden(obstacle: np.ndarray, held: np.ndarray, gap: float) -> np.ndarray
 
 
 def free_places(env, lo: np.ndarray, hi: np.ndarray, held: int, prefer: np.ndarray | None = None,
-                gap: float = PLACE_GAP, spacing: float = PLACE_SPACING) -> list[np.ndarray]:
-    """Centres in the box ``lo``-``hi`` where the held object, as it is turned now, keeps ``gap`` from every
-    other object's footprint; nearest ``prefer`` (default: the box's centre) first."""
+                gap: float = PLACE_GAP, spacing: float = PLACE_SPACING, yaw: float = 0.0) -> list[np.ndarray]:
+    """Centres in the box ``lo``-``hi`` where the held object, as it is turned now and then by ``yaw`` about the
+    vertical, keeps ``gap`` from every other object's footprint; nearest ``prefer`` (default: the box's centre)
+    first."""
     xs = np.arange(lo[0], hi[0] + 1e-9, spacing)
     ys = np.arange(lo[1], hi[1] + 1e-9, spacing)
     if len(xs) == 0 or len(ys) == 0:
         return []
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     points = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    free = _free_mask(env, points, held, gap)
+    free = _free_mask(env, points, held, gap, yaw)
     chosen = points[free]
     prefer = 0.5 * (np.asarray(lo) + np.asarray(hi)) if prefer is None else np.asarray(prefer, dtype=float)
     return list(chosen[np.argsort(np.linalg.norm(chosen - prefer, axis=1), kind="stable")])
 
 
-def _free_mask(env, points: np.ndarray, held: int, gap: float) -> np.ndarray:
+def _free_mask(env, points: np.ndarray, held: int, gap: float, yaw: float = 0.0) -> np.ndarray:
     m = env.model
     held_body = m.body(env.names.objects[held]).id
     held_shape = footprint(env, held_body) - env.data.xpos[held_body][:2]
+    if yaw:
+        c, s = np.cos(yaw), np.sin(yaw)
+        held_shape = held_shape @ np.array([[c, -s], [s, c]]).T
     free = np.ones(len(points), dtype=bool)
     for i, name in env.names.objects.items():
         if i == held:

@@ -100,3 +100,25 @@ def test_planning_a_can_held_by_its_rim_is_let_go_into_a_bowl_stacked_on_a_bowl(
         assert rests_on(final.object(4), final.object(2)) and rests_on(final.object(2), final.object(0))
     finally:
         env.close()
+
+
+def test_planning_a_second_bowl_goes_right_with_the_hand_turned_past_a_tall_thermos():
+    """Clearing two bowls off the left part: after the first bowl took the place nearest the right part's centre,
+    every free place left there is one the forearm, carrying the second bowl as it was lifted, meets the 25 cm
+    thermos on the way down. ``move`` turns the hand (and the bowl with it) about the vertical, and ``lower``
+    sets the bowl down on the right part from there."""
+    from muble.core.table import parts_at
+
+    steps = []
+    for bowl in (4, 6):
+        steps += [("move", {"target": bowl}), ("approach", {"target": bowl}), ("close_gripper", {"target": bowl}),
+                  ("lift", {}), ("move", {"target": "right"}), ("lower", {})]
+    scene, env, results = _run("second_bowl_to_the_right_past_a_tall_thermos.json", steps)
+    try:
+        for bowl in (4, 6):
+            assert "right" in parts_at(*env.object_pose(bowl).pos[:2])
+        assert env.held_object is None
+        thermos = env.object_pose(3).pos[:2]
+        assert np.linalg.norm(thermos - np.asarray(scene.object(3).position[:2])) < 0.01  # not pushed aside
+    finally:
+        env.close()
