@@ -55,16 +55,40 @@ def scene_to_plain(scene: SceneGraph) -> dict[str, Any]:
     return plain(scene_to_dict(scene))
 
 
+# Object fields the scene schema requires that an observation mode may withhold (``masks`` mode sends no
+# attribute words): key in the file -> SceneObject attribute, and the stand-in parsed in their place.
+_WITHHELD = {"file": ("model", "?"), "name": ("name", "?"), "shape": ("shape", "?"), "size": ("size", "?"),
+             "material": ("material", "?"), "colour": ("colour", "?"), "stackable": ("stackable", False),
+             "stack_base": ("stack_base", False), "pickupable": ("pickupable", False)}
+
+
 def scene_from_plain(d: Any) -> SceneGraph:
-    """The agent's view back from ``scene_to_plain``'s data. Objects carry no ``weight_gt`` (None afterwards)."""
+    """The agent's view back from ``scene_to_plain``'s data, in any observation mode.
+
+    Objects carry no ``weight_gt`` (None afterwards). Attribute words and flags the mode withholds (null or
+    absent in ``masks`` mode) stay None, as the agent was given them; ``image`` mode's scene has no objects.
+    """
     if not isinstance(d, dict) or not isinstance(d.get("objects"), list):
         raise SceneValidationError("an observed scene must be a JSON object with a list of 'objects'")
     filled = copy.copy(d)
-    # The file schema requires weight_gt; an agent's view has none, so parse with a stand-in and clear it again.
-    filled["objects"] = [{**o, "weight_gt": 1.0} if isinstance(o, dict) else o for o in d["objects"]]
+    withheld: list[list[str]] = []
+    objects = []
+    for o in d["objects"]:
+        if isinstance(o, dict):
+            # The file schema requires weight_gt and the attribute words; an agent's view has no weight_gt and,
+            # in masks mode, no words: parse with stand-ins and clear them again.
+            missing = [key for key in _WITHHELD if o.get(key) is None]
+            o = {**o, "weight_gt": 1.0, **{key: _WITHHELD[key][1] for key in missing}}
+        else:
+            missing = []
+        withheld.append(missing)
+        objects.append(o)
+    filled["objects"] = objects
     scene = scene_from_dict(filled)
-    for o in scene.objects:
+    for o, missing in zip(scene.objects, withheld):
         o.weight_gt = None
+        for key in missing:
+            setattr(o, _WITHHELD[key][0], None)
     return scene
 
 
