@@ -25,6 +25,10 @@ class GeneratorConfig:
     The held-out options move each scene's camera (``camera_jitter_m`` metres per axis, ``camera_jitter_deg``
     degrees per Euler angle) and lamps (``lamp_jitter``: metres per axis, and the energy factor's spread around 1),
     each from a random stream of its own (``muble.generation.staging``); at 0 every scene is as without them.
+    ``distractors`` adds that many objects to each scene's drawn count and keeps a scene only when at least that
+    many of its objects are in no step's result of the instruction's program (no filter, relation or action of
+    the instruction picks them: ``muble.generation.task_mix``); the scene file lists those ids under
+    ``extra.generator.distractors``, hidden from agents.
     """
 
     object_set: str = ""
@@ -67,6 +71,7 @@ class GeneratorConfig:
     camera_jitter_m: float = bounded(0.0, ge=0)  # m, uniform per axis
     camera_jitter_deg: float = bounded(0.0, ge=0)  # degrees, uniform per EulerXYZ angle
     lamp_jitter: float = bounded(0.0, ge=0)  # m per axis; energy factor in [1 - j, 1 + j]
+    distractors: int = bounded(0, ge=0)  # objects beyond the drawn count that the instruction must not refer to
 
 
 def register_generator_config() -> None:

@@ -85,7 +85,7 @@ class SceneGenerator:
         self._collision_meshes = shared_collision_meshes()
         # One render model for every layout; sized for the full image so the mask renderer can share it.
         self._view = shared_view(self.camera, cfg.table_x, cfg.table_y,
-                                 slots=cfg.min_objects + len(cfg.count_probabilities) - 1)
+                                 slots=cfg.min_objects + len(cfg.count_probabilities) - 1 + cfg.distractors)
         self.directions = ground_truth.directions(self.camera)
         if reach_check is None and cfg.reach_check:
             from muble.generation.reachability import ReachCheck

@@ -105,11 +105,17 @@ def suited_scene(generator: Any, tasks: dict[str, Task], weights: Sequence[float
     config = generator.config
     max_samples = config.scene_samples if max_samples is None else max_samples
     count = config.min_objects + balanced_choice(config.count_probabilities, seed, index, COUNT_KEY)
+    distractors = int(getattr(config, "distractors", 0) or 0)
     task = tasks[template]
     chosen: dict[str, Any] = {}
 
     def accept(scene: SceneGraph) -> bool:
         for instruction in task.generate(scene, instruction_rng(index)):
+            if distractors:
+                free = unreferenced(instruction.program, scene)
+                if len(free) < distractors:
+                    continue  # the instruction would refer to (or depend on) an object meant to distract
+                chosen["distractors"] = free
             try:
                 chosen["plan"] = task.ground_truth(instruction, scene)
             except PlanningError:
@@ -123,19 +129,40 @@ def suited_scene(generator: Any, tasks: dict[str, Task], weights: Sequence[float
     for sample in range(max_samples):
         chosen.clear()
         try:
-            scene = generator.generate(index, sample=sample, objects=count, accept=accept,
+            scene = generator.generate(index, sample=sample, objects=count + distractors, accept=accept,
                                        stacks=lambda _: stacked_pairs(chosen["instruction"].program))
         except SceneGenerationError as e:
             for k, v in e.reasons.items():
                 reasons[k] = reasons.get(k, 0) + v
             continue
         rejections = {k: v - before.get(k, 0) for k, v in generator.failures.items() if v > before.get(k, 0)}
+        if distractors:
+            scene.extra.setdefault("generator", {})["distractors"] = chosen["distractors"]
         return SuitedScene(scene, task, template, chosen["instruction"], chosen["plan"], sample + 1, rejections)
     detail = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items()))
     raise SceneGenerationError(
         f"scene {index}: no scene sample with {count} objects suits template '{template}' in {max_samples} "
         f"samples ({detail}); lower its share in dataset.template_weights, raise generator.scene_samples, or "
         "use an object set with the objects the template needs", index=index, reasons=reasons)
+
+
+def unreferenced(program: list[dict[str, Any]], scene: SceneGraph) -> list[int]:
+    """Ids of the scene's objects that no step of ``program`` (as generated: with each step's ``output``) yields,
+    the ``scene`` step's "every object" aside: no filter, relation, comparison or action of the instruction picks
+    them, so removing them would change neither its meaning nor its ground truth."""
+    named: set[int] = set()
+
+    def collect(value: Any) -> None:
+        if isinstance(value, (list, tuple)):
+            for v in value:
+                collect(v)
+        elif isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            named.add(int(value))
+
+    for step in program:
+        if step.get("type") != "scene":
+            collect(step.get("output"))
+    return [o.id for o in scene.objects if o.id not in named]
 
 
 def choose_from_mix(tasks: list[Any], weights: np.ndarray, scene: Any, rng: np.random.Generator):

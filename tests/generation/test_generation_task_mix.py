@@ -85,3 +85,37 @@ def test_a_template_no_scene_suits_fails_naming_it(generator):
                      max_samples=2)
     assert info.value.reasons["not accepted"] == 2 * generator.config.layout_tries - info.value.reasons.get(
         "placement", 0)
+
+
+@pytest.mark.gl
+def test_distractors_are_objects_beyond_the_count_that_no_step_of_the_instruction_picks():
+    from muble.generation.task_mix import unreferenced
+
+    objects = get_registry().create("object_set", "shopvrb2")
+    plain = {**BUILTIN, "stability": False, "reach_check": False, "masks": False}
+    g = SceneGenerator({**plain, "distractors": 2}, seed=11, object_set=objects)
+    registry = get_registry()
+    tasks = {t: registry.create("task", t, {}) for t in TEMPLATES}
+    try:
+        for index in range(10):
+            suited = _suited(g, index, tasks)
+            scene, program = suited.scene, suited.instruction.program
+            assert len(scene.objects) == 4 + balanced_choice([0.473, 0.527], 11, index, 1) + 2
+            listed = scene.extra["generator"]["distractors"]
+            assert len(listed) >= 2 and listed == unreferenced(program, scene)
+            picked = set(_ints([step.get("output") for step in program if step["type"] != "scene"]))
+            assert picked and not picked & set(listed), (suited.template, listed, program)
+            assert scene_to_dict(scene)["generator"]["distractors"] == listed  # in the scene file, top level
+    finally:
+        g.close()
+    # Without distractors the scene file says nothing of them.
+    suited = _suited(SceneGenerator(plain, seed=11, object_set=objects), 0, tasks)
+    assert "distractors" not in suited.scene.extra["generator"]
+
+
+def _ints(value):
+    if isinstance(value, list):
+        for v in value:
+            yield from _ints(v)
+    elif isinstance(value, int):
+        yield value
