@@ -6,18 +6,26 @@ index's work is deterministic from (seed, index) alone.
 Local workers die with their parent: each asks the kernel for SIGKILL when its parent exits (Linux
 ``PR_SET_PDEATHSIG``) and also watches its parent's pid, so a ``kill -9`` of ``muble generate`` leaves no worker
 writing beside a restarted run. Ray joins an existing cluster only when given its address explicitly
-(``dataset.ray_address``); otherwise it starts a private local one, whatever ``RAY_ADDRESS`` says.
+(``dataset.ray_address``); otherwise it starts a private local one, whatever ``RAY_ADDRESS`` says, that only this
+machine can reach: every server of it listens on the loopback interface, its token and session files lie in a
+folder only this user can enter, and both are gone when the process ends.
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
+import ipaddress
 import logging
 import multiprocessing
 import os
+import secrets
+import shutil
 import signal
 import sys
+import tempfile
 import threading
 import time
+from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
 from muble.core.errors import ConfigError, unknown_name
@@ -100,6 +108,91 @@ def _processes(fn: Callable[[Any], Any], items: list[Any], workers: int, **_: An
                 pool.terminate()
 
 
+# Ray's environment for a private local cluster. Ray replaces a ``_node_ip_address`` of 127.0.0.1 by the host's
+# address and then binds its servers (GCS, raylet, object manager, workers, agents) to every interface; only its
+# single-machine mode (the one it uses on macOS and Windows, where it is on by default) keeps the node on the
+# loopback address, and with it every server. The token is one of our own in a private file, so Ray neither
+# writes ~/.ray/auth_token (at the umask's 0644) nor reads a token left there for another cluster.
+_LOOPBACK_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0"}
+_TOKEN_FILE = "auth_token"
+RAY_DIR_PREFIX = "muble-ray-"
+
+
+class _PrivateRay:
+    """The private local cluster of this process: started on first use, reused by later calls (one per split
+    would each pay Ray's start-up), shut down and its folder removed when the process exits."""
+
+    folder: Path | None = None
+    saved_env: dict[str, str | None] = {}
+    saved_cluster_flag = True
+
+    @classmethod
+    def start(cls, workers: int) -> None:
+        import ray
+        from ray._private import ray_constants
+
+        # mkdtemp makes the folder 0700; Ray makes its own session folders 0777 inside, which no other user can
+        # reach through this one. Under the system's temporary folder, not the dataset root: Ray's Unix socket
+        # paths inside it must stay under the kernel's 107 characters.
+        cls.folder = Path(tempfile.mkdtemp(prefix=RAY_DIR_PREFIX))
+        env = dict(_LOOPBACK_ENV)
+        if os.environ.get("RAY_AUTH_MODE", "token").lower() == "token":
+            token = cls.folder / _TOKEN_FILE
+            fd = os.open(token, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            with os.fdopen(fd, "w") as f:
+                f.write(secrets.token_hex(32))
+            env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN_PATH=str(token))
+        cls.saved_env = {k: os.environ.get(k) for k in (*env, "RAY_AUTH_TOKEN")}
+        os.environ.pop("RAY_AUTH_TOKEN", None)  # a token in the environment would take precedence over the file
+        os.environ.update(env)
+        # Ray read this flag when it was imported, perhaps before the environment above was set.
+        cls.saved_cluster_flag = ray_constants.ENABLE_RAY_CLUSTER
+        ray_constants.ENABLE_RAY_CLUSTER = False
+        atexit.register(cls.stop)
+        try:
+            _refresh_ray_token_state()
+            # address="local" always starts a new cluster for this process, never one found in the environment.
+            ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                     _temp_dir=str(cls.folder / "ray"))
+            node_ip = ray.util.get_node_ip_address()
+            if not ipaddress.ip_address(node_ip).is_loopback:
+                raise ConfigError(f"the private Ray cluster started on {node_ip}, not on the loopback interface "
+                                  f"(Ray {ray.__version__} ignores its single-machine mode): use "
+                                  "dataset.executor=processes, or start a cluster yourself and pass "
+                                  "dataset.ray_address")
+        except BaseException:
+            cls.stop()
+            raise
+        log.info("started a private Ray cluster on %s (session files in %s)", node_ip, cls.folder)
+
+    @classmethod
+    def stop(cls) -> None:
+        import ray
+        from ray._private import ray_constants
+
+        if cls.folder is None:
+            return
+        ray.shutdown()
+        ray_constants.ENABLE_RAY_CLUSTER = cls.saved_cluster_flag
+        for key, value in cls.saved_env.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+        shutil.rmtree(cls.folder, ignore_errors=True)
+        cls.folder = None
+
+
+def _refresh_ray_token_state() -> None:
+    """Make Ray re-read the authentication settings and token of the environment (it caches both per process)."""
+    try:
+        from ray._raylet import AuthenticationTokenLoader, Config
+    except ImportError:  # a Ray without token authentication: nothing cached
+        return
+    Config.initialize("")
+    AuthenticationTokenLoader.instance().reset_cache()
+
+
 def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: str | None = None,
          **_: Any) -> Iterator[Any]:
     import ray
@@ -112,8 +205,7 @@ def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: 
             if os.environ.get("RAY_ADDRESS"):
                 log.warning("RAY_ADDRESS=%s ignored: set dataset.ray_address to use an existing cluster; starting "
                             "a private local one", os.environ["RAY_ADDRESS"])
-            # address="local" always starts a new cluster for this process, never one found in the environment.
-            ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            _PrivateRay.start(workers)
     remote = ray.remote(num_cpus=1)(fn)
     pending = [remote.remote(item) for item in items]
     while pending:
