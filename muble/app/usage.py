@@ -72,11 +72,11 @@ def environment_error(ex: OSError) -> str:
     import errno
 
     name = str(ex.filename) if getattr(ex, "filename", None) else ""
-    where = f" {name[:60]}…{name[-40:]} ({len(name)} characters)" if len(name) > 120 else (f" {name}" if name else "")
+    where = f" {_shortened(name)}" if name else ""
     reason = ex.strerror or str(ex)[:300]
     if ex.errno == errno.ENOSPC:
-        advice = ("the disk is full: free space (or point the output elsewhere) and run the same command again; "
-                  "`muble generate` and `muble eval` carry on from what was written")
+        advice = (f"{_full_disk(name)}: free space on it (or point the output elsewhere) and run the same command "
+                  "again; `muble generate` and `muble eval` carry on from what was written")
     elif ex.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
         advice = "that folder cannot be written: choose a writable one (dataset.root=, output.dir=, hydra.run.dir=)"
     elif ex.errno in (errno.EEXIST, errno.ENOTDIR):
@@ -88,6 +88,35 @@ def environment_error(ex: OSError) -> str:
     else:
         advice = "check the path and the machine's state"
     return f"environment: cannot use{where}: {reason}; {advice}"
+
+
+def _shortened(path: str) -> str:
+    """A path as a message shows it: one of 10,000 characters by its ends."""
+    return f"{path[:60]}…{path[-40:]} ({len(path)} characters)" if len(path) > 120 else path
+
+
+def _full_disk(path: str) -> str:
+    """``the disk holding FOLDER (mounted at M, N MB free of T MB) is full``, as much of it as can be found."""
+    import shutil
+
+    if not path:
+        return "the disk is full"
+    folder = os.path.abspath(path)
+    while not os.path.isdir(folder) and os.path.dirname(folder) != folder:
+        folder = os.path.dirname(folder)
+    mount = folder
+    while not os.path.ismount(mount):
+        mount = os.path.dirname(mount)
+    where = f"the disk holding {_shortened(folder)} (mounted at {_shortened(mount)}"
+    try:
+        usage = shutil.disk_usage(folder)
+    except OSError:
+        return f"{where}) is full"
+    return f"{where}, {_size(usage.free)} free of {_size(usage.total)}) is full"
+
+
+def _size(n: int) -> str:
+    return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e3:.0f} kB"
 
 
 def explain_config_error(ex: BaseException) -> str | None:

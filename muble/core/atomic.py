@@ -43,7 +43,10 @@ def folder_mode() -> int:
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> str:
-    """Write ``data`` to ``path`` atomically; returns its sha256."""
+    """Write ``data`` to ``path`` atomically; returns its sha256.
+
+    On any failure (a full disk included) the temporary is removed and ``path`` keeps what it held; an
+    ``OSError`` names ``path`` even where the system call that failed (a write, an fsync) names no file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=TMP_PREFIX)
@@ -54,9 +57,11 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> str:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(e, OSError) and e.filename in (None, tmp):
+            raise OSError(e.errno, e.strerror or str(e), str(path)) from e
         raise
     return hashlib.sha256(data).hexdigest()
 
