@@ -171,9 +171,10 @@ class PrimitiveAction(ABC):
 
 
     def symbolic_effect(self, scene: "SceneGraph") -> ActionResult:
-        """What the primitive does in the symbolic world (no physics): change ``scene`` (ground truth; flags in
-        ``SceneObject.extra``) and return the result. Ground-truth plans of tasks that use the primitive are rolled
-        out through it. Optional; by default the primitive fails there as not modelled."""
+        """What the primitive does in the symbolic world (no physics): change ``scene`` (ground truth; the
+        gripper flags in ``SceneObject.extra``, read and set with ``muble.core.symbolic``) and return the result;
+        the world prefixes a failure's reason with the call. Ground-truth plans of tasks that use the primitive are
+        rolled out through it. Optional; by default the primitive fails there as not modelled."""
         return ActionResult(False, failure_reason=f"primitive '{type(self).__name__}' has no symbolic model "
                                                   "(PrimitiveAction.symbolic_effect)")
 

@@ -8,7 +8,8 @@ import logging
 import mujoco
 import numpy as np
 
-from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
+from muble.core.symbolic import ArmState, set_flag
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives.common import ATTEMPT, PART_OPEN, checked_result, rotated
 from muble_plugins.primitives.grasping import PAD_MARGIN, PRE_GRASP, grasp_approach, grasp_candidates, hand_clearance
@@ -87,6 +88,16 @@ class Approach(PrimitiveAction):
         if env.held_object is not None:
             raise PlanningError(f"the hand already holds object {env.held_object}; lower it before approaching")
         return obj_id, body, env.snapshot(), ctx.grip_geometry(env)
+
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The empty hand, hovering over the target, comes down into its grasp pose."""
+        hand = ArmState.of(scene)
+        target = scene.object(int(self.arguments["target"]))
+        if hand.held is not None or hand.over != target.id:
+            return ActionResult(False, failure_reason="move over an object with an empty gripper before approaching it")
+        set_flag(scene, "approached", target)
+        set_flag(scene, "gripper_over", None)
+        return ActionResult(True)
 
 
 # Hand openings tried in turn, as gripper commands (-1 open, 1 closed): fully open first (every grasp that fits

@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import logging
 
-from muble import ActionResult, Param, PrimitiveAction
+from muble import ActionResult, Param, PrimitiveAction, SceneGraph
+from muble.core.observation import MEASURED_STIFFNESS
+from muble.core.symbolic import CARRIED_TO, ArmState, set_flag
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +38,18 @@ class CloseGripper(PrimitiveAction):
                                 failure_reason=f"grasped object {held} instead of object {target}")
         return ActionResult(True, measurement=held, info={"held_object": held})
 
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The approached object, if it can be picked up, is in the empty hand."""
+        hand = ArmState.of(scene)
+        target = scene.object(int(self.arguments["target"]))
+        if hand.held is not None or hand.approached != target.id or not target.pickupable:
+            return ActionResult(False, failure_reason="grasping needs an approached, pickupable object and an empty "
+                                                      "gripper")
+        set_flag(scene, "approached", None)
+        set_flag(scene, "in_hand", target)
+        target.extra.pop(CARRIED_TO, None)
+        return ActionResult(True)
+
 
 class OpenGripper(PrimitiveAction):
     """Open the fingers, releasing whatever they hold."""
@@ -47,6 +61,16 @@ class OpenGripper(PrimitiveAction):
         env.open_gripper()
         env.hold(GRIPPER_SETTLE)
         return ActionResult(env.held_object is None, info={"released": released})
+
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The held object, standing on its support, is let go; the hand stays over it."""
+        hand = ArmState.of(scene)
+        held = hand.held_object(scene)
+        if held is None or hand.raised:
+            return ActionResult(False, failure_reason="lower the held object before releasing it")
+        set_flag(scene, "in_hand", None)
+        set_flag(scene, "gripper_over", held)
+        return ActionResult(True)
 
 
 class Weigh(PrimitiveAction):
@@ -64,6 +88,15 @@ class Weigh(PrimitiveAction):
         grams = env.weigh()
         return ActionResult(True, measurement=grams, info={"object": env.held_object, "unit": "g"})
 
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The lifted object's weight is known: its ground truth, recorded as measured (``SceneObject.weight``)."""
+        hand = ArmState.of(scene)
+        held = hand.held_object(scene)
+        if held is None or not hand.raised:
+            return ActionResult(False, failure_reason="weighing needs a lifted object")
+        held.weight = held.weight_gt
+        return ActionResult(True, measurement=held.weight_gt)
+
 
 class Squeeze(PrimitiveAction):
     """Stiffness (N/m) of the object between the fingers, from force against finger displacement."""
@@ -76,3 +109,14 @@ class Squeeze(PrimitiveAction):
             return ActionResult(False, failure_reason="nothing between the fingers to squeeze: grasp an object first")
         stiffness = env.squeeze()
         return ActionResult(True, measurement=stiffness, info={"object": env.held_object, "unit": "N/m"})
+
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The grasped object's stiffness is known (lifted or still standing on its support, as in ``execute``):
+        its ground truth, recorded as measured (``extra["stiffness_measured"]``)."""
+        held = ArmState.of(scene).held_object(scene)
+        if held is None:
+            return ActionResult(False, failure_reason="nothing between the fingers to squeeze: grasp an object first")
+        if held.stiffness is None:
+            return ActionResult(False, failure_reason=f"object {held.id} has no stiffness to measure")
+        held.extra[MEASURED_STIFFNESS] = held.stiffness  # as the physical world's scene graph records it
+        return ActionResult(True, measurement=held.stiffness)

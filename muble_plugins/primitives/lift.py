@@ -5,7 +5,8 @@ import logging
 
 import numpy as np
 
-from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
+from muble.core.symbolic import RAISE_HEIGHT, ArmState
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives.common import checked_result
 
@@ -34,6 +35,17 @@ class Lift(PrimitiveAction):
         else:
             report = ctx.execute(env, trajectory, world, allowed=support)
         return _checked(env, report, held, height)
+
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The grasped object rises off its support, ``RAISE_HEIGHT`` up whatever the ``height``."""
+        hand = ArmState.of(scene)
+        held = hand.held_object(scene)
+        if held is None or hand.raised:
+            return ActionResult(False, failure_reason="lifting needs a grasped object resting on its support")
+        held.extra["raised"] = True
+        held.extra["touching"] = []
+        held.position = held.position + [0.0, 0.0, RAISE_HEIGHT]
+        return ActionResult(True)
 
 
 def _leaving(env, world) -> set[int]:

@@ -7,8 +7,11 @@ import logging
 
 import numpy as np
 
-from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction
+from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
+from muble.core.footprint import free_spot, height
 from muble.core.geometry import tilt_deg
+from muble.core.observation import TOUCHING_TABLE
+from muble.core.symbolic import CARRIED_TO, RAISE_HEIGHT, ArmState, over, set_flag
 from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
@@ -55,6 +58,45 @@ class Lower(PrimitiveAction):
         result.info["unintended_contacts"] = sorted(set(result.info["unintended_contacts"])
                                                     | (rise.unintended_contacts if rise else set()))
         return result
+
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The raised object is set down upright and let go, the hand over it: on the object the hand hovers
+        over, on the table spot it was carried to (or the part's freest spot), else back where it stood."""
+        hand = ArmState.of(scene)
+        held = hand.held_object(scene)
+        if held is None or not hand.raised:
+            return ActionResult(False, failure_reason="lowering needs a lifted object")
+        target = self.arguments.get("target")
+        spot = held.extra.get(CARRIED_TO)
+        if isinstance(target, str) and spot is None:
+            spot = free_spot(scene, held, target)
+        elif target is not None and not isinstance(target, str) and hand.over != int(target) and \
+                not over(held, scene.object(int(target))):
+            return ActionResult(False, failure_reason=f"move over object {target} before lowering onto it")
+        _set_down(scene, held, hand, spot)
+        # Lowering puts the object down and lets go; the hand retreats straight up, over it.
+        held.extra["raised"] = False
+        set_flag(scene, "in_hand", None)
+        set_flag(scene, "gripper_over", held)
+        return ActionResult(True)
+
+
+def _set_down(scene: SceneGraph, held, hand: ArmState, spot: list[float] | None) -> None:
+    """The symbolic put-down: ``held`` on the object under the hand, at the table ``spot``, or straight down."""
+    held.extra.pop("tilt_deg", None)  # set down upright, however it leaned before
+    held.extra.pop(CARRIED_TO, None)
+    if hand.over is not None and hand.over != held.id:
+        base = scene.object(hand.over)
+        held.position = base.position + [0.0, 0.0, height(base)]
+        held.extra["touching"] = [base.id]
+    elif spot is not None:
+        held.position = held.position.copy()
+        held.position[:2] = spot[:2]
+        held.position[2] = spot[2]
+        held.extra["touching"] = [TOUCHING_TABLE]
+    else:
+        held.position = held.position - [0.0, 0.0, RAISE_HEIGHT]
+        held.extra.pop("touching", None)  # back where it stood, on what it stood on
 
 
 def _places(env, target, held, table):

@@ -6,7 +6,9 @@ import logging
 
 import numpy as np
 
-from muble import ActionResult, JointGoal, PlanningError, PoseGoal, PrimitiveAction
+from muble import ActionResult, JointGoal, PlanningError, PoseGoal, PrimitiveAction, SceneGraph
+from muble.core.footprint import free_spot
+from muble.core.symbolic import CARRIED_TO, ArmState, set_flag
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
 from muble_plugins.primitives.common import ATTEMPT, CARRY_TURNS, RELEASE_GAPS, TARGET_PLACE, checked_result, rotated
@@ -46,6 +48,32 @@ class Move(PrimitiveAction):
             raise
         report = ctx.execute(env, trajectory, world)
         return checked_result(placement.merge(rise, report), env, held, target=target)
+
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        """The hand hovers over the object, or over the table part; a raised object in it travels along, to the
+        part's freest spot (``free_spot``), where ``lower`` will put it."""
+        hand = ArmState.of(scene)
+        held = hand.held_object(scene)
+        if held is not None and not hand.raised:
+            return ActionResult(False, failure_reason="lift the held object before moving")
+        set_flag(scene, "approached", None)
+        if isinstance(self.arguments.get("target"), str):  # a table part
+            set_flag(scene, "gripper_over", None)
+            spot = free_spot(scene, held, self.arguments["target"]) if held is not None else None
+            if held is not None:
+                held.extra[CARRIED_TO] = spot
+            xy = spot[:2] if spot else None
+        else:
+            target = scene.object(int(self.arguments["target"]))
+            set_flag(scene, "gripper_over", target)
+            if held is not None:
+                held.extra.pop(CARRIED_TO, None)
+            xy = target.position[:2]
+        if held is not None and xy is not None:
+            # The lifted object travels with the gripper.
+            held.position = held.position.copy()
+            held.position[:2] = xy
+        return ActionResult(True)
 
 
 def first_planned(env, world, goals: list):

@@ -12,8 +12,9 @@ import numpy as np
 from muble import ActionCall, Agent, Answer, Instruction, Observation, Task, get_registry
 
 from muble.core.observation import MEASURED_STIFFNESS
+from muble.core.symbolic import ArmState
 
-from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH, ArmState
+from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH
 
 log = logging.getLogger(__name__)
 
