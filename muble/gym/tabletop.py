@@ -3,8 +3,8 @@
 Action: ``Box(-1, 1, (7,))`` = (dx, dy, dz, rx, ry, rz, gripper) of the ``IK_JOINT_SERVO`` controller, one control
 step (``robot.control_freq``) per ``step``; the pose part is scaled to at most 5 cm / 0.5 rad, gripper -1 opens and
 1 closes (``TabletopEnv.step``). Observation: a camera image (``image``, the configured renderer at the configured
-size) and the proprioception (end-effector pose, joint positions and velocities, gripper command and opening, a
-held flag). The environment has no reward of its own (0): wrap it with the reward of the skill being learned. A
+size; left out with ``render=False``) and the proprioception (end-effector pose, joint positions and velocities,
+gripper command and opening, a held flag). The environment has no reward of its own (0): wrap it with the reward of the skill being learned. A
 physics fault ends the episode (``terminated``, ``info["outcome"] == "broken_scene"``); the registered id truncates
 after 400 steps.
 """
@@ -25,8 +25,20 @@ from muble.sim.spaces import control_space, proprioception, proprioception_space
 log = logging.getLogger(__name__)
 
 SCENE_TRIES = 20
+# Small RGB images drawn for speed: on a software rasteriser robosuite's shadow-casting lights and the robot's
+# ~170k visual triangles cost ~0.9 s a frame as a keyframe is drawn. Without shadows, floor reflection and
+# multisampling, and with the robot's meshes clustered on a 1 cm grid (under a pixel of a 128x128 view of the
+# table), the masks stay within IoU 0.95 of the detailed meshes' (benchmarks/gym_speed.py measures both).
 DEFAULT_OVERRIDES = ("renderer.width=128", "renderer.height=128", "renderer.depth=false",
                      "renderer.segmentation=false")
+FAST_MUJOCO_OVERRIDES = ("renderer.shadows=false", "renderer.reflection=false", "renderer.multisamples=0",
+                         "renderer.mesh_cell=0.01")
+
+
+def default_overrides(overrides: Sequence[str]) -> tuple[str, ...]:
+    """The environment's defaults under ``overrides``: the fast MuJoCo settings unless another renderer is chosen."""
+    chosen = [o.split("=", 1)[1] for o in overrides if o.split("=", 1)[0].lstrip("+~") == "renderer" and "=" in o]
+    return DEFAULT_OVERRIDES + (FAST_MUJOCO_OVERRIDES if chosen in ([], ["mujoco"]) else ())
 
 
 def arm_dof(robot: str) -> int:
@@ -42,31 +54,35 @@ class TabletopGymEnv(gym.Env):
     Configure with ``config`` (a Hydra-composed MuBlE config) and/or ``overrides`` (``["robot=UR5e",
     "renderer.width=224", "renderer.height=224"]``); ``camera`` picks the view. ``reset(seed=s)`` draws the scene
     index from the seeded generator (same seed, same scene); ``reset(options={"scene_index": i})`` or
-    ``{"scene": {...}}`` (SHOP-VRB2 JSON data) chooses it.
+    ``{"scene": {...}}`` (SHOP-VRB2 JSON data) chooses it. ``render=False`` leaves the image out of the observation
+    (proprioception only; no renderer and no GL context are made).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
     def __init__(self, config: Any = None, overrides: Sequence[str] = (), camera: str = "front",
-                 render_mode: str | None = None):
+                 render_mode: str | None = None, render: bool = True):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(f"unknown render_mode {render_mode!r}; valid: {self.metadata['render_modes']}")
+        if render_mode is not None and not render:
+            raise ConfigError("render_mode='rgb_array' needs render=True (the image is what it shows)")
         from omegaconf import OmegaConf
 
         from muble.episode.components import build_components, scene_generator
         from muble.plugins.registry import get_registry
 
-        self.cfg = environment_config(config, overrides, DEFAULT_OVERRIDES)
+        self.cfg = environment_config(config, overrides, default_overrides(overrides))
         self.render_mode = render_mode
         self.camera = camera
         self.robot = OmegaConf.to_container(self.cfg.robot, resolve=True)
-        self.components = build_components(self.cfg, renderer=True, task=False)
+        self.render_images = bool(render)
+        self.components = build_components(self.cfg, renderer=self.render_images, task=False)
         self.registry = get_registry()
         self.generator = scene_generator(self.cfg, self.components["object_set"])
         self.metadata = {**self.metadata, "render_fps": float(self.cfg.robot.control_freq)}
         size = (int(self.cfg.renderer.height), int(self.cfg.renderer.width))
-        self.observation_space = spaces.Dict({"image": image_space(*size),
-                                              **proprioception_space(arm_dof(self.robot["name"])).spaces})
+        image = {"image": image_space(*size)} if self.render_images else {}
+        self.observation_space = spaces.Dict({**image, **proprioception_space(arm_dof(self.robot["name"])).spaces})
         self.action_space = control_space()
         self.env = None
         self._image: np.ndarray | None = None
@@ -149,10 +165,13 @@ class TabletopGymEnv(gym.Env):
             env.close()
             raise
         self.env = env
-        self.components["renderer"].setup(env.sync_scene_graph(), env.model)
+        if self.render_images:
+            self.components["renderer"].setup(env.sync_scene_graph(), env.model)
 
     def _observation(self) -> dict[str, Any]:
         env = self.env
+        if not self.render_images:
+            return proprioception(env)
         camera = env.names.cameras.get(self.camera, self.camera)
         self._image = self.components["renderer"].render(env.data, camera).rgb
         return {"image": self._image.copy(), **proprioception(env)}

@@ -10,6 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import muble.gym  # noqa: F401 - registers the ids
+from muble.core.errors import ConfigError
 from muble.core.types import ActionCall, Answer
 from muble.gym.shopvrb2 import MalformedAction, parse_action
 
@@ -76,3 +77,29 @@ def test_tabletop_passes_the_env_checker_and_seeds_deterministically():
         assert obs["ee_pos"][2] > first["ee_pos"][2]  # moved up
     finally:
         env.close()
+
+
+@pytest.mark.slow
+def test_tabletop_state_only_leaves_the_image_out_and_makes_no_renderer():
+    env = gymnasium.make("MuBlE/Tabletop-v0", render=False)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check_env(env.unwrapped, skip_render_check=True)
+        assert "image" not in env.observation_space.spaces and env.unwrapped.components["renderer"] is None
+        first, _ = env.reset(seed=3)
+        obs, _, terminated, _, _ = env.step(np.array([0, 0, 1, 0, 0, 0, 1], dtype=np.float32))
+        assert "image" not in obs and env.observation_space.contains(obs) and not terminated
+        assert obs["ee_pos"][2] > first["ee_pos"][2]
+    finally:
+        env.close()
+
+
+def test_tabletop_fast_rendering_defaults_apply_to_the_mujoco_renderer_only():
+    from muble.gym.tabletop import FAST_MUJOCO_OVERRIDES, default_overrides
+
+    assert set(FAST_MUJOCO_OVERRIDES) <= set(default_overrides([]))
+    assert set(FAST_MUJOCO_OVERRIDES) <= set(default_overrides(["renderer=mujoco", "robot=UR5e"]))
+    assert not set(FAST_MUJOCO_OVERRIDES) & set(default_overrides(["renderer=blender"]))
+    with pytest.raises(ConfigError, match="render_mode"):
+        gymnasium.make("MuBlE/Tabletop-v0", render=False, render_mode="rgb_array")

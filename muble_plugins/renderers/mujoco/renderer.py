@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -11,8 +12,11 @@ from muble.core.errors import unknown_name
 
 from muble_plugins.renderers.mujoco.atlas import MeshAtlas, atlas_compatible
 from muble_plugins.renderers.mujoco.labels import geom_labels
+from muble_plugins.renderers.mujoco.simplify import SimplifiedMeshes
 
 log = logging.getLogger(__name__)
+
+DEFAULT_SHADOW_SIZE = 1024
 
 
 @dataclass
@@ -32,8 +36,16 @@ class MujocoRendererConfig:
     # map of ``shadow_size`` texels (None: the model's ``visual/quality/shadowsize``, MuJoCo's default 4096).
     # They are most of an RGB frame's cost on a software rasteriser; turning them off or shrinking the maps
     # changes the RGB image (depth and segmentation never carry shadows): benchmarks/keyframe_breakdown.py.
+    # 1024: a quarter of the 4096² maps' cost for 0.07 % of a keyframe's pixels, along shadow edges.
     shadows: bool = True
-    shadow_size: int | None = None
+    shadow_size: int | None = DEFAULT_SHADOW_SIZE
+    # The floor's reflection (robosuite's floor reflects 1 %): drawing it draws the scene a second time.
+    reflection: bool = True
+    # Multisampling of the RGB pass (None: the model's ``visual/quality/offsamples``, robosuite's 4); 0 turns it off.
+    multisamples: int | None = None
+    # Visual meshes of at least a thousand triangles drawn simplified on a grid of this many metres (None: as
+    # modelled); for small images, whose pixels are larger than the cell (muble_plugins/renderers/mujoco/simplify.py).
+    mesh_cell: float | None = None
 
 
 class MujocoRenderer(Renderer):
@@ -41,7 +53,8 @@ class MujocoRenderer(Renderer):
 
     def __init__(self, width: int = 848, height: int = 480, rgb: bool = True, depth: bool = True,
                  segmentation: bool = True, reuse_meshes: bool = True, geom_groups: list[int] | tuple = (1, 2),
-                 shadows: bool = True, shadow_size: int | None = None):
+                 shadows: bool = True, shadow_size: int | None = DEFAULT_SHADOW_SIZE, reflection: bool = True,
+                 multisamples: int | None = None, mesh_cell: float | None = None):
         if width <= 0 or height <= 0:
             raise RenderError(f"image size must be positive, got {width}x{height}; set renderer.width/height")
         if not (rgb or depth or segmentation):
@@ -50,9 +63,16 @@ class MujocoRenderer(Renderer):
             raise RenderError(f"geom_groups must be MuJoCo groups 0..5, got {list(geom_groups)}")
         if shadow_size is not None and not 64 <= int(shadow_size) <= 16384:
             raise RenderError(f"shadow_size must be 64..16384 texels (or null for the model's own), got {shadow_size}")
+        if multisamples is not None and not 0 <= int(multisamples) <= 16:
+            raise RenderError(f"multisamples must be 0..16 (or null for the model's own), got {multisamples}")
+        if mesh_cell is not None and not 0 < float(mesh_cell) <= 0.1:
+            raise RenderError(f"mesh_cell must be a grid of 0..0.1 m (or null for meshes as modelled), got {mesh_cell}")
         self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes,
                                            [int(g) for g in geom_groups], bool(shadows),
-                                           None if shadow_size is None else int(shadow_size))
+                                           None if shadow_size is None else int(shadow_size), bool(reflection),
+                                           None if multisamples is None else int(multisamples),
+                                           None if mesh_cell is None else float(mesh_cell))
+        self._simplified = None if mesh_cell is None else SimplifiedMeshes(float(mesh_cell))
         self._gl = None
         self._context = None  # MjrContext
         self._context_model = None  # the model the context was made from
@@ -97,8 +117,6 @@ class MujocoRenderer(Renderer):
             elif self._context_model is not self._atlas.model:
                 self._make_context(self._atlas.model)
         if remap is None:
-            model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), w)
-            model.vis.global_.offheight = max(int(model.vis.global_.offheight), h)
             self._make_context(model)
         self._mesh_remap = remap
         self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
@@ -107,6 +125,7 @@ class MujocoRenderer(Renderer):
         self._option.geomgroup[self.config.geom_groups] = 1
         self._option.sitegroup[:] = 0
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = int(self.config.shadows)
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = int(self.config.reflection)
         self._set_up_with = (scene, model)
 
     def _make_context(self, model) -> None:
@@ -114,14 +133,21 @@ class MujocoRenderer(Renderer):
 
         if self._context is not None:
             self._context.free()
-        # The context sizes its shadow maps from the model it is made from; the caller's model is left as it was.
-        own_size = int(model.vis.quality.shadowsize)
+        # The context sizes its shadow maps, multisampling and offscreen buffer from the model it is made from and
+        # uploads that model's meshes; these are set for its making only, and the caller's model is left as it was.
+        quality, buffer = model.vis.quality, model.vis.global_
+        own = (int(quality.shadowsize), int(quality.offsamples), int(buffer.offwidth), int(buffer.offheight))
         if self.config.shadow_size is not None:
-            model.vis.quality.shadowsize = self.config.shadow_size
+            quality.shadowsize = self.config.shadow_size
+        if self.config.multisamples is not None:
+            quality.offsamples = self.config.multisamples
+        # A buffer the image's size: a larger one only costs clearing and resolving pixels never read.
+        buffer.offwidth, buffer.offheight = self.config.width, self.config.height
         try:
-            self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+            with self._simplified.drawn_in(model) if self._simplified is not None else nullcontext():
+                self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         finally:
-            model.vis.quality.shadowsize = own_size
+            quality.shadowsize, quality.offsamples, buffer.offwidth, buffer.offheight = own
         self._context_model = model
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
         # Read depth as reversed z (far = 0), the mapping _metric_depth undoes.
