@@ -9,11 +9,13 @@ The baseline is the same work with a fresh OpenGL context per episode (what ever
 were kept), measured in the same run, episodes interleaved so load on a shared machine hits both alike. Both
 paths must write the same bytes: the run fails otherwise.
 
-Renderer overrides after the counts (``renderer.shadows=false``, ``renderer.shadow_size=1024``) add a third
+Renderer overrides after the counts (``renderer.shadows=false``, ``renderer.shadow_size=2048``) add a third
 path, the same work with a renderer built with them, timed in the same run; its cost is printed as a ratio to
 the default's, with the share of RGB pixels it changes in the last keyframe of each episode (what it gives up).
+``before`` in their place is the keyframe as written before 1024² shadow maps and PNG level 1 were the defaults
+(``renderer.shadow_size=null``, PNG level 6).
 
-    python benchmarks/keyframes.py [EPISODES] [KEYFRAMES_PER_EPISODE] [renderer.OPTION=VALUE ...]
+    python benchmarks/keyframes.py [EPISODES] [KEYFRAMES_PER_EPISODE] [renderer.OPTION=VALUE ... | before]
 """
 from __future__ import annotations
 
@@ -29,10 +31,11 @@ import numpy as np
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-GOAL_SECONDS = 0.2
+GOAL_SECONDS = 0.3
+BEFORE_PNG_LEVEL = 6  # Pillow's default, what png_bytes wrote before level 1
 
 
-def episode(renderer, env, scene, keyframes: int) -> tuple[float, float, str, np.ndarray]:
+def episode(renderer, env, scene, keyframes: int, png_level: int | None = None) -> tuple[float, float, str, np.ndarray]:
     """Wall and CPU seconds of one episode's keyframes, a digest of everything written and the last RGB."""
     import mujoco
 
@@ -51,7 +54,7 @@ def episode(renderer, env, scene, keyframes: int) -> tuple[float, float, str, np
         env.data.qpos[:7] = arm + 0.05 * k * np.sin(np.arange(7) + k)  # the arm moves between keyframes
         mujoco.mj_forward(env.model, env.data)
         frame = renderer.render(env.data, camera)
-        digest.update(png_bytes(frame.rgb))
+        digest.update(png_bytes(frame.rgb) if png_level is None else png_bytes(frame.rgb, png_level))
         for obj in scene.objects:
             for _ in ("observations", "observations_gt"):
                 digest.update(json.dumps(encode_rle(frame.segmentation == obj.id)).encode())
@@ -81,6 +84,9 @@ def main() -> int:
     episodes = int(sys.argv[1]) if len(sys.argv) > 1 else 3
     keyframes = int(sys.argv[2]) if len(sys.argv) > 2 else 6
     overrides = sys.argv[3:]
+    before = overrides == ["before"]
+    if before:
+        overrides = ["renderer.shadow_size=null"]
     cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", "renderer=mujoco"])
     components = build_components(cfg, task=False)
     renderer = components["renderer"]
@@ -111,7 +117,8 @@ def main() -> int:
             if mode == "fresh":
                 gl.free_spares()
             wall, cpu, digests[mode], last[mode] = episode(variant if mode == "variant" else renderer, env, scene,
-                                                           keyframes)
+                                                           keyframes, BEFORE_PNG_LEVEL if before and mode == "variant"
+                                                           else None)
             totals[mode][0] += wall
             totals[mode][1] += cpu
         mismatches += digests["fresh"] != digests["kept"]

@@ -43,11 +43,15 @@ def choose_instruction(task: Task, scene: SceneGraph, seed: int, index: int) -> 
     return candidates[0]
 
 
-def png_bytes(rgb: np.ndarray) -> bytes:
+# zlib level 1: a third of level 6's time for a file about 13 % larger, the same pixels (docs/rendering.md).
+PNG_COMPRESS_LEVEL = 1
+
+
+def png_bytes(rgb: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL) -> bytes:
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(rgb).save(buf, format="PNG", optimize=False)
+    Image.fromarray(rgb).save(buf, format="PNG", optimize=False, compress_level=compress_level)
     return buf.getvalue()
 
 
