@@ -81,16 +81,24 @@ class TemplateSpec:
     source: str = ""
 
 
-# ------------------------------------------------------------------------------------------------ references
-# References and constraints are compiled once into closures of (bound parameters, option context): generation
-# checks them hundreds of thousands of times.
+# ---------------------------------------------------------------------------------------- interpretation
+# Each reference and constraint of a template is read once into a function of (bound parameters, option context),
+# chosen by its type from the tables below; generation then only calls them (hundreds of thousands of times), and
+# no source is generated or run.
 Ref = Callable[[dict, Any], Any]
+Check = Callable[[dict, Any], bool]
+PROPERTIES = ("pickupable", "stackable", "stack_base")  # what ``is`` and ``tp_set`` may look at
+ATTRIBUTES = ("model", "name", "shape", "size", "material", "colour")  # what ``among`` may look at
+
+
+def _name(ref: str) -> str:
+    return ref[1:-1] if ref.startswith("<") and ref.endswith(">") else ref
 
 
 def compile_ref(ref: Any) -> Ref:
     """A reference (see the module doc) as a function of (bound parameters, option context)."""
     if isinstance(ref, str):
-        name = ref[1:-1] if ref.startswith("<") and ref.endswith(">") else ref
+        name = _name(ref)
         return lambda b, c: b.get(name, name)  # not a parameter: a literal word ("left", "ascending")
     if isinstance(ref, dict) and len(ref) == 1:
         (kind, args), = ref.items()
@@ -114,7 +122,7 @@ def compile_ref(ref: Any) -> Ref:
 def _refs(x: Any) -> list[str]:
     """Every parameter name a reference mentions."""
     if isinstance(x, str):
-        return [x[1:-1] if x.startswith("<") and x.endswith(">") else x]
+        return [_name(x)]
     if isinstance(x, dict):
         return [n for v in x.values() for n in _refs(v)]
     if isinstance(x, (list, tuple)):
@@ -131,50 +139,65 @@ def _ranked_ok(c: Any, ranked: list[int] | None) -> bool:
         and all(c.obj(i).stackable for i in ranked[1:])
 
 
-def _targets(k: dict, n: int) -> list[Ref]:
-    target = k["target"]
-    if n == 1:
-        return [compile_ref(target)]
-    if not isinstance(target, list) or len(target) != n:
-        raise ConfigError(f"constraint {k['type']} needs a target of {n} references, got {target!r}")
-    return [compile_ref(t) for t in target]
+def _property(k: dict, allowed: tuple[str, ...], what: str = "property") -> str:
+    if k.get("property") not in allowed:
+        raise ConfigError(unknown_name(what, str(k.get("property")), allowed))
+    return k["property"]
 
 
-def _is(k):
-    (t,), prop = _targets(k, 1), k["property"]
+def _values(k: dict) -> frozenset[str]:
+    values = k.get("values")
+    if not isinstance(values, list) or not values or not all(isinstance(v, str) for v in values):
+        raise ConfigError(f"constraint among needs values: a non-empty list of words, got {values!r}")
+    return frozenset(values)
 
-    def check(b, c):
-        value = t(b, c)
-        if isinstance(value, int):
-            return getattr(c.obj(value), prop)
-        return all(getattr(c.obj(i), prop) for i in value)
+
+# Each constraint type: (how many references its target holds, a factory of its check from (the constraint's
+# entry, its target's references, the template's parameter kinds)).
+def _is(k, refs, kinds):
+    (value,), prop, target = refs, _property(k, PROPERTIES), k["target"]
+    plain = kinds.get(_refs(target)[0]) if isinstance(target, str) else None
+    if plain == "object":
+        return lambda b, c: getattr(c.obj(value(b, c)), prop)
+    if plain is not None:
+        return lambda b, c: all(getattr(c.obj(i), prop) for i in value(b, c))
+
+    def check(b, c):  # a derived reference: an object, a set, or None (no such object): false
+        found = value(b, c)
+        if found is None:
+            return False
+        if isinstance(found, int):
+            return getattr(c.obj(found), prop)
+        return all(getattr(c.obj(i), prop) for i in found)
     return check
 
 
-def _count(limit_ok):
-    def make(k):
-        (t,), value = _targets(k, 1), int(k["value"])
-        return lambda b, c: limit_ok(len(t(b, c)), value)
+def _among(k, refs, kinds):
+    (value,), attribute, values = refs, _property(k, ATTRIBUTES, "attribute"), _values(k)
+    return lambda b, c: all(getattr(c.obj(i), attribute) in values for i in _members(value(b, c)))
+
+
+def _count(within):
+    def make(k, refs, kinds):
+        (value,), limit = refs, int(k["value"])
+        return lambda b, c: within(len(value(b, c)), limit)
     return make
 
 
-def _distinct(k):
-    first, second = _targets(k, 2)
-
-    def check(b, c):
-        x, y = first(b, c), second(b, c)
-        return x != y if isinstance(y, int) else x not in y
-    return check
+def _distinct(k, refs, kinds):
+    first, second = refs
+    if kinds.get(_refs(k["target"][1])[0]) == "object":
+        return lambda b, c: first(b, c) != second(b, c)
+    return lambda b, c: first(b, c) not in second(b, c)
 
 
-def _not_tp(k):
-    obj, part = _targets(k, 2)
+def _not_tp(k, refs, kinds):
+    obj, part = refs
     return lambda b, c: part(b, c) not in c.parts(obj(b, c))
 
 
-def _tp_set(k):
-    group, part = _targets(k, 2)
-    prop = k["property"]
+def _tp_set(k, refs, kinds):
+    (group, part), prop = refs, _property(k, PROPERTIES)
 
     def check(b, c):
         where = part(b, c)
@@ -184,198 +207,60 @@ def _tp_set(k):
 
 
 def _pair(method):
-    def make(k):
-        group, which = _targets(k, 2)
+    def make(k, refs, kinds):
+        group, which = refs
         return lambda b, c: getattr(c, method)(group(b, c), which(b, c)) is not None
     return make
 
 
 def _ranked(method, stack):
-    def make(k):
-        (group,) = _targets(k, 1)
+    def make(k, refs, kinds):
+        (group,) = refs
         if stack:
             return lambda b, c: _ranked_ok(c, getattr(c, method)(group(b, c)))
         return lambda b, c: getattr(c, method)(group(b, c)) is not None
     return make
 
 
-def _among(k):
-    (t,), prop, values = _targets(k, 1), _attribute(k), frozenset(_values(k))
-
-    def check(b, c):
-        return all(getattr(c.obj(i), prop) in values for i in _members(t(b, c)))
-    return check
-
-
-def _related(k):
-    anchor, relation, other = _targets(k, 3)
+def _related(k, refs, kinds):
+    anchor, relation, other = refs
     return lambda b, c: other(b, c) in related(c.index.scene, anchor(b, c), relation(b, c))
 
 
-def _room(k):
-    movers, part = _targets(k, 2)
+def _room(k, refs, kinds):
+    movers, part = refs
     return lambda b, c: c.room(_members(movers(b, c)), part(b, c))
 
 
-# Constraint type -> a factory of its check(bound, context) from the constraint's entry.
-CONSTRAINTS: dict[str, Callable[[dict], Ref]] = {
-    "is": _is,
-    "max_count": _count(lambda n, v: n <= v),
-    "min_count": _count(lambda n, v: n >= v),
-    "distinct": _distinct,
-    "not_tp": _not_tp,
-    "tp_set": _tp_set,
-    "weight_extreme": _pair("extreme"),
-    "weight_order": _ranked("by_weight", stack=False),
-    "stack_order": _ranked("by_weight", stack=True),
-    "stiffness_extreme": _pair("stiffness_extreme"),
-    "stiffness_order": _ranked("by_stiffness", stack=False),
-    "stiffness_stack_order": _ranked("by_stiffness", stack=True),
-    "related": _related,
-    "among": _among,
+CONSTRAINTS: dict[str, tuple[int, Callable[[dict, list, dict], Check]]] = {
+    "is": (1, _is),
+    "max_count": (1, _count(lambda n, v: n <= v)),
+    "min_count": (1, _count(lambda n, v: n >= v)),
+    "distinct": (2, _distinct),
+    "not_tp": (2, _not_tp),
+    "tp_set": (2, _tp_set),
+    "weight_extreme": (2, _pair("extreme")),
+    "weight_order": (1, _ranked("by_weight", stack=False)),
+    "stack_order": (1, _ranked("by_weight", stack=True)),
+    "stiffness_extreme": (2, _pair("stiffness_extreme")),
+    "stiffness_order": (1, _ranked("by_stiffness", stack=False)),
+    "stiffness_stack_order": (1, _ranked("by_stiffness", stack=True)),
+    "related": (3, _related),
+    "among": (1, _among),
 }
-DEAR_CONSTRAINTS: dict[str, Callable[[dict], Ref]] = {"room": _room}
+# Dear constraints are checked only for the options the generator samples (``DataTemplate.feasible``).
+DEAR_CONSTRAINTS: dict[str, tuple[int, Callable[[dict, list, dict], Check]]] = {"room": (2, _room)}
 
 
-# ------------------------------------------------------------------------------------------ compiled options
-# Generation lists every option of every template for every scene, so a template's options are compiled once into
-# plain nested loops (Python source built from the validated entry: parameter names are identifiers, words are
-# repr()'d literals, properties one of PROPERTIES), as fast as hand-written ones.
-PROPERTIES = ("pickupable", "stackable", "stack_base")
-ATTRIBUTES = ("model", "name", "shape", "size", "material", "colour")  # what ``among`` may look at
-
-
-def _attribute(k: dict) -> str:
-    if k.get("property") not in ATTRIBUTES:
-        raise ConfigError(unknown_name("attribute", str(k.get("property")), ATTRIBUTES))
-    return k["property"]
-
-
-def _values(k: dict) -> list[str]:
-    values = k.get("values")
-    if not isinstance(values, list) or not values or not all(isinstance(v, str) for v in values):
-        raise ConfigError(f"constraint among needs values: a non-empty list of words, got {values!r}")
-    return values
-
-
-def _is_any(c: Any, value: Any, prop: str) -> bool:
-    if value is None:
-        return False
-    if isinstance(value, int):
-        return getattr(c.obj(value), prop)
-    return all(getattr(c.obj(i), prop) for i in value)
-
-
-def _tp_set_ok(c: Any, group: Any, part: str, prop: str) -> bool:
-    inside = [i for i in group if part in c.parts(i)]
-    return bool(inside) and all(getattr(c.obj(i), prop) for i in inside)
-
-
-_HELPERS = {"_is_any": _is_any, "_tp_set_ok": _tp_set_ok, "_ranked_ok": _ranked_ok, "_members": _members,
-            "related": related, "OPPOSITE": OPPOSITE_PART}
-
-
-def _expr(ref: Any, kinds: dict[str, str]) -> str:
-    """A reference as a Python expression over the loop variables ``p_<NAME>`` and the option context ``c``."""
-    if isinstance(ref, str):
-        name = ref[1:-1] if ref.startswith("<") and ref.endswith(">") else ref
-        return f"p_{name}" if name in kinds else repr(name)
-    if isinstance(ref, dict) and len(ref) == 1:
-        (kind, args), = ref.items()
-        if kind == "opposite":
-            return f"OPPOSITE[{_expr(args, kinds)}]"
-        if isinstance(args, list) and len(args) == 2:
-            a, b = _expr(args[0], kinds), _expr(args[1], kinds)
-            if kind in ("extreme", "stiffness_extreme"):
-                return f"c.{kind}({a}, {b})"
-            if kind == "members_in":
-                return f"[i for i in {a} if {b} in c.parts(i)]"
-            if kind == "related":
-                return f"related(c.index.scene, {a}, {b})"
-    raise ConfigError(f"unknown reference {ref!r}; use a parameter name or one of extreme, stiffness_extreme, "
-                      "members_in, opposite, related")
-
-
-def _condition(k: dict, kinds: dict[str, str]) -> str:
-    """A constraint as a Python boolean expression (see ``_expr``)."""
-    kind, target = k["type"], k.get("target")
+def read_constraint(k: dict, kinds: dict[str, str]) -> Check:
+    """The check of a constraint entry (its ``type`` one of ``CONSTRAINTS`` or ``DEAR_CONSTRAINTS``) for a
+    template whose parameters have ``kinds``."""
+    needs, make = {**CONSTRAINTS, **DEAR_CONSTRAINTS}[k["type"]]
+    target = k.get("target")
     targets = target if isinstance(target, list) else [target]
-    e = [_expr(t, kinds) for t in targets]
-    needs = {"is": 1, "max_count": 1, "min_count": 1, "weight_order": 1, "stack_order": 1, "stiffness_order": 1,
-             "stiffness_stack_order": 1, "distinct": 2, "not_tp": 2, "tp_set": 2, "weight_extreme": 2,
-             "stiffness_extreme": 2, "room": 2, "related": 3, "among": 1}[kind]
-    if len(e) != needs:
-        raise ConfigError(f"constraint {kind} needs a target of {needs} reference(s), got {target!r}")
-    if kind in ("is", "tp_set") and k.get("property") not in PROPERTIES:
-        raise ConfigError(unknown_name("property", str(k.get("property")), PROPERTIES))
-    plain = isinstance(target, str) and _refs(target)[0] in kinds
-    if kind == "is":
-        if plain and kinds[_refs(target)[0]] == "object":
-            return f"c.obj({e[0]}).{k['property']}"
-        if plain:
-            return f"all(c.obj(i).{k['property']} for i in {e[0]})"
-        return f"_is_any(c, {e[0]}, {k['property']!r})"
-    if kind == "among":
-        values = repr(frozenset(_values(k)))
-        return f"all(c.obj(i).{_attribute(k)} in {values} for i in _members({e[0]}))"
-    if kind in ("max_count", "min_count"):
-        return f"len({e[0]}) {'<=' if kind == 'max_count' else '>='} {int(k['value'])}"
-    if kind == "distinct":
-        second = _refs(targets[1])[0]
-        return f"{e[0]} != {e[1]}" if kinds.get(second) == "object" else f"{e[0]} not in {e[1]}"
-    if kind == "not_tp":
-        return f"{e[1]} not in c.parts({e[0]})"
-    if kind == "tp_set":
-        return f"_tp_set_ok(c, {e[0]}, {e[1]}, {k['property']!r})"
-    if kind == "weight_extreme":
-        return f"c.extreme({e[0]}, {e[1]}) is not None"
-    if kind == "stiffness_extreme":
-        return f"c.stiffness_extreme({e[0]}, {e[1]}) is not None"
-    if kind in ("weight_order", "stiffness_order"):
-        return f"c.{'by_weight' if kind == 'weight_order' else 'by_stiffness'}({e[0]}) is not None"
-    if kind in ("stack_order", "stiffness_stack_order"):
-        return f"_ranked_ok(c, c.{'by_weight' if kind == 'stack_order' else 'by_stiffness'}({e[0]}))"
-    if kind == "related":
-        return f"{e[2]} in related(c.index.scene, {e[0]}, {e[1]})"
-    return f"c.room(_members({e[0]}), {e[1]})"  # room
-
-
-def compile_options(spec: "TemplateSpec") -> tuple[Callable, Callable | None]:
-    """(options(c) -> list of option tuples, feasible(option, c) -> bool or None) compiled from ``spec``."""
-    kinds = dict(spec.parameters)
-    names = list(kinds)
-    at: list[list[str]] = [[] for _ in names]
-    unary: list[list[str]] = [[] for _ in names]
-    dear = []
-    for k in spec.constraints:
-        condition = _condition(k, kinds)
-        if k["type"] in DEAR_CONSTRAINTS:
-            dear.append(condition)
-            continue
-        named = [n for n in _refs(k.get("target")) if n in kinds]
-        depth = max((names.index(n) for n in named), default=0)
-        (unary if len(set(named)) == 1 else at)[depth].append(condition)
-    domains = {"object": "c.index.unique", "objects": "c.index.groups"}
-    lines = ["def options(c):", "    out = []"]
-    for d, name in enumerate(names):
-        domain = domains.get(kinds[name], repr(WORD_DOMAINS.get(kinds[name], ())))
-        keep = " and ".join(unary[d]) or "True"
-        lines.append(f"    D{d} = [p_{name} for p_{name} in {domain} if {keep}]")
-    indent = "    "
-    for d, name in enumerate(names):
-        lines.append(f"{indent}for p_{name} in D{d}:")
-        indent += "    "
-        if at[d]:
-            lines.append(f"{indent}if not ({' and '.join(at[d])}):")
-            lines.append(f"{indent}    continue")
-    lines.append(f"{indent}out.append(({''.join(f'p_{n}, ' for n in names)}))")
-    lines.append("    return out")
-    if dear:
-        lines += ["def feasible(option, c):", f"    ({''.join(f'p_{n}, ' for n in names)}) = option",
-                  f"    return {' and '.join(dear)}"]
-    namespace = dict(_HELPERS)
-    exec(compile("\n".join(lines), f"<template {spec.template_id}>", "exec"), namespace)  # noqa: S102
-    return namespace["options"], namespace.get("feasible")
+    if len(targets) != needs:
+        raise ConfigError(f"constraint {k['type']} needs a target of {needs} reference(s), got {target!r}")
+    return make(k, [compile_ref(t) for t in targets], kinds)
 
 
 # ---------------------------------------------------------------------------------------------- machinery
@@ -387,7 +272,7 @@ class DataTemplate:
         self.names = [n for n, _ in spec.parameters]
         self.described = [n for n, kind in spec.parameters if kind in ("object", "objects")]
         self.slots = [(n, kind == "objects") for n, kind in spec.parameters]
-        # Phrasings as format strings (braces of the text escaped), program steps with their references compiled.
+        # Phrasings as format strings (braces of the text escaped), program steps with their references read.
         self.formats = {t: _TOKEN.sub(r"{\1}", t.replace("{", "{{").replace("}", "}}")) for t in spec.texts}
         self.steps = []
         for step in spec.program:
@@ -398,20 +283,20 @@ class DataTemplate:
                 self.steps.append((step["type"], compile_ref(value)))  # a parameter (<TP>) or {opposite: TP}
             else:
                 self.steps.append((step["type"], value))
-        self.dear = [DEAR_CONSTRAINTS[k["type"]](k) for k in spec.constraints if k["type"] in DEAR_CONSTRAINTS]
-        self._compiled, self._compiled_feasible = compile_options(spec)
         # Each cheap constraint is checked as soon as the parameters it names are bound; one that names a single
-        # parameter filters that parameter's values once per scene.
-        self.at: list[list[Ref]] = [[] for _ in self.names]
-        self.unary: list[list[Ref]] = [[] for _ in self.names]
+        # parameter filters that parameter's values once per scene. Dear ones wait for ``feasible``.
+        kinds = dict(spec.parameters)
+        self.at: list[list[Check]] = [[] for _ in self.names]
+        self.unary: list[list[Check]] = [[] for _ in self.names]
+        self.dear: list[Check] = []
         for k in spec.constraints:
-            if k["type"] in CONSTRAINTS:
-                named = {n for n in _refs(k.get("target")) if n in self.names}
-                (self.unary if len(named) == 1 else self.at)[self._ready(k)].append(CONSTRAINTS[k["type"]](k))
-
-    def _ready(self, constraint: dict) -> int:
-        needed = [n for n in _refs(constraint.get("target")) if n in self.names]
-        return max(self.names.index(n) for n in needed) if needed else 0
+            check = read_constraint(k, kinds)
+            named = [n for n in _refs(k.get("target")) if n in kinds]
+            if k["type"] in DEAR_CONSTRAINTS:
+                self.dear.append(check)
+            else:
+                depth = max((self.names.index(n) for n in named), default=0)
+                (self.unary if len(set(named)) == 1 else self.at)[depth].append(check)
 
     def _domain(self, kind: str, c: Any) -> list[Any]:
         if kind == "object":
@@ -421,39 +306,37 @@ class DataTemplate:
         return list(WORD_DOMAINS[kind])
 
     def options(self, c: Any) -> Iterator[tuple]:
-        return iter(self._compiled(c))
-
-    def options_interpreted(self, c: Any) -> Iterator[tuple]:
-        """The same options as ``options``, by the closures instead of the compiled loops (a cross-check)."""
-        bound: dict[str, Any] = {}
-        last = len(self.names) - 1
+        """Every binding of the parameters, in their order, that passes the cheap constraints."""
+        names, last = self.names, len(self.names) - 1
+        if not names:
+            return iter([()])
         domains = []
         for depth, (name, kind) in enumerate(self.spec.parameters):
-            values = self._domain(kind, c)
-            if self.unary[depth]:
-                values = [v for v in values if all(check({name: v}, c) for check in self.unary[depth])]
+            values, checks = self._domain(kind, c), self.unary[depth]
+            if checks:
+                values = [v for v in values if all(check({name: v}, c) for check in checks)]
             domains.append(values)
+        bound: dict[str, Any] = {}
+        out: list[tuple] = []
 
-        names = self.names
-
-        def walk(depth: int) -> list[tuple]:
-            name, checks, out = names[depth], self.at[depth], []
+        def walk(depth: int) -> None:
+            name, checks = names[depth], self.at[depth]
             for value in domains[depth]:
                 bound[name] = value
-                for check in checks:
-                    if not check(bound, c):
-                        break
+                if checks and not all(check(bound, c) for check in checks):
+                    continue
+                if depth == last:
+                    out.append(tuple(bound[n] for n in names))
                 else:
-                    if depth == last:
-                        out.append(tuple(bound[n] for n in names))
-                    else:
-                        out += walk(depth + 1)
-            return out
+                    walk(depth + 1)
 
-        return iter(walk(0)) if names else iter(())
+        walk(0)
+        return iter(out)
 
     def feasible(self, option: tuple, c: Any) -> bool:
-        return self._compiled_feasible is None or self._compiled_feasible(option, c)
+        """Whether ``option`` passes the dear constraints too."""
+        bound = dict(zip(self.names, option))
+        return all(check(bound, c) for check in self.dear)
 
     def build(self, option: tuple, descriptions: list) -> tuple[dict[str, str], list[dict[str, Any]]]:
         """Text slots and the program (without outputs) of an option with its chosen descriptions."""

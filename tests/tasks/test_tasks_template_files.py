@@ -125,19 +125,81 @@ def test_a_bad_template_file_names_template_and_field(tmp_path, change, says):
         read_template_file(path)
 
 
-def test_compiled_options_agree_with_the_interpreted_constraints(tmp_path):
+# What every template (the built-in files' and RELATED_WEIGHTS) offered on scenes 0-24 of sample_scenes(5, 25), as
+# recorded when conditions were compiled into Python source: per template, how many options, a digest of them all
+# and of the dear constraints' verdict on the first 40, and of one instruction per template drawn on each scene.
+OPTIONS_RECORDED = {
+    "measure_stiffness_single": (77, "5f16652c1929fadf65da91bf6bf700b85c4c53084c43a3dccf1666c1a1c1af50"),
+    "measure_weight_beside": (159, "49670f958fa4eb8ff631375b1ebb84a1c33cdb83ea80857bcd5aab3d80e0f16a"),
+    "measure_weight_multi": (63, "2a9efc9e9b2a3a4048586c8dee46d6b3494db486afd475dfa9ae8c589aaf7be6"),
+    "measure_weight_single": (84, "6a9c894db237ace6db13c0c00a17fc79d54026d2894326bad64295390d669fc6"),
+    "move_single": (168, "a6e10be4b92e271e17518f29cd6bc181e7e00bda2b417f72bc752f4021dd7938"),
+    "move_weight": (248, "be5a50e9ffa857c71c8016f9ee79af15c4d9188b3ab0cd3849aede5b8909fd10"),
+    "pick_up_lightest": (124, "d858fc15abf5c3d15192e194512c2420b130d28f7966191cb2a4163aa97ca621"),
+    "pick_up_stiffness": (70, "f4330e0c6cc0a9f25442cba059f43381910b79c3b12cc915a5cd9ba31f15a1a9"),
+    "remove": (266, "99a049efedd035288f224783907b4c52c7f0302a65ec32193e8a29843dfeec3b"),
+    "stack_order": (13, "81cfa61f58f09e5adefe85733532df0bb5f503f032d5936ca9b608c185088e4b"),
+    "stack_simple": (110, "3b537de3a13b32d799060d584e5eec25ff162dd9fc6689f081c0f7c92270a96c"),
+    "stack_stiffness_order": (4, "70d7824c385f6d93185a6b8782cc3b1c63604548dc3bc05915aca5f106e0873a"),
+    "stack_three": (60, "036379b6332acbf7cc3582e64538ea97e364725f79d318eac366d82c5dfb83dd"),
+    "stack_weight": (124, "02b7fafb13866c9746b775dbf94c667d4144a5dda347db6d54ece5da4848080a"),
+}
+INSTRUCTIONS_RECORDED = "dd5b71834c127993fe68f28ce2fb350808f210f75f60f5e5e8ac94a0ada92be7"
+
+
+def _template_records(tmp_path) -> tuple[dict[str, tuple[int, str]], str]:
     from muble.core.descriptions import SceneIndex
+    from muble_plugins.tasks.generator import generate_for_template
     from muble_plugins.tasks.template_data import DataTemplate
-    from muble_plugins.tasks.templates import OptionContext
+    from muble_plugins.tasks.templates import BUILTIN_FILE, STIFFNESS_FILE, OptionContext, load_templates
 
     path = tmp_path / "beside.yaml"
     path.write_text(RELATED_WEIGHTS)
-    builtin = __import__("muble_plugins.tasks.templates", fromlist=["BUILTIN_FILE"])
-    specs = read_template_file(path) + read_template_file(builtin.BUILTIN_FILE) + \
-        read_template_file(builtin.STIFFNESS_FILE)
+    specs = read_template_file(BUILTIN_FILE) + read_template_file(STIFFNESS_FILE) + read_template_file(path)
+    templates = {**load_templates(BUILTIN_FILE), **load_templates(STIFFNESS_FILE), **load_templates(path)}
+    data = {spec.template_id: DataTemplate(spec) for spec in specs}
+    digests = {t: [0, hashlib.sha256()] for t in data}
+    words = hashlib.sha256()
     for scene in sample_scenes(5, 25):
         index = SceneIndex(scene)
-        for spec in specs:
-            data = DataTemplate(spec)
-            assert list(data.options(OptionContext(index, 2.0))) == \
-                list(data.options_interpreted(OptionContext(index, 2.0)))
+        for name, template in data.items():
+            context = OptionContext(index, 2.0)
+            options = list(template.options(context))
+            digests[name][0] += len(options)
+            digests[name][1].update(repr(options).encode())
+            digests[name][1].update(repr([template.feasible(o, context) for o in options[:40]]).encode())
+            for ins in generate_for_template(templates[name], scene, np.random.default_rng([5, scene.image_index]),
+                                             index=index):
+                words.update(json.dumps(instruction_to_dict(ins), sort_keys=True).encode())
+    return {t: (n, h.hexdigest()) for t, (n, h) in digests.items()}, words.hexdigest()
+
+
+def test_every_template_offers_the_options_and_instructions_recorded(tmp_path):
+    options, instructions = _template_records(tmp_path)
+    assert options == OPTIONS_RECORDED
+    assert instructions == INSTRUCTIONS_RECORDED
+
+
+def test_conditions_are_interpreted_not_generated_as_source():
+    import ast
+    import inspect
+
+    import muble_plugins.tasks.template_data as template_data
+
+    calls = {n.func.id for n in ast.walk(ast.parse(inspect.getsource(template_data)))
+             if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
+    assert not calls & {"exec", "eval", "compile"}
+
+
+@pytest.mark.parametrize("constraint,says", [
+    ("{type: is, target: O1, property: __class__}", "unknown property '__class__'"),
+    ("{type: max_count, target: [O1, REL], value: 3}", "max_count needs a target of 1 reference"),
+])
+def test_a_bad_constraint_is_a_config_error(tmp_path, constraint, says):
+    from muble_plugins.tasks.template_data import DataTemplate
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(RELATED_WEIGHTS.replace("{type: min_count, target: {related: [O1, REL]}, value: 1}", constraint))
+    (spec,) = read_template_file(path)
+    with pytest.raises(ConfigError, match=says):
+        DataTemplate(spec)
