@@ -21,7 +21,7 @@ import numpy as np
 
 from muble.core.objects import ObjectSpec
 
-from muble_plugins.objects.geometry import mass_properties, planar_uv
+from muble_plugins.objects.geometry import GEOMETRY_VERSION, mass_properties, planar_uv
 
 if TYPE_CHECKING:
     from muble_plugins.objects.catalogue import CatalogueObjectSet, Geometry
@@ -68,8 +68,6 @@ class BuildCache:
 
     @staticmethod
     def key(object_set: CatalogueObjectSet, spec: ObjectSpec) -> str:
-        from muble_plugins.objects.catalogue import GEOMETRY_VERSION
-
         # The category is part of the key so a hit also means the (category, model) pair was validated.
         return json.dumps([object_set.set_name, spec.category, spec.model, round(float(spec.scale), 6), spec.params,
                            GEOMETRY_VERSION], sort_keys=True, default=str)

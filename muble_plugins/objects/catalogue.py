@@ -26,13 +26,11 @@ from muble.core.object_physics import realised_damping, realised_stiffness
 from muble.core.ranges import bounded
 
 from muble_plugins.objects.build_cache import built_geometry
+from muble_plugins.objects.geometry import GEOMETRY_VERSION
 from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F401 - re-exported for callers
 from muble_plugins.objects.heldout import check_property_range, sample_range_part, sampled_categories
 
 log = logging.getLogger(__name__)
-
-# Bump when any geometry function changes, so cached meshes from older code are not reused.
-GEOMETRY_VERSION = 7
 
 SIZE_SCALES = {"small": 0.85, "medium-sized": 1.0, "large": 1.15}
 

@@ -14,6 +14,10 @@ import trimesh
 
 from muble.core.objects import MeshPart
 
+# Bump when any geometry function changes (here or in an object set's models), so cached meshes from older code
+# are not reused.
+GEOMETRY_VERSION = 7
+
 
 def _clean(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Drop zero-area triangles (poles of revolved profiles produce them)."""
