@@ -328,25 +328,3 @@ def hand_clearance(world, target_body: int | str, ignore=(), reach: float = CLEA
         return float(best)
 
     return clearance
-
-
-def footprint_radius(extents: np.ndarray) -> float:
-    return 0.5 * float(np.hypot(extents[0], extents[1]))
-
-
-def free_places(region: tuple[np.ndarray, np.ndarray], radius: float, others: list[tuple[np.ndarray, float]],
-                gap: float = 0.02, spacing: float = 0.03) -> list[np.ndarray]:
-    """Centres in ``region`` where a footprint of ``radius`` overlaps no other footprint (centre, radius),
-    nearest the region's centre first."""
-    lo, hi = region
-    xs = np.arange(lo[0], hi[0] + 1e-9, spacing)
-    ys = np.arange(lo[1], hi[1] + 1e-9, spacing)
-    centre = 0.5 * (lo + hi)
-    places = []
-    for x in xs:
-        for y in ys:
-            p = np.array([x, y])
-            if all(np.linalg.norm(p - c) >= radius + r + gap for c, r in others):
-                places.append(p)
-    places.sort(key=lambda p: float(np.linalg.norm(p - centre)))
-    return places
