@@ -1,4 +1,10 @@
 """MuBlE: a simulation environment and benchmark for task planning in robot manipulation."""
+from muble.app.quiet import quiet_third_party
+
+# Before anything imports robosuite: its messages about optional parts MuBlE does not use are dropped in every
+# process that imports MuBlE, spawned workers included (MUBLE_VERBOSE=1 keeps them).
+quiet_third_party()
+
 from muble.core.errors import (
     ConfigError,
     InitialStateError,

@@ -83,6 +83,7 @@ def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
     """Every selected index of a split gets a record: those already in the split's record file are read back, the
     others run, each appended to the file as it finishes. Returns the records in index order."""
     from tqdm import tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm
 
     indices = found.indices[:cfg.evaluation.limit] if cfg.evaluation.limit else found.indices
     wanted = set(indices)
@@ -94,7 +95,7 @@ def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
     if done:
         log.info("%s: %d of %d episodes already done in %s; running the other %d", found.split, len(done),
                  len(indices), episodes.path, len(jobs))
-    with episodes:
+    with episodes, logging_redirect_tqdm():  # log lines are written above the bar, which stays whole
         for record in tqdm(run_all(cfg.dataset.executor, evaluate_index, jobs, cfg.dataset.workers,
                                    ray_address=cfg.dataset.ray_address),
                            total=len(jobs), desc=f"eval {found.split}", unit="episode", disable=None):

@@ -126,6 +126,7 @@ def job(cfg: DictConfig) -> dict:
 
 def _job(cfg: DictConfig, root: Path) -> dict:
     from tqdm import tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm
 
     import muble
 
@@ -154,8 +155,9 @@ def _job(cfg: DictConfig, root: Path) -> dict:
             results = run_all(cfg.dataset.executor, produce_index, jobs, cfg.dataset.workers,
                               ray_address=cfg.dataset.ray_address)
             bar = tqdm(results, total=len(jobs), desc=f"generate {split}", unit="scene", disable=None)
-            for done, (index, _) in enumerate(bar, start=1):
-                log.info("%s: index %d written (%d/%d)", split, index, done, len(jobs))
+            with logging_redirect_tqdm():  # log lines are written above the bar, which stays whole
+                for done, (index, _) in enumerate(bar, start=1):
+                    log.info("%s: index %d written (%d/%d)", split, index, done, len(jobs))
             if cfg.dataset.num_shards == 1:
                 # Every index the split holds, those of a larger earlier run included.
                 write_combined(layout, indices(cfg, recorded[split]), muble.__version__)

@@ -3,12 +3,18 @@
 robosuite logs, on every import, that it has no private macro file, no ``robosuite_models`` and no mink IK (none
 of which MuBlE uses), and prints each message twice once Hydra has configured logging (its own console handler
 plus the root one); PyOpenGL logs that ``OpenGL_accelerate`` is missing. ``muble --verbose`` keeps them all.
+
+``import muble`` installs the filters, so every process that imports MuBlE is quiet before robosuite is imported:
+the command line's, its spawned workers (which import MuBlE to unpickle their work) and a Gymnasium user's.
+``--verbose`` sets ``MUBLE_VERBOSE=1``, which the workers inherit.
 """
 from __future__ import annotations
 
 import logging
+import os
 
 ROBOSUITE_LOGGER = "robosuite_logs"
+VERBOSE_ENV = "MUBLE_VERBOSE"
 
 # Beginnings of robosuite messages about optional parts MuBlE does not use.
 IRRELEVANT_ROBOSUITE = (
@@ -31,11 +37,19 @@ class DropMessages(logging.Filter):
         return not str(record.msg).startswith(self.prefixes)
 
 
-def quiet_third_party(verbose: bool = False) -> None:
-    """Install the filters (before robosuite or PyOpenGL is imported); ``verbose=True`` leaves logging alone."""
-    if verbose:
-        return
+def quiet_third_party(verbose: bool | None = None) -> None:
+    """Install the filters (before robosuite or PyOpenGL is imported); ``verbose=True`` takes them out again and
+    marks the environment so that child processes keep every message too. ``None``: as ``MUBLE_VERBOSE`` says."""
     robosuite = logging.getLogger(ROBOSUITE_LOGGER)
+    if verbose is None:
+        verbose = os.environ.get(VERBOSE_ENV, "") not in ("", "0")
+    if verbose:
+        os.environ[VERBOSE_ENV] = "1"
+        for installed in [f for f in robosuite.filters if isinstance(f, DropMessages)]:
+            robosuite.removeFilter(installed)
+        robosuite.propagate = True
+        logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.NOTSET)
+        return
     if not any(isinstance(f, DropMessages) for f in robosuite.filters):
         robosuite.addFilter(DropMessages(IRRELEVANT_ROBOSUITE))
     # robosuite adds its own console handler; without propagation each message is printed once, by it.

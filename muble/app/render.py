@@ -153,6 +153,7 @@ def _render(scene: Any, states: Any, args: argparse.Namespace, camera: str, obje
             robot_name: str | None, options: dict[str, Any], out: Path) -> list[np.ndarray]:
     import mujoco
     from tqdm import tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm
 
     from muble.plugins.registry import get_registry
     from muble.sim.build import env_from_object_set
@@ -182,13 +183,14 @@ def _render(scene: Any, states: Any, args: argparse.Namespace, camera: str, obje
         try:
             renderer.setup(scene, model)
             bar = tqdm(qpos, desc="render", unit="keyframe", disable=None)
-            for k, state in enumerate(bar):
-                data.qpos[:] = state
-                mujoco.mj_forward(model, data)
-                frame = renderer.render(data, mj_camera)
-                write_frame(frame, out, f"keyframe_{k:04d}", args.passes)
-                images.append(frame.rgb)
-                log.info("keyframe %d/%d rendered", k + 1, len(qpos))
+            with logging_redirect_tqdm():  # log lines are written above the bar, which stays whole
+                for k, state in enumerate(bar):
+                    data.qpos[:] = state
+                    mujoco.mj_forward(model, data)
+                    frame = renderer.render(data, mj_camera)
+                    write_frame(frame, out, f"keyframe_{k:04d}", args.passes)
+                    images.append(frame.rgb)
+                    log.info("keyframe %d/%d rendered", k + 1, len(qpos))
         finally:
             renderer.close()
         for path in write_episode_media(images, out):

@@ -16,6 +16,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
+from muble.core.errors import MubleError
 from muble.core.interfaces import Renderer
 from muble.core.manifest import make_manifest
 from muble.core.scene_io import write_json_atomic
@@ -69,8 +70,27 @@ def format_answer(value: Any, instruction: Any = None) -> str:
     return one(value)
 
 
+# Scenes after the asked one looked at, when the task has no instruction for it, to name one that suits in the
+# error (each costs a scene's generation, about a second).
+SUITED_SCENES_LOOKED_AT = 10
+
+
+def _suited_scene_index(generator: Any, task: Any, seed: int, index: int) -> int | None:
+    """The first scene index after ``index`` for which ``task`` has an instruction with ``seed``, or None."""
+    from muble.episode.runner import instruction_rng
+
+    for candidate in range(index + 1, index + 1 + SUITED_SCENES_LOOKED_AT):
+        try:
+            scene = generator.generate(candidate)
+        except MubleError:
+            continue
+        if task.generate(scene, instruction_rng(seed, candidate)):
+            return candidate
+    return None
+
+
 def job(cfg: DictConfig) -> dict:
-    from muble.episode.runner import choose_instruction, write_episode
+    from muble.episode.runner import NoInstructionError, choose_instruction, no_instruction, write_episode
 
     out_dir = Path(cfg.output.dir)
     components = build_components(cfg)
@@ -85,9 +105,17 @@ def job(cfg: DictConfig) -> dict:
     generator = scene_generator(cfg, components["object_set"])
     try:
         scene = generator.generate(cfg.scene_index)
+        try:
+            instruction = choose_instruction(components["task"], scene, cfg.seed, cfg.scene_index, cfg.task.name)
+        except NoInstructionError:
+            suited = _suited_scene_index(generator, components["task"], cfg.seed, cfg.scene_index)
+            last = cfg.scene_index + SUITED_SCENES_LOOKED_AT
+            hint = (f"scene_index={suited} has one with this seed (muble run uses the scene it is given; "
+                    "muble generate looks for one that suits)" if suited is not None else
+                    f"nor do scenes {cfg.scene_index + 1}..{last}: choose another seed or task")
+            raise no_instruction(cfg.task.name, cfg.scene_index, cfg.seed, hint) from None
     finally:
         generator.close()
-    instruction = choose_instruction(components["task"], scene, cfg.seed, cfg.scene_index)
     log.info("instruction: %s", instruction.instruction)
     recorder = KeyframeStateRecorder(components["renderer"], len(cfg.episode.cameras))
     output = episode_runner(cfg, {**components, "renderer": recorder}).execute(scene, instruction,
@@ -99,8 +127,7 @@ def job(cfg: DictConfig) -> dict:
     manifest["outcome"] = output.result.outcome.value
     write_json_atomic(out_dir / "manifest.json", manifest, indent=2)
     r = output.result
-    print(f"instruction: {instruction.instruction}")
-    print(f"actions: {', '.join(str(a) for a in r.actions)}")
+    # The instruction and each step were logged as they happened (muble.episode.runner): not printed again here.
     if r.answer is not None:
         print(f"answer: {format_answer(r.answer.value, instruction)}")
     if r.error:

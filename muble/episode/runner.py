@@ -35,11 +35,20 @@ def instruction_rng(seed: int, index: int) -> np.random.Generator:
     return np.random.default_rng([seed, index, 1])
 
 
-def choose_instruction(task: Task, scene: SceneGraph, seed: int, index: int) -> Instruction:
+class NoInstructionError(ConfigError):
+    """The task has no valid instruction for the scene (its objects do not suit the template)."""
+
+
+def no_instruction(name: str, index: int, seed: int,
+                   hint: str = "choose another scene_index or seed, or another task") -> NoInstructionError:
+    return NoInstructionError(f"task '{name}' has no valid instruction for scene {index} (seed {seed}); {hint}")
+
+
+def choose_instruction(task: Task, scene: SceneGraph, seed: int, index: int, name: str | None = None) -> Instruction:
+    """The task's first instruction for the scene; ``name`` is the task's registered name, for the error."""
     candidates = task.generate(scene, instruction_rng(seed, index))
     if not candidates:
-        raise ConfigError(f"task '{type(task).__name__}' has no valid instruction for scene {index} (seed {seed}); "
-                          "choose another scene_index or seed, or another task")
+        raise no_instruction(name or type(task).__name__, index, seed)
     return candidates[0]
 
 

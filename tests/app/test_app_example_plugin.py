@@ -72,7 +72,9 @@ def test_example_task_is_solved_by_the_builtin_oracle_with_physics(example_site,
     the task's next_actions, the action loop checks tap's typed parameters, the task judges the episode record."""
     result = run(["task=touch", "renderer=mujoco", f"hydra.run.dir={tmp_path}"], example_site, MUJOCO_GL="egl")
     assert result.returncode == 0, result.stderr[-3000:]
-    assert "actions: tap(target=" in result.stdout and "outcome: success" in result.stdout, result.stdout
+    assert "step 1: tap(target=" in result.stdout and "outcome: success" in result.stdout, result.stdout
+    # Each step is printed once: logged as it happens, not repeated in the summary.
+    assert result.stdout.count("tap(target=") == 1, result.stdout
     config = json.loads((tmp_path / "manifest.json").read_text())["config"]
     assert config["agent"]["name"] == "oracle" and config["task"]["name"] == "touch"
 

@@ -29,6 +29,11 @@ def test_main_job_prints_an_outcome_and_succeeds(episode):
     (answer,) = [line for line in lines if line.startswith("answer: ")]
     assert re.fullmatch(r"answer: \d+\.\d g", answer), answer  # grams to 0.1 g; the exact value is in the files
     assert "robosuite" not in result.stderr and "Traceback" not in result.stderr, result.stderr[-2000:]
+    # Each step and the instruction once: logged as they happen, not repeated in the summary.
+    steps = [line for line in lines if re.search(r"step \d+: ", line)]
+    assert steps and len({line.split("step ", 1)[1] for line in steps}) == len(steps), result.stdout
+    assert not any(line.startswith("actions: ") for line in lines), result.stdout
+    assert sum("instruction: " in line for line in lines) == 1, result.stdout
 
 
 def test_main_job_writes_gif_keyframes_and_sequence(episode):
@@ -93,3 +98,26 @@ def test_main_job_bad_override_exits_nonzero(tmp_path):
     result = subprocess.run([sys.executable, "-m", "muble.app.cli", "robot=Roomba", f"hydra.run.dir={tmp_path}"],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode != 0 and "Panda" in result.stderr
+
+
+def test_a_task_without_an_instruction_for_the_scene_is_named_and_a_suited_scene_offered(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "muble.app.cli", "task=stack_order", "seed=5",
+                             f"hydra.run.dir={tmp_path}"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr[-2000:]
+    (line,) = result.stderr.strip().splitlines()
+    assert "task 'stack_order' has no valid instruction for scene 0 (seed 5)" in line, line
+    suited = re.search(r"scene_index=(\d+) has one", line)
+    assert suited, line
+    # The scene offered does have one.
+    from muble.app.config import compose
+    from muble.episode.components import build_components, scene_generator
+    from muble.episode.runner import choose_instruction
+
+    cfg = compose("run", ["task=stack_order", "seed=5", f"output.dir={tmp_path}", f"dataset.root={tmp_path}"])
+    components = build_components(cfg, renderer=False)
+    generator = scene_generator(cfg, components["object_set"])
+    try:
+        index = int(suited.group(1))
+        assert choose_instruction(components["task"], generator.generate(index), 5, index, "stack_order")
+    finally:
+        generator.close()
