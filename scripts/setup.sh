@@ -38,10 +38,12 @@ if [ -x .venv/bin/python ] && [ "$(.venv/bin/python -c 'import sys; print("%d.%d
 fi
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
+.venv/bin/python -m pip install --quiet -e ".[test]"
 if [ "$version" = "3.13" ]; then
   # robosuite 1.5.2 pins mink 0.0.5, which caps numpy below 2, and numpy 1 has no 3.13 build; robosuite never
   # imports mink, so it goes in without its declared dependencies (its runtime ones are in pyproject.toml).
+  # Last, and with --no-deps, pip checks no dependencies: installed before the project, its missing mink made
+  # pip end the project's install with "ERROR: ... robosuite 1.5.2 requires mink ...".
   .venv/bin/python -m pip install --quiet --no-deps robosuite==1.5.2
 fi
-.venv/bin/python -m pip install --quiet -e ".[test]"
 echo "MuBlE installed in $(pwd)/.venv (Python $version)"
