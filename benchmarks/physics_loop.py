@@ -21,7 +21,7 @@ import numpy as np
 
 from muble.core.types import Trajectory
 from muble.sim.env import TabletopEnv
-from muble.sim.fixtures import five_object_scene
+from muble.testing import five_object_scene
 
 SIM_SECONDS = 10.0
 REPEATS = 3

@@ -16,7 +16,7 @@ import numpy as np
 
 from muble import MubleError, get_registry
 from muble.sim.env import TabletopEnv
-from muble.sim.fixtures import simple_scene
+from muble.testing import simple_scene
 
 A_AT, B_AT = (0.42, -0.20), (0.52, 0.12)  # m on the table top, in reach of every supported arm
 

@@ -9,7 +9,7 @@ from muble import Instruction, Outcome, get_registry
 from muble.episode import run_episode
 from muble.episode.physical import PhysicalWorld
 from muble.sim.env import TabletopEnv
-from muble.sim.fixtures import simple_object_model, simple_scene
+from muble.testing import simple_object_model, simple_scene
 from muble_plugins.tasks.agents import OracleAgent
 from muble_plugins.tasks.success import check
 

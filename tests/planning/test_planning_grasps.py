@@ -101,7 +101,7 @@ def test_planning_pick_and_weigh_wine_glasses_mugs_and_glasses_in_a_generated_sc
 @pytest.mark.parametrize("robot", sorted(OPEN_GAPS))
 def test_planning_grip_geometry_comes_from_the_mounted_gripper(robot):
     from muble.sim.env import TabletopEnv
-    from muble.sim.fixtures import five_object_scene
+    from muble.testing import five_object_scene
 
     scene, models = five_object_scene()
     env = TabletopEnv(scene, models, name=robot)
@@ -126,7 +126,7 @@ def test_planning_grip_geometry_is_the_same_whatever_state_or_scene_it_is_measur
     import dataclasses
 
     from muble.sim.env import TabletopEnv
-    from muble.sim.fixtures import five_object_scene, simple_scene
+    from muble.testing import five_object_scene, simple_scene
 
     scene, models = five_object_scene()
     first = TabletopEnv(scene, models)
@@ -143,7 +143,7 @@ def test_planning_grip_geometry_is_the_same_whatever_state_or_scene_it_is_measur
 @pytest.mark.slow
 def test_planning_ur5e_with_its_robotiq_gripper_picks_and_weighs_a_can_a_thermos_and_a_bowl(objects):
     from muble.sim.env import TabletopEnv
-    from muble.sim.fixtures import simple_scene
+    from muble.testing import simple_scene
 
     rng = np.random.default_rng(0)
     models = [objects.build(objects.sample(rng, category=c)) for c in ("soda can", "thermos", "bowl")]

@@ -8,7 +8,7 @@ import pytest
 from muble import get_registry
 from muble.core.table import parts_at
 from muble.sim.env import TabletopEnv
-from muble.sim.fixtures import simple_object_model, simple_scene
+from muble.testing import simple_object_model, simple_scene
 from muble_plugins.primitives import placement
 
 HELD = 0

@@ -7,7 +7,7 @@ import pytest
 from muble import ConfigError, PlanningError, get_registry
 from muble.core.params import specs
 from muble.sim.env import TabletopEnv
-from muble.sim.fixtures import five_object_scene
+from muble.testing import five_object_scene
 
 
 @pytest.fixture(scope="module")

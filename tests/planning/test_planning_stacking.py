@@ -10,7 +10,7 @@ import pytest
 
 from muble import get_registry
 from muble.sim.env import TabletopEnv
-from muble.sim.fixtures import simple_scene
+from muble.testing import simple_scene
 
 
 def act(env, name, **params):

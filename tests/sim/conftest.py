@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from muble.sim.env import TabletopEnv
-from muble.sim.fixtures import five_object_scene
+from muble.testing import five_object_scene
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from muble.core.scene_io import load_scene
 from muble.episode.runner import EpisodeRunner
 from muble.sim import build
 from muble.sim.build import env_from_object_set, object_models
-from muble.sim.fixtures import five_object_scene
+from muble.testing import five_object_scene
 from muble.sim.initial_state import MAX_DISPLACEMENT, MAX_PENETRATION, MAX_ROTATION, settle_and_check
 
 DATA = Path(__file__).resolve().parents[1] / "planning" / "data"

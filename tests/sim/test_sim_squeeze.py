@@ -59,7 +59,7 @@ def test_sim_squeeze_needs_an_object_between_the_fingers(squeezed):
 def test_sim_squeeze_reads_narrow_parts_too(stiffness):
     """A 6 mm rod (a stem, a handle): the fingers stop ~3.3 mm short of closed, where the
     finger servos' own pull is below the squeeze's force levels; the levels must still be reached."""
-    from muble.sim.fixtures import simple_object_model, simple_scene
+    from muble.testing import simple_object_model, simple_scene
 
     model = simple_object_model("cylinder", (0.006, 0.006, 0.10), 120.0, stiffness)
     scene = simple_scene([(0.5, 0.0)], [model])
