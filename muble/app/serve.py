@@ -103,7 +103,7 @@ def episode_factory(overrides: tuple[str, ...], render: bool, verbose: bool) -> 
     """The ``EpisodeFactory`` of ``muble serve``'s config, built inside the simulation process (a fresh
     interpreter: the command line's quiet logging is set up here again)."""
     from muble.app.config import compose
-    from muble.app.quiet import quiet_third_party
+    from muble.core.quiet import quiet_third_party
     from muble.episode.sources import EpisodeFactory
 
     quiet_third_party(verbose)
