@@ -5,6 +5,7 @@ Quaternions are MuJoCo's and the scene graph's: (w, x, y, z). Rotations go throu
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -12,9 +13,15 @@ import numpy as np
 
 def yaw_quat(yaw: float) -> np.ndarray:
     """Unit quaternion (w, x, y, z) of a turn by ``yaw`` radians about world z."""
+    return np.array(_yaw_quat(float(yaw)))
+
+
+@functools.lru_cache(maxsize=4096)
+def _yaw_quat(yaw: float) -> tuple[float, ...]:
+    # Grasp ranking asks for the same few turns hundreds of times a scene; scipy's call costs more than the rest.
     from scipy.spatial.transform import Rotation
 
-    return Rotation.from_euler("z", yaw).as_quat(scalar_first=True)
+    return tuple(Rotation.from_euler("z", yaw).as_quat(scalar_first=True).tolist())
 
 
 def yaw_matrix(yaw: float) -> np.ndarray:

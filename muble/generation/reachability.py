@@ -5,6 +5,12 @@ asked, through ``PrimitiveAction.feasible``, whether each pickupable object has 
 collision from the rest pose (the planned move over it and the straight move in: the same candidates, planner
 and collision world that ``approach`` uses when it runs) from which the hand, holding the object, rises clear of
 its support. Nothing is executed: only the arm's rest state and the fingers' opening are simulated.
+
+It is a cheaper computation of the same decision, never an approximation: the environment is compiled without
+what only a renderer sees (``visual=False``: the same bodies, collision geoms, masses and contacts, so every step,
+ray and inverse kinematics gives the same numbers), the planner is built once, and ``approach`` ranks only as many
+grasp candidates as it tries. ``tests/generation/test_reach_decisions.py`` holds the decisions of the check before
+these savings on 312 recorded layouts, reasons included; ``benchmarks/reach_check.py`` times both.
 """
 from __future__ import annotations
 
@@ -31,13 +37,26 @@ class ReachCheck:
     def __init__(self, robot: dict[str, Any] | None, primitive: str):
         self.robot = dict(robot or {}) or None
         self.primitive = primitive
+        self._ompl = None
+
+    def _planner(self):
+        """The registry's ``ompl`` planner with its default options, as a primitive gets it by name where the
+        environment has none (a planner holds no state between queries: each re-seeds OMPL)."""
+        if self._ompl is None:
+            from muble.plugins.registry import get_registry
+
+            self._ompl = get_registry().create("planner", "ompl")
+        return self._ompl
 
     def __call__(self, scene: SceneGraph, models: dict[int, ObjectModel]) -> str | None:
         from muble.plugins.registry import get_registry
         from muble.sim.env import TabletopEnv
 
         registry = get_registry()
-        env = TabletopEnv(scene, models, self.robot, {})
+        # Physics and planning only: without what only a renderer sees the model compiles in half the time, and
+        # every contact, ray, joint and step is the same (tests/generation/test_reach_decisions.py).
+        env = TabletopEnv(scene, models, self.robot, {}, visual=False)
+        env.planner = self._planner()  # the planner ``approach`` asks for by name, built once
         try:
             env.open_gripper()
             env.hold(SETTLE)  # as an episode starts: the hand open, the objects settled

@@ -264,12 +264,21 @@ def gripper_endpoints(model: mujoco.MjModel, gripper_model, actuator_ids: np.nda
     stops gives the stateless end points, and a command in [-1, 1] is then interpolated between them.
     """
     ctrl_range = model.actuator_ctrlrange[actuator_ids]
-    bias = 0.5 * (ctrl_range[:, 1] + ctrl_range[:, 0])
-    weight = 0.5 * (ctrl_range[:, 1] - ctrl_range[:, 0])
-    ends = []
-    for command in (-1.0, 1.0):
-        action = None
-        for _ in range(1000):
-            action = np.asarray(gripper_model.format_action(np.array([command])), dtype=float)
-        ends.append(bias + weight * np.clip(action, -1.0, 1.0))
-    return ends[0], ends[1]
+    # A function of the gripper's class and control range: driven once per process for each (a fresh gripper
+    # model, as every world builds, starts from the same internal state).
+    kind = (type(gripper_model).__module__, type(gripper_model).__qualname__, ctrl_range.tobytes())
+    cached = _endpoints_by_kind.get(kind)
+    if cached is None:
+        bias = 0.5 * (ctrl_range[:, 1] + ctrl_range[:, 0])
+        weight = 0.5 * (ctrl_range[:, 1] - ctrl_range[:, 0])
+        ends = []
+        for command in (-1.0, 1.0):
+            action = None
+            for _ in range(1000):
+                action = np.asarray(gripper_model.format_action(np.array([command])), dtype=float)
+            ends.append(bias + weight * np.clip(action, -1.0, 1.0))
+        cached = _endpoints_by_kind[kind] = (ends[0], ends[1])
+    return cached[0].copy(), cached[1].copy()
+
+
+_endpoints_by_kind: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}

@@ -87,7 +87,7 @@ class TabletopEnv:
     """
 
     def __init__(self, scene: SceneGraph, models: dict[int, ObjectModel], robot: Any = None,
-                 sensors: dict[str, Sensor] | None = None, **overrides: Any):
+                 sensors: dict[str, Sensor] | None = None, *, visual: bool = True, **overrides: Any):
         cfg = _robot_settings(robot, overrides)
         cfg["controller"] = CONTROLLER_ALIASES.get(cfg["controller"], cfg["controller"])
         if cfg["controller"] not in CONTROLLERS:
@@ -102,7 +102,8 @@ class TabletopEnv:
         self.initial_scene = copy.deepcopy(scene)  # what reset() returns to
         self.scene = copy.deepcopy(scene)  # the latest sync_scene_graph()
         self.object_models = dict(models)
-        self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"])
+        # visual=False: a model for physics and planning alone (``build_world``), which no renderer can draw.
+        self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"], visual)
         self.names.init_qpos = home_configuration(self.model, self.names)
         self.data = mujoco.MjData(self.model)
         self.n_substeps = int(round(substeps))

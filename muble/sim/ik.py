@@ -108,6 +108,7 @@ class ArmKinematics:
         q = np.clip(np.asarray(seed, dtype=float).copy(), lo, hi)
         rows = 3 if target_quat is None else 6
         err = np.zeros(rows)
+        damped = damping * np.eye(rows)
         pos_err = rot_err = np.inf
         it = 0
         for it in range(1, max_iterations + 1):
@@ -135,10 +136,10 @@ class ArmKinematics:
                 jac_w[3:] *= 0.2
             else:
                 err_w, jac_w = err, jac
-            jjt = jac_w @ jac_w.T + damping * np.eye(rows)
+            jjt = jac_w @ jac_w.T + damped
             dq = jac_w.T @ np.linalg.solve(jjt, err_w)
             step = np.max(np.abs(dq))
             if step > max_step:
                 dq *= max_step / step
-            q = np.clip(q + dq, lo, hi)
+            q = np.minimum(np.maximum(q + dq, lo), hi)  # np.clip's result, without its per-call overhead
         return IKResult(q, pos_err, rot_err, it)

@@ -56,6 +56,8 @@ natural period ``1/sqrt(k)`` stays above two 2 ms physics steps; the stiffness a
 """
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,7 +101,16 @@ def _ints(values) -> str:
 def _mesh_xml(name: str, vertices: np.ndarray, faces: np.ndarray) -> str:
     # inertia="convex": the geoms carry no mass (the body has an explicit <inertial>), and the convex rule
     # never fails on open or thin visual meshes the way the exact volume rule can.
-    return f'<mesh name="{name}" inertia="convex" vertex="{_floats(vertices)}" face="{_ints(faces)}"/>'
+    vertex, face = _mesh_text(np.asarray(vertices, dtype=float).tobytes(), np.asarray(faces).tobytes(),
+                              np.asarray(faces).dtype.str)
+    return f'<mesh name="{name}" inertia="convex" vertex="{vertex}" face="{face}"/>'
+
+
+@functools.lru_cache(maxsize=512)
+def _mesh_text(vertices: bytes, faces: bytes, face_dtype: str) -> tuple[str, str]:
+    """Vertex and face attribute text of a mesh, by content: a mesh met again (the same object in the next
+    layout, scene or episode) is not formatted again."""
+    return _floats(np.frombuffer(vertices, dtype=float)), _ints(np.frombuffer(faces, dtype=face_dtype))
 
 
 def _rgba(rgba) -> str:

@@ -61,7 +61,8 @@ class Approach(PrimitiveAction):
                 if reasons and all("out of reach" in r for r in reasons):
                     break  # a narrower hand reaches no farther
                 world, candidates = candidates_with_opening(env, obj_id, body, command,
-                                                            settle=not _fingers_open(env, command, grip))
+                                                            settle=not _fingers_open(env, command, grip),
+                                                            limit=FEASIBLE_CANDIDATES)
                 for grasp in candidates[:FEASIBLE_CANDIDATES]:
                     tried += 1
                     try:
@@ -110,9 +111,11 @@ PRESHAPE_SETTLE = 0.5  # s for the fingers to reach a part-way opening (the full
 PRESHAPE_SLACK = 0.002
 
 
-def candidates_with_opening(env, obj_id: int, body: str, command: float, settle: bool = True):
+def candidates_with_opening(env, obj_id: int, body: str, command: float, settle: bool = True,
+                            limit: int | None = None):
     """The collision world and the ranked grasp candidates with the hand opened by ``command`` (one of
-    ``HAND_OPENINGS``). The fingers are moved there in physics (``settle=False``: they already are)."""
+    ``HAND_OPENINGS``), the first ``limit`` of them only when given. The fingers are moved there in physics
+    (``settle=False``: they already are)."""
     model = env.object_models[obj_id]
     grip = ctx.grip_geometry(env)
     table = env.table()
@@ -127,7 +130,7 @@ def candidates_with_opening(env, obj_id: int, body: str, command: float, settle:
     # Ranked by how far the hand stays from the neighbours, with more directions around round objects.
     candidates = grasp_candidates(env.object_pose(obj_id), model, table.top_z, max_width=max_width,
                                   rest_quat=env.top_down(), grip=grip,
-                                  clearance=hand_clearance(world, body, ignore=[table.body]))
+                                  clearance=hand_clearance(world, body, ignore=[table.body]), limit=limit)
     if not candidates and command == -1.0:
         raise PlanningError(f"object {obj_id} ({model.spec.category}) has no grasp that fits this gripper "
                             f"(parts {grip.closed_gap * 1000:.0f}-{grip.max_width * 1000:.0f} mm thick); "

@@ -60,9 +60,13 @@ def planner(env: Environment, name: str) -> MotionPlanner:
     configured = env.planner
     if name == "ompl" and isinstance(configured, MotionPlanner):
         return configured
-    from muble import get_registry
+    # Built once per environment: creating one validates its options, which costs more than a short plan.
+    key = f"planner:{name}"
+    if key not in env.cache:
+        from muble import get_registry
 
-    return get_registry().create("planner", name)
+        env.cache[key] = get_registry().create("planner", name)
+    return env.cache[key]
 
 
 def body_name(env, obj_id: int) -> str:

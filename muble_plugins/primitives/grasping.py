@@ -72,12 +72,18 @@ class GripGeometry:
     def site_pose(self, frame: Pose, width: float) -> Pose:
         """Grip-site pose that puts the pads' midpoint on ``frame`` with the fingers closing along its x axis and
         the hand approaching along its z axis."""
-        x = self.closing
-        z = self.approach - (self.approach @ x) * x
-        z /= np.linalg.norm(z)
-        in_site = np.column_stack([x, np.cross(z, x), z])  # the frame's axes in site coordinates
-        site_rot = _quat_mat(frame.quat) @ in_site.T
+        site_rot = _quat_mat(frame.quat) @ self._frame_in_site().T
         return Pose(frame.pos - site_rot @ self.centre(width), _mat_quat(site_rot))
+
+    def _frame_in_site(self) -> np.ndarray:
+        """A grasp frame's axes in site coordinates (a function of the gripper alone, computed once)."""
+        cached = self.__dict__.get("_in_site")
+        if cached is None:
+            x = self.closing
+            z = self.approach - (self.approach @ x) * x
+            z /= np.linalg.norm(z)
+            cached = self.__dict__["_in_site"] = np.column_stack([x, np.cross(z, x), z])
+        return cached
 
 
 def pad_faces(m, d, site: int, left: list[int], right: list[int]) -> tuple[np.ndarray, np.ndarray, float]:
@@ -181,7 +187,7 @@ def grasp_approach(grasp: Pose) -> np.ndarray:
 
 def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: float | None = None,
                      rest_quat: np.ndarray | None = None, grip: GripGeometry | None = None,
-                     clearance=None) -> list[Pose]:
+                     clearance=None, limit: int | None = None) -> list[Pose]:
     """World grip-site poses for grasping, best first.
 
     A grasp frame (object coordinates) places the pads' midpoint, x along the fingers' closing direction and z
@@ -197,6 +203,10 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
     are also tried swept about the vertical axis in ``SWEEP_STEP`` steps, so that the hand can face away from a
     neighbour; candidates whose open hand comes closer than ``CLEAR_ENOUGH`` to anything but the target are
     ranked lower in proportion, and those where it already touches something go last.
+
+    ``limit``: only the first ``limit`` candidates of that ranking are wanted (the same ones, in the same order).
+    Clearance is then measured best base rank first, and no further once no candidate left can enter them: it
+    only ever adds to a rank.
     """
     if max_width is None:
         max_width = grip.max_width if grip is not None else np.inf
@@ -206,7 +216,7 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
     if rest_quat is not None:
         rest_x = _quat_mat(rest_quat) @ (grip.closing if grip is not None else np.array([1.0, 0.0, 0.0]))
     tip = grip.tip_depth if grip is not None else 0.0
-    scored = []
+    drafts = []  # (rank without clearance, order made, grasp frame pose, width held, sweep)
     for index, frame in enumerate(model.grasp_frames):
         if not min_width <= frame.width <= max_width:
             continue
@@ -228,16 +238,33 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
                 p[2] = max(p[2], table_top + TABLE_CLEARANCE + tip * max(0.0, -approach[2]))
                 tilt = float(np.arccos(np.clip(-approach[2], -1.0, 1.0)))
                 turn = float(np.arccos(min(1.0, abs(float(closing @ rest_x))))) if rest_x is not None else 0.0
-                site = grip.site_pose(Pose(p, q), frame.width * stretch) if grip is not None else Pose(p, q)
                 score = tilt + 0.3 * turn + 0.002 * index + 0.001 * abs(sweep)
-                if clearance is not None:
-                    free = clearance(site)
-                    if sweep != 0.0 and free < TOUCHING:
-                        continue  # an extra that cannot be used here
-                    score += CROWDED if free < TOUCHING else max(0.0, CLEAR_ENOUGH - free) / CLEAR_ENOUGH
-                scored.append((score, len(scored), site))
+                # Ties keep the order of generation (which is the order among those kept).
+                drafts.append((score, len(drafts), Pose(p, q), frame.width * stretch, sweep))
+
+    def site_of(draft) -> Pose:
+        return grip.site_pose(draft[2], draft[3]) if grip is not None else draft[2]
+
+    if clearance is None:
+        drafts.sort(key=lambda item: item[:2])
+        return [site_of(d) for d in drafts[:limit]]
+    scored = []
+    order = sorted(drafts, key=lambda item: item[:2]) if limit is not None else drafts
+    for k, draft in enumerate(order):
+        if limit is not None and len(scored) >= limit:
+            scored.sort(key=lambda item: item[:2])
+            del scored[limit:]
+            if scored[-1][:2] < draft[:2]:
+                break  # every candidate left ranks after the last one wanted
+        score, rank, _, _, sweep = draft
+        site = site_of(draft)
+        free = clearance(site)
+        if sweep != 0.0 and free < TOUCHING:
+            continue  # an extra that cannot be used here
+        score += CROWDED if free < TOUCHING else max(0.0, CLEAR_ENOUGH - free) / CLEAR_ENOUGH
+        scored.append((score, rank, site))
     scored.sort(key=lambda item: item[:2])
-    return [pose for *_, pose in scored]
+    return [pose for *_, pose in scored[:limit]]
 
 
 def _sweeps(frame, frames, on_axis: bool, grasp_type: str) -> list[tuple[float, float]]:
