@@ -30,3 +30,21 @@ def generated_env_fixture():
     env = generated_env(cfg, build_components(cfg, renderer=False, task=False), 3)
     yield env
     env.close()
+
+
+@pytest.fixture(scope="module")
+def object_set():
+    """The built-in SHOP-VRB2 object set, built once per test module."""
+    from muble import get_registry
+
+    return get_registry().create("object_set", "shopvrb2")
+
+
+@pytest.fixture
+def clear_hydra():
+    """Hydra's global state cleared before and after the test (tests that compose configs themselves)."""
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    yield
+    GlobalHydra.instance().clear()

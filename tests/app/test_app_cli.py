@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from hydra.core.global_hydra import GlobalHydra
 
 from muble.app.config import GROUP_OF_KIND, compose
 from muble.plugins.registry import get_registry
@@ -24,11 +23,7 @@ def muble(*args: str, env: dict | None = None, cwd: Path | None = None) -> subpr
                           env=full_env, cwd=cwd, timeout=300)
 
 
-@pytest.fixture(autouse=True)
-def _clear_hydra():
-    GlobalHydra.instance().clear()
-    yield
-    GlobalHydra.instance().clear()
+pytestmark = pytest.mark.usefixtures("clear_hydra")
 
 
 def test_help_lists_commands():

@@ -12,11 +12,7 @@ from muble.core.ranges import check_ranges, range_violations
 from tests.app.usage_probe import run_many
 
 
-@pytest.fixture(autouse=True)
-def _clear_hydra():
-    GlobalHydra.instance().clear()
-    yield
-    GlobalHydra.instance().clear()
+pytestmark = pytest.mark.usefixtures("clear_hydra")
 
 
 def _compose_error(overrides: list[str]) -> str:

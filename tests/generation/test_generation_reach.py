@@ -17,10 +17,6 @@ pytestmark = pytest.mark.slow
 SCENE = Path(__file__).parents[1] / "planning" / "data" / "glass_beside_a_tall_thermos.json"
 
 
-@pytest.fixture(scope="module")
-def object_set():
-    return get_registry().create("object_set", "shopvrb2")
-
 
 def test_a_scene_whose_objects_are_all_within_reach_passes(object_set):
     scene = load_scene(SCENE)

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from muble import ConfigError, SEG_TABLE, get_registry
+from muble import ConfigError
 from muble.core.scene_io import scene_from_dict, scene_to_dict, validate_scene
 from muble.generation import SceneGenerator
 from muble.generation.checks import settle
@@ -17,10 +17,6 @@ from tests.generation.builtin import BUILTIN
 
 pytestmark = pytest.mark.gl
 
-
-@pytest.fixture(scope="module")
-def object_set():
-    return get_registry().create("object_set", "shopvrb2")
 
 
 @pytest.fixture(scope="module")

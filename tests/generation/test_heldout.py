@@ -194,10 +194,6 @@ FAST = {**BUILTIN, "stability": False, "reach_check": False}
 JITTER = {"camera_jitter_m": 0.02, "camera_jitter_deg": 1.5, "lamp_jitter": 0.3}
 
 
-@pytest.fixture(scope="module")
-def object_set():
-    return get_registry().create("object_set", "shopvrb2")
-
 
 def test_staging_is_default_without_jitter_and_within_bounds_with_it(object_set):
     plain = SceneGenerator(FAST, seed=5, object_set=object_set)

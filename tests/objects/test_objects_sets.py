@@ -1,7 +1,6 @@
 """Object sets through the registry and Hydra: selection, validation, sampling, determinism, caching."""
 import numpy as np
 import pytest
-from hydra.core.global_hydra import GlobalHydra
 
 from muble import ConfigError, get_registry
 from muble.app.config import compose
@@ -13,11 +12,7 @@ SHOP_CATEGORIES = ["baking tray", "bowl", "chopping board", "food box", "glass",
                    "thermos", "wine glass"]
 
 
-@pytest.fixture(autouse=True)
-def _clear_hydra():
-    GlobalHydra.instance().clear()
-    yield
-    GlobalHydra.instance().clear()
+pytestmark = pytest.mark.usefixtures("clear_hydra")
 
 
 @pytest.mark.parametrize("name", ["shopvrb2", "ycb"])

@@ -18,10 +18,6 @@ pytestmark = pytest.mark.gl
 TABLE_X, TABLE_Y = (0.0, 0.9), (-0.6, 0.6)
 
 
-@pytest.fixture(scope="module")
-def object_set():
-    return get_registry().create("object_set", "shopvrb2")
-
 
 @pytest.fixture(scope="module")
 def renderer():

@@ -30,10 +30,6 @@ DEFAULT_STIFFNESS = {"rubber": 5656.9, "plastic": 13416.4, "metal": 35355.3, "wo
                      "ceramic": 87749.6}
 
 
-@pytest.fixture(scope="module")
-def object_set():
-    return muble.get_registry().create("object_set", "shopvrb2")
-
 
 @pytest.fixture(scope="module")
 def base_scene():

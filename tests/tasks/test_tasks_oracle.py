@@ -86,27 +86,46 @@ def test_oracle_replans_after_a_disturbance(episodes):
     assert steps >= 6 and task.check(ins, world.scene, None) is Outcome.SUCCESS
 
 
-def test_failure_taxonomy(episodes):
-    by_name = {}
-    for name, task, ins, scene in episodes:
-        by_name.setdefault(name, (task, ins, scene))
-    task, ins, scene = by_name["measure_weight_multi"]
-    expected = ins.program[-1]["output"]
-    ids = ins.program[-2]["output"]
+def _first(episodes, template):
+    return next((task, ins, scene) for name, task, ins, scene in episodes if name == template)
+
+
+# (case, answer from (expected weights, their object ids), outcome): a measure_weight_multi answer is judged per
+# object, so the right numbers against the wrong objects are wrong.
+WEIGHT_ANSWERS = [
+    ("the weights in program order", lambda w, ids: Answer(list(w)), Outcome.SUCCESS),
+    ("the weights reversed", lambda w, ids: Answer(list(reversed(w))), Outcome.INCORRECT_ANSWER),
+    ("the weights under the wrong ids", lambda w, ids: Answer(dict(zip(reversed(ids), w))), Outcome.INCORRECT_ANSWER),
+    ("the weights under their ids as text", lambda w, ids: Answer({str(i): x for i, x in zip(ids, w)}),
+     Outcome.SUCCESS),
+    ("not numbers", lambda w, ids: Answer([float("nan")] * len(w)), Outcome.INCORRECT_ANSWER),
+    ("10 g off", lambda w, ids: Answer([x + 10 for x in w]), Outcome.INCORRECT_ANSWER),
+    ("no answer", lambda w, ids: None, Outcome.INCORRECT_ANSWER),
+]
+
+
+@pytest.mark.parametrize("case, answer, outcome", WEIGHT_ANSWERS, ids=[c[0] for c in WEIGHT_ANSWERS])
+def test_a_weight_answer_is_judged_per_object(episodes, case, answer, outcome):
+    task, ins, scene = _first(episodes, "measure_weight_multi")
+    expected, ids = ins.program[-1]["output"], ins.program[-2]["output"]
     assert len(set(expected)) == len(expected) >= 2
-    assert task.check(ins, scene, Answer(list(expected))) is Outcome.SUCCESS
-    # Weights are matched per object: the right numbers against the wrong objects are wrong.
-    assert task.check(ins, scene, Answer(list(reversed(expected)))) is Outcome.INCORRECT_ANSWER
-    assert task.check(ins, scene, Answer(dict(zip(reversed(ids), expected)))) is Outcome.INCORRECT_ANSWER
-    assert task.check(ins, scene, Answer({str(i): w for i, w in zip(ids, expected)})) is Outcome.SUCCESS
-    assert task.check(ins, scene, Answer([float("nan")] * len(expected))) is Outcome.INCORRECT_ANSWER
-    assert task.check(ins, scene, Answer([w + 10 for w in expected])) is Outcome.INCORRECT_ANSWER
-    assert task.check(ins, scene, None) is Outcome.INCORRECT_ANSWER
-    task, ins, scene = by_name["stack_simple"]
-    assert task.check(ins, scene, None) is Outcome.SCENE_INCONSISTENCY  # nothing was done
+    assert task.check(ins, scene, answer(expected, ids)) is outcome
+
+
+def test_a_stack_not_built_is_a_scene_inconsistency(episodes):
+    task, ins, scene = _first(episodes, "stack_simple")
+    assert task.check(ins, scene, None) is Outcome.SCENE_INCONSISTENCY
+
+
+def test_an_object_fallen_off_the_table_is_a_broken_scene(episodes):
+    task, ins, scene = _first(episodes, "stack_simple")
     fallen = copy.deepcopy(scene)
     fallen.objects[0].position = np.array([0.5, 0.0, -0.4])
     assert task.check(ins, fallen, None) is Outcome.BROKEN_SCENE
+
+
+def test_a_program_naming_objects_not_in_the_scene_is_a_program_failure(episodes):
+    task, ins, scene = _first(episodes, "stack_simple")
     bad = copy.deepcopy(ins)
     bad.program[-1]["output"] = [[99], [98]]
     assert task.check(bad, scene, None) is Outcome.PROGRAM_FAILURE
