@@ -12,44 +12,20 @@ import numbers
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
 from muble.core.errors import MubleError
-from muble.core.interfaces import Renderer
 from muble.core.manifest import make_manifest
 from muble.core.scene_io import write_json_atomic
 # Where they are built; imported here too, where they used to live.
 from muble.episode.components import build_components, episode_runner, scene_generator  # noqa: F401
+from muble.episode.runner import KeyframeStateRecorder  # noqa: F401
 
 log = logging.getLogger(__name__)
 
 # Program steps whose answer is a weight in grams (the SHOP-VRB2 queries).
 _WEIGHT_QUERIES = ("query_weight",)
-
-
-class KeyframeStateRecorder(Renderer):
-    """Wraps the episode's renderer and keeps MuJoCo's ``qpos`` at every keyframe (each keyframe renders every
-    configured camera in turn, so one state is kept per ``cameras`` calls)."""
-
-    def __init__(self, inner: Renderer, cameras: int):
-        self.inner, self.cameras = inner, max(1, cameras)
-        self.states: list[np.ndarray] = []
-        self._calls = 0
-
-    def setup(self, scene: Any, model: Any) -> None:
-        self.states, self._calls = [], 0
-        self.inner.setup(scene, model)
-
-    def render(self, data: Any, camera: str):
-        if self._calls % self.cameras == 0:
-            self.states.append(np.array(data.qpos, dtype=np.float64))
-        self._calls += 1
-        return self.inner.render(data, camera)
-
-    def close(self) -> None:
-        self.inner.close()
 
 
 def format_answer(value: Any, instruction: Any = None) -> str:
@@ -121,8 +97,9 @@ def job(cfg: DictConfig) -> dict:
     output = episode_runner(cfg, {**components, "renderer": recorder}).execute(scene, instruction,
                                                                               components["task"])
     stem = f"episode_{cfg.seed}_{cfg.scene_index:06d}"
-    written = write_episode(output, out_dir, stem, gif=cfg.output.gif, action_names=cfg.episode.action_names)
-    written.update(_write_keyframe_states(cfg, recorder, output, out_dir, stem))
+    states = recorder.keyframe_states(output, cfg.robot.name, cfg.objects.name, cfg.episode.cameras[0])
+    written = write_episode(output, out_dir, stem, gif=cfg.output.gif, action_names=cfg.episode.action_names,
+                            states=states)
     manifest["outputs"] = written
     manifest["outcome"] = output.result.outcome.value
     write_json_atomic(out_dir / "manifest.json", manifest, indent=2)
@@ -136,22 +113,6 @@ def job(cfg: DictConfig) -> dict:
     print(f"outputs: {out_dir}" + (f" (GIF {out_dir / gif})" if gif else ""))
     print(f"outcome: {r.outcome.value} ({len(r.actions)} primitives, {output.timing.total:.1f} s)")
     return {"outcome": r.outcome.value, **summary}
-
-
-def _write_keyframe_states(cfg: DictConfig, recorder: KeyframeStateRecorder, output: Any, out_dir: Path,
-                           stem: str) -> dict[str, str]:
-    """``keyframes/<stem>_states.npz``: one MuJoCo state per keyframe, for ``muble render --keyframes``."""
-    from muble.core.atomic import write_bytes_atomic
-    from muble.core.keyframe_states import KeyframeStates, keyframe_states_bytes
-
-    if not recorder.states or len(recorder.states) != len(output.keyframes):
-        log.warning("keyframe states not written: %d states for %d keyframes", len(recorder.states),
-                    len(output.keyframes))
-        return {}
-    states = KeyframeStates(np.stack(recorder.states), robot=cfg.robot.name, object_set=cfg.objects.name,
-                            camera=cfg.episode.cameras[0])
-    rel = f"keyframes/{stem}_states.npz"
-    return {rel: write_bytes_atomic(out_dir / rel, keyframe_states_bytes(states))}
 
 
 def main(argv: list[str]) -> int:

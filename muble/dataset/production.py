@@ -3,14 +3,18 @@
 ``produce_index`` runs in any worker (local process, Ray task or the driver): it builds the configured plugins
 once per process, takes the index's template and object count from the split's task mix
 (``muble.generation.task_mix``), generates a scene that suits that template with an instruction whose ground
-truth is feasible, renders its image, runs the oracle with physics for the ground-truth sequence (observations after every primitive, keyframes) and writes
-all of it, the instruction file last. An index whose instruction file exists is complete; a killed run leaves
-only hidden temporaries, removed on restart, so a restarted run ends byte-identical to an uninterrupted one.
+truth is feasible, renders its image, runs the oracle with physics for the ground-truth sequence (observations
+after every primitive, keyframes and the keyframes' MuJoCo states, ``keyframes/<stem>_states.npz``, which
+``muble render --keyframes`` draws again with another renderer) and writes all of it, the instruction file last.
+An index whose instruction file exists is complete; a killed run leaves only hidden temporaries, removed on
+restart, so a restarted run ends byte-identical to an uninterrupted one.
 """
 from __future__ import annotations
 
+import collections
 import json
 import logging
+import time
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,11 +60,17 @@ def cached_components(config: dict[str, Any], renderer: bool = True, task: bool 
     return _components_cache[key]
 
 
-def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
-    """Generate and write everything of one scene index; returns (index, {relative path: sha256})."""
+def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> tuple[int, dict[str, str]]:
+    """Generate and write everything of one scene index; returns (index, {relative path: sha256}).
+
+    ``timings``, when given, gets the seconds of each stage added (``scene.<generator stage>``, ``scene.other``:
+    choosing the template's instruction and its symbolic ground truth, masks, set-up; ``episode.physics``,
+    ``episode.planning``, ``episode.keyframes``; ``image`` without sequences; ``writing``: encoding and files)."""
+    stage = timings if timings is not None else collections.Counter()
+    began = time.perf_counter()
     from muble.core.instructions_io import instruction_to_dict
     from muble.core.scene_io import scene_to_dict
-    from muble.episode.runner import instruction_rng, png_bytes, write_episode
+    from muble.episode.runner import KeyframeStateRecorder, instruction_rng, png_bytes, write_episode
     from muble.generation.generator import SceneGenerator
     from muble.generation.task_mix import suited_scene, template_weights
     from muble.plugins.registry import get_registry
@@ -82,6 +92,9 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
         suited = suited_scene(generator, tasks, weights, seed, job.index, lambda i: instruction_rng(seed, i))
     finally:
         generator.close()
+        for name, seconds in generator.timings.items():
+            stage[f"scene.{name}"] += seconds
+        stage["scene.other"] += time.perf_counter() - began - sum(generator.timings.values())
     scene, task, instruction = suited.scene, suited.task, suited.instruction
     scene.image_filename = Path(layout.image(job.index)).name
     instruction.image_filename = scene.image_filename
@@ -90,14 +103,27 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     from muble.episode.components import episode_runner
     from omegaconf import OmegaConf
 
-    runner = episode_runner(OmegaConf.create(cfg), components)
     if ds["sequences"]:
+        # The keyframes' MuJoCo states are kept too, so that the keyframes can be rendered again later (Blender).
+        cameras = cfg["episode"]["cameras"]
+        recorder = KeyframeStateRecorder(components["renderer"], len(cameras)) if components["renderer"] else None
+        runner = episode_runner(OmegaConf.create(cfg), {**components, "renderer": recorder})
         output = runner.execute(scene, instruction, task)
+        stage["episode.physics"] += output.timing.physics
+        stage["episode.planning"] += output.timing.planning
+        stage["episode.keyframes"] += output.timing.rendering
+        began = time.perf_counter()
+        states = None if recorder is None else recorder.keyframe_states(
+            output, cfg["robot"]["name"], cfg["objects"]["name"], cameras[0])
         written.update(write_episode(output, out, layout.stem(job.index), gif=ds["gif"],
-                                     action_names=cfg.get("episode", {}).get("action_names", "registry")))
+                                     action_names=cfg.get("episode", {}).get("action_names", "registry"),
+                                     states=states))
         image = output.keyframes[0] if output.keyframes else None
     else:
-        image = _render_initial(runner, scene)
+        began = time.perf_counter()
+        image = _render_initial(episode_runner(OmegaConf.create(cfg), components), scene)
+        stage["image"] += time.perf_counter() - began
+        began = time.perf_counter()
         written[layout.scene(job.index)] = write_bytes_atomic(
             out / layout.scene(job.index), json.dumps(scene_to_dict(scene)).encode())
     if image is not None:
@@ -108,6 +134,7 @@ def produce_index(job: IndexJob) -> tuple[int, dict[str, str]]:
     record["scene_samples"] = suited.samples
     written[layout.instruction(job.index)] = write_bytes_atomic(
         out / layout.instruction(job.index), json.dumps(record).encode())
+    stage["writing"] += time.perf_counter() - began
     return job.index, written
 
 

@@ -132,6 +132,41 @@ class _TimedPlanner(MotionPlanner):
         return getattr(self.inner, name)
 
 
+class KeyframeStateRecorder(Renderer):
+    """Wraps the episode's renderer and keeps MuJoCo's ``qpos`` at every keyframe (each keyframe renders every
+    configured camera in turn, so one state is kept per ``cameras`` calls): what ``muble render --keyframes``
+    needs to draw the keyframes again with another renderer."""
+
+    def __init__(self, inner: Renderer, cameras: int):
+        self.inner, self.cameras = inner, max(1, cameras)
+        self.states: list[np.ndarray] = []
+        self._calls = 0
+
+    def setup(self, scene: Any, model: Any) -> None:
+        self.states, self._calls = [], 0
+        self.inner.setup(scene, model)
+
+    def render(self, data: Any, camera: str):
+        if self._calls % self.cameras == 0:
+            self.states.append(np.array(data.qpos, dtype=np.float64))
+        self._calls += 1
+        return self.inner.render(data, camera)
+
+    def close(self) -> None:
+        self.inner.close()
+
+    def keyframe_states(self, output: "EpisodeOutput", robot: str, object_set: str, camera: str):
+        """The recorded states as a ``KeyframeStates`` (one per keyframe of ``output``), or ``None`` with a
+        warning when they do not match the keyframes one to one."""
+        from muble.core.keyframe_states import KeyframeStates
+
+        if not self.states or len(self.states) != len(output.keyframes):
+            log.warning("keyframe states not written: %d states for %d keyframes", len(self.states),
+                        len(output.keyframes))
+            return None
+        return KeyframeStates(np.stack(self.states), robot=robot, object_set=object_set, camera=camera)
+
+
 class EpisodeRunner:
     """Executes instructions on scenes with the configured robot, planner, agent, sensors and renderer."""
 
@@ -219,10 +254,12 @@ class EpisodeRunner:
 
 
 def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool = True,
-                  action_names: str = "registry") -> dict[str, str]:
+                  action_names: str = "registry", states: Any = None) -> dict[str, str]:
     """Write keyframes, GIF and sequence file atomically; returns {relative path: sha256}.
 
-    ``action_names``: ``registry`` or ``original`` primitive names in the sequence file."""
+    ``action_names``: ``registry`` or ``original`` primitive names in the sequence file. ``states``: the
+    keyframes' MuJoCo states (``muble.core.keyframe_states.KeyframeStates``), written as
+    ``keyframes/<stem>_states.npz`` for ``muble render --keyframes``."""
     written: dict[str, str] = {}
     paths = []
     for i, rgb in enumerate(output.keyframes):
@@ -232,6 +269,11 @@ def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool =
     if gif and output.keyframes:
         rel = f"keyframes/{stem}.gif"
         written[rel] = write_bytes_atomic(directory / rel, gif_bytes(output.keyframes))
+    if states is not None:
+        from muble.core.keyframe_states import keyframe_states_bytes
+
+        rel = f"keyframes/{stem}_states.npz"
+        written[rel] = write_bytes_atomic(directory / rel, keyframe_states_bytes(states))
     output.sequence = sequence_dict(output.instruction, output.result, paths, action_names=action_names)
     rel = f"sequences/{stem}.json"
     written[rel] = write_bytes_atomic(directory / rel, json.dumps(output.sequence).encode())
