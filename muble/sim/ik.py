@@ -6,6 +6,7 @@ move; everything else in ``data`` (gripper fingers, objects) stays where it is.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -14,6 +15,17 @@ import numpy as np
 logger = logging.getLogger(__name__)
 
 LIMIT_MARGIN = 0.01  # rad kept between an IK solution and each joint limit
+
+try:  # np.linalg.solve's own kernel, without its argument checks (a third of the IK loop's time)
+    from numpy.linalg import _umath_linalg
+    from numpy.linalg._linalg import _raise_linalgerror_singular
+
+    def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        with np.errstate(call=_raise_linalgerror_singular, invalid="call", over="ignore", divide="ignore",
+                         under="ignore"):
+            return _umath_linalg.solve1(a, b, signature="dd->d")
+except ImportError:  # another numpy layout
+    _solve = np.linalg.solve
 
 
 def quat_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
@@ -108,37 +120,40 @@ class ArmKinematics:
         q = np.clip(np.asarray(seed, dtype=float).copy(), lo, hi)
         rows = 3 if target_quat is None else 6
         err = np.zeros(rows)
+        err_w, jac_w = np.empty(rows), np.empty((rows, len(self.dof_adr)))
         damped = damping * np.eye(rows)
         pos_err = rot_err = np.inf
         it = 0
+        # The loop runs thousands of times per scene in planning: buffers are reused and numpy's per-call wrappers
+        # avoided where the same operation gives the same numbers (norms as sqrt(x·x), as np.linalg.norm computes).
         for it in range(1, max_iterations + 1):
             self.set_q(q)
             pos, quat = self._site_pose()
             err[:3] = target_pos - pos
-            pos_err = float(np.linalg.norm(err[:3]))
+            part = err[:3]
+            pos_err = math.sqrt(part.dot(part))
             if target_quat is not None:
                 err[3:] = quat_error(target_quat, quat)
-                rot_err = float(np.linalg.norm(err[3:]))
+                part = err[3:]
+                rot_err = math.sqrt(part.dot(part))
             else:
                 rot_err = 0.0
             if pos_err <= position_tolerance and rot_err <= orientation_tolerance:
                 break
             mujoco.mj_comPos(self.model, self.data)  # mj_jacSite needs the com-based frames
             mujoco.mj_jacSite(self.model, self.data, self._jacp, self._jacr, self.site_id)
-            jac = self._jacp[:, self.dof_adr] if rows == 3 else np.vstack(
-                (self._jacp[:, self.dof_adr], self._jacr[:, self.dof_adr])
-            )
             # Weight rotation so 1 rad of error counts like 0.2 m: keeps position dominant near the goal.
             if rows == 6:
-                err_w = err.copy()
-                err_w[3:] *= 0.2
-                jac_w = jac.copy()
+                jac_w[:3] = self._jacp[:, self.dof_adr]
+                jac_w[3:] = self._jacr[:, self.dof_adr]
                 jac_w[3:] *= 0.2
-            else:
-                err_w, jac_w = err, jac
+                err_w[:] = err
+                err_w[3:] *= 0.2
+            else:  # as indexed (its memory order decides the rounding of the products below)
+                jac_w, err_w = self._jacp[:, self.dof_adr], err
             jjt = jac_w @ jac_w.T + damped
-            dq = jac_w.T @ np.linalg.solve(jjt, err_w)
-            step = np.max(np.abs(dq))
+            dq = jac_w.T @ _solve(jjt, err_w)
+            step = np.abs(dq).max()
             if step > max_step:
                 dq *= max_step / step
             q = np.minimum(np.maximum(q + dq, lo), hi)  # np.clip's result, without its per-call overhead
