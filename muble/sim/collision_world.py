@@ -247,28 +247,40 @@ class MujocoCollisionWorld(CollisionWorld):
 
     @contextlib.contextmanager
     def resting_at(self, q: np.ndarray) -> Iterator[bool]:
-        """Within the block, contacts present at ``q`` between the held object and the other objects or the table
-        (an object taken while it still leans on a neighbour, or lifted beside one) count only where they come
-        closer than at ``q`` (by more than ``RESTING_SLACK``): a path may leave them, not push into them. The arm's
-        and gripper's own contacts are never tolerated. Yields whether ``q`` is valid so."""
+        """Within the block, contacts present at ``q`` count only where they come closer than at ``q`` (by more
+        than ``RESTING_SLACK``), so a path may leave them, not push into them. Two kinds are tolerated so:
+
+        - the held object against the other objects or the table (an object taken while it still leans on a
+          neighbour, or lifted beside one);
+        - the arm's own links inside the planning clearance of each other without touching (distance > 0): a
+          tracked move ends within its tracking error of the planned configuration, which may put two links a
+          hair inside the clearance the plan kept.
+
+        The arm touching itself, and the arm's or gripper's contacts with anything else, are never tolerated.
+        Yields whether ``q`` is valid so."""
         q = np.asarray(q, dtype=float)
         valid = self.is_valid(q)
-        if valid or self._held_body is None:
+        if valid:
             yield valid
             return
         self._collide(q)  # the contacts at q (is_valid may have stopped at a joint limit)
-        held = self._held_geoms
-        pairs = [(int(a), int(b), float(dist)) for (a, b), dist in zip(self._hit_geoms, self._hit_dist)
-                 if held[a] != held[b] and not (self._robot_geoms[a] or self._robot_geoms[b])]
+        held, robot = self._held_geoms, self._robot_geoms & ~self._held_geoms
+        pairs = []
+        for (a, b), dist in zip(self._hit_geoms, self._hit_dist):
+            a, b, dist = int(a), int(b), float(dist)
+            leaning = self._held_body is not None and held[a] != held[b] and not (robot[a] or robot[b])
+            own_clearance = robot[a] and robot[b] and dist > 0.0
+            if leaning or own_clearance:
+                pairs.append((a, b, dist))
         for a, b, dist in pairs:
             self._tolerated[a, b] = self._tolerated[b, a] = min(dist, self._tolerated[a, b])
         self._tolerating = True
         try:
             valid = self.is_valid(q)
             if pairs:
-                logger.debug("planning from a held object resting against %s: %s", sorted(
-                    {self.model.body(self.model.geom_bodyid[b if held[a] else a]).name for a, b, _ in pairs}),
-                    "valid" if valid else f"still in collision {self.last_contacts[:3]}")
+                logger.debug("planning from contacts it may leave %s: %s", sorted(
+                    {(self.model.body(self.model.geom_bodyid[a]).name, self.model.body(self.model.geom_bodyid[b]).name)
+                     for a, b, _ in pairs}), "valid" if valid else f"still in collision {self.last_contacts[:3]}")
             yield valid
         finally:
             self._tolerating = False

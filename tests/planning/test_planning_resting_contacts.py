@@ -66,3 +66,30 @@ def test_the_arm_itself_touching_an_object_is_never_tolerated(scene):
             world.last_contacts
     with pytest.raises(PlanningError, match="start configuration is in collision"):
         OmplPlanner().plan(q, JointGoal(scene.home_q), world)
+
+
+# A folded arm hovering over an object close to the base, as a tracked move left it: link 2 and link 5 are 4.9 mm
+# apart, a hair inside the planning clearance (5 mm) the planned goal kept. Turning joint 4 (index 3) by 0.05 rad
+# opens the fold; the other way the links interpenetrate.
+FOLDED = np.array([-2.004, -0.527, 1.69, -2.875, -1.649, 3.699, 2.235])
+
+
+def test_the_arm_a_hair_inside_its_own_clearance_may_move_away_not_closer():
+    scene = build_tabletop("Panda", free_boxes=[])
+    world = scene.collision_world()
+    assert not world.is_valid(FOLDED)
+    assert {tuple(sorted(p)) for p in world.last_contacts} == {("robot0_link2", "robot0_link5")}
+    opened, deeper = FOLDED.copy(), FOLDED.copy()
+    opened[3] += 0.05
+    deeper[3] -= 0.05
+    with world.resting_at(FOLDED) as valid:
+        assert valid
+        assert world.is_valid(opened) and not world.is_valid(deeper)
+    assert not world.is_valid(FOLDED)  # the tolerance ends with the block
+    # Before the arm's own clearance was tolerated this raised "start configuration is in collision".
+    OmplPlanner().plan(FOLDED, JointGoal(scene.home_q), world)
+    # Links that touch are never a start to plan from.
+    with world.resting_at(deeper) as valid:
+        assert not valid
+    with pytest.raises(PlanningError, match="start configuration is in collision"):
+        OmplPlanner().plan(deeper, JointGoal(scene.home_q), world)
