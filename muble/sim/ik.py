@@ -16,16 +16,33 @@ logger = logging.getLogger(__name__)
 
 LIMIT_MARGIN = 0.01  # rad kept between an IK solution and each joint limit
 
-try:  # np.linalg.solve's own kernel, without its argument checks (a third of the IK loop's time)
-    from numpy.linalg import _umath_linalg
-    from numpy.linalg._linalg import _raise_linalgerror_singular
+def _checked_solve():
+    """np.linalg.solve's own kernel, without its argument checks (a third of the IK loop's time), where this numpy
+    has it and it gives np.linalg.solve's numbers and errors on a probe; np.linalg.solve itself otherwise (the
+    kernel is numpy's private layout, which a numpy release may change)."""
+    try:
+        from numpy.linalg import _umath_linalg
+        from numpy.linalg._linalg import _raise_linalgerror_singular
 
-    def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        with np.errstate(call=_raise_linalgerror_singular, invalid="call", over="ignore", divide="ignore",
-                         under="ignore"):
-            return _umath_linalg.solve1(a, b, signature="dd->d")
-except ImportError:  # another numpy layout
-    _solve = np.linalg.solve
+        def fast(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            with np.errstate(call=_raise_linalgerror_singular, invalid="call", over="ignore", divide="ignore",
+                             under="ignore"):
+                return _umath_linalg.solve1(a, b, signature="dd->d")
+
+        a = np.array([[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]])
+        b = np.array([1.0, -2.0, 0.5])
+        if not np.array_equal(fast(a, b), np.linalg.solve(a, b)):
+            return np.linalg.solve
+        try:
+            fast(np.zeros((3, 3)), b)
+        except np.linalg.LinAlgError:
+            return fast
+        return np.linalg.solve
+    except Exception:  # another numpy layout or signature
+        return np.linalg.solve
+
+
+_solve = _checked_solve()
 
 
 def quat_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
