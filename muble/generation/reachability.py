@@ -18,6 +18,7 @@ import logging
 from typing import Any
 
 from muble.core.errors import PlanningError
+from muble.core.interfaces import MotionPlanner
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
 
@@ -37,16 +38,10 @@ class ReachCheck:
     def __init__(self, robot: dict[str, Any] | None, primitive: str):
         self.robot = dict(robot or {}) or None
         self.primitive = primitive
-        self._ompl = None
-
-    def _planner(self):
-        """The registry's ``ompl`` planner with its default options, as a primitive gets it by name where the
-        environment has none (a planner holds no state between queries: each re-seeds OMPL)."""
-        if self._ompl is None:
-            from muble.plugins.registry import get_registry
-
-            self._ompl = get_registry().create("planner", "ompl")
-        return self._ompl
+        # Planners the primitive built for an environment (``Environment.cache``), handed to the next one: building
+        # a planner validates its options, which costs more than a short plan, and a planner holds no state
+        # between queries (each re-seeds its sampler).
+        self._planners: dict[str, Any] = {}
 
     def __call__(self, scene: SceneGraph, models: dict[int, ObjectModel]) -> str | None:
         from muble.plugins.registry import get_registry
@@ -56,7 +51,7 @@ class ReachCheck:
         # Physics and planning only: without what only a renderer sees the model compiles in half the time, and
         # every contact, ray, joint and step is the same (tests/generation/test_reach_decisions.py).
         env = TabletopEnv(scene, models, self.robot, {}, visual=False)
-        env.planner = self._planner()  # the planner ``approach`` asks for by name, built once
+        env.cache.update(self._planners)
         try:
             env.open_gripper()
             env.hold(SETTLE)  # as an episode starts: the hand open, the objects settled
@@ -70,4 +65,5 @@ class ReachCheck:
                     return f"object {obj.id} ({obj.name}) at ({x}, {y}): {e}"
             return None
         finally:
+            self._planners.update({k: v for k, v in env.cache.items() if isinstance(v, MotionPlanner)})
             env.close()
