@@ -105,7 +105,7 @@ def suited_scene(generator: Any, tasks: dict[str, Task], weights: Sequence[float
     config = generator.config
     max_samples = config.scene_samples if max_samples is None else max_samples
     count = config.min_objects + balanced_choice(config.count_probabilities, seed, index, COUNT_KEY)
-    distractors = int(getattr(config, "distractors", 0) or 0)
+    distractors = int(config.distractors)
     task = tasks[template]
     chosen: dict[str, Any] = {}
 

@@ -143,14 +143,11 @@ def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
     """
     table = env.table()
     lo, hi = table.part_region(part)
-    turns = [(yaw, rotated(placement.spread(placement.free_places(env, lo, hi, env.held_object, yaw=yaw)), attempt))
-             for yaw in CARRY_TURNS]
-    if not any(places for _, places in turns):
-        raise PlanningError(f"no free space on the {part} part of the table for object {env.held_object}; "
-                            "choose another part")
-    reasons = []
-    for yaw, places in turns:
-        for xy in places:
+    reasons, any_free = [], False
+    for yaw in CARRY_TURNS:  # the places for a turn are found only when the turns before it gave none
+        places = placement.free_places(env, lo, hi, env.held_object, yaw=yaw)
+        any_free = any_free or bool(places)
+        for xy in rotated(placement.spread(places), attempt):
             place = placement.place_pose(env, xy, table.top_z, RELEASE_GAPS[0], yaw)
             top = placement.clear_top(env, xy, table.top_z, env.held_object)
             above = np.array([place.pos[0], place.pos[1], top + placement.held_depth(env) + ctx.HOVER])
@@ -160,5 +157,8 @@ def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
             except PlanningError as e:
                 logger.debug("no descent to %s (turn %.0f deg): %s", np.round(xy, 3).tolist(), np.degrees(yaw), e)
                 reasons.append(f"{np.round(xy, 3).tolist()}: {e}")
+    if not any_free:
+        raise PlanningError(f"no free space on the {part} part of the table for object {env.held_object}; "
+                            "choose another part")
     raise PlanningError(f"no free place on the {part} part of the table can be reached and descended to "
                         f"({len(reasons)} places and turns tried): {reasons[0]}")

@@ -21,6 +21,13 @@ def test_ids_are_registered():
     assert {"MuBlE/ShopVRB2-v0", "MuBlE/Tabletop-v0"} <= set(gymnasium.envs.registry)
 
 
+
+def _check_env_quietly(env):
+    """Gymnasium's env checker on the unwrapped environment (its advisory warnings ignored)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(env.unwrapped, skip_render_check=True)
+
 @pytest.mark.parametrize("text, expected", [
     ('{"name": "approach", "params": {"target": 3}}', (ActionCall("approach", {"target": 3}), True)),
     ('{"name": "lift"}', (ActionCall("lift", {}), True)),
@@ -44,9 +51,7 @@ def test_malformed_action_text_is_handed_to_the_loop_as_invalid(text):
 def test_shopvrb2_passes_the_env_checker_and_seeds_deterministically():
     env = gymnasium.make("MuBlE/ShopVRB2-v0", overrides=SMALL, templates=["measure_weight_single"])
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            check_env(env.unwrapped, skip_render_check=True)
+        _check_env_quietly(env)
         first, info = env.reset(seed=7)
         again, info_again = env.reset(seed=7)
         assert first["scene"] == again["scene"] and first["instruction"] == again["instruction"]
@@ -66,9 +71,7 @@ def test_shopvrb2_passes_the_env_checker_and_seeds_deterministically():
 def test_tabletop_passes_the_env_checker_and_seeds_deterministically():
     env = gymnasium.make("MuBlE/Tabletop-v0", overrides=SMALL)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            check_env(env.unwrapped, skip_render_check=True)
+        _check_env_quietly(env)
         first, _ = env.reset(seed=3)
         again, _ = env.reset(seed=3)
         assert all(np.array_equal(first[k], again[k]) for k in first)
@@ -83,9 +86,7 @@ def test_tabletop_passes_the_env_checker_and_seeds_deterministically():
 def test_tabletop_state_only_leaves_the_image_out_and_makes_no_renderer():
     env = gymnasium.make("MuBlE/Tabletop-v0", render=False)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            check_env(env.unwrapped, skip_render_check=True)
+        _check_env_quietly(env)
         assert "image" not in env.observation_space.spaces and env.unwrapped.components["renderer"] is None
         first, _ = env.reset(seed=3)
         obs, _, terminated, _, _ = env.step(np.array([0, 0, 1, 0, 0, 0, 1], dtype=np.float32))
