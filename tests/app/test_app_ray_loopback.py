@@ -143,10 +143,12 @@ def test_a_private_ray_cluster_listens_only_on_loopback_and_keeps_its_files_priv
                 continue
             for inode in socket_inodes(pid):
                 if inode in listening:
-                    seen.append((command[:80], *listening[inode]))
+                    seen.append((command, *listening[inode]))
+        # Whole command lines: a deep checkout pushes the program's name past any fixed cut.
         commands = " ".join(c for c, _, _ in seen)
         # The GCS, the raylet and the workers were all found: the check below is not vacuous.
-        assert "gcs_server" in commands and "raylet" in commands and len(seen) >= 4, seen
+        programs = [(c.split(" ")[0][-40:], a, p) for c, a, p in seen]
+        assert "gcs_server" in commands and "raylet" in commands and len(seen) >= 4, programs
         exposed = [s for s in seen if not is_loopback(s[1])]
         assert not exposed, f"listening beyond the loopback interface: {exposed}"
 
