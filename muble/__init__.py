@@ -26,7 +26,9 @@ from muble.core.interfaces import (
     Renderer,
     Sensor,
     Task,
+    Trainer,
 )
+from muble.core.training import TrainingRun
 from muble.core.params import Param
 from muble.core.ranges import bounded
 from muble.core.scene import RLE, SceneGraph, SceneObject
@@ -54,5 +56,5 @@ __all__ = [
     "ConfigError", "Environment", "EnvironmentNames", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
     "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
     "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
-    "Sensor", "TableTop", "Task", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
+    "Sensor", "TableTop", "Task", "Trainer", "TrainingRun", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
 ]

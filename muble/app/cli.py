@@ -23,13 +23,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "render": ("muble.app.render", "render a scene file or an episode's keyframes to PNGs and a GIF"),
     "generate": ("muble.app.generate", "generate the SHOP-VRB2 dataset (sharded, resumable)"),
     "eval": ("muble.app.evaluate", "evaluate an agent over a dataset split"),
+    "train": ("muble.app.train", "train a learned part (planner, instruction parser, attribute recogniser)"),
     "compare": ("muble.app.compare", "compare `muble eval` runs: success with 95% intervals, paired McNemar tests"),
     "export": ("muble.app.export", "export a split's sequences as a LeRobot dataset (needs muble[lerobot])"),
     "serve": ("muble.app.serve", "serve episodes to an agent in another process (JSON protocol over ZeroMQ)"),
 }
 
 # Commands that are Hydra applications (the others parse their own arguments).
-HYDRA_COMMANDS = ("run", "generate", "eval")
+HYDRA_COMMANDS = ("run", "generate", "eval", "train")
 
 USAGE = """usage: muble [COMMAND] [ARGS…]
 

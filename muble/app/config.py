@@ -134,6 +134,17 @@ class BenchmarkConfig:
 
 
 @dataclass
+class TrainConfig:
+    """``muble train``: where the part's checkpoints go and how the run goes (the part is ``trainer=NAME``)."""
+
+    out_dir: str = "${hydra:runtime.output_dir}"
+    resume: bool = True  # go on from the last checkpoint in out_dir (refused if it was made under another config)
+    progress: bool = True
+    threads: int = bounded(0, ge=0)  # CPU threads for training; 0: the library's default
+    data_root: str | None = None  # a `muble generate` dataset folder, for trainers that learn from its renders
+
+
+@dataclass
 class MubleConfig:
     """The top-level schema of every MuBlE application."""
 
@@ -149,6 +160,8 @@ class MubleConfig:
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     benchmark: BenchmarkConfig = field(default_factory=BenchmarkConfig)
+    trainer: Any = None  # `muble train`: the learned part to train (trainer=NAME, a registered trainer)
+    train: TrainConfig = field(default_factory=TrainConfig)
     protocol: Any = None  # the frozen protocol's splits (muble_conf/protocol, muble.dataset.protocol), or none
     seed: int = bounded(0, ge=0)  # numpy seeds are non-negative
     scene_index: int = bounded(0, ge=0)
@@ -175,6 +188,10 @@ def register_configs(registry: Registry) -> None:
             record = registry.get(kind, name).record
             if record.config is not None:
                 cs.store(group=group, name=f"{name}_schema", node=_schema_with_name(record.config, name))
+    for name in registry.names("trainer"):
+        record = registry.get("trainer", name).record
+        if record.config is not None:
+            cs.store(group="trainer", name=f"{name}_schema", node=_schema_with_name(record.config, name))
 
 
 def searchpath_override(registry: Registry) -> list[str]:

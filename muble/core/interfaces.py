@@ -34,6 +34,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from muble.core.objects import ObjectModel, ObjectSpec
     from muble.core.params import Param
     from muble.core.scene import SceneGraph
+    from muble.core.training import TrainingRun
 
 
 class Renderer(ABC):
@@ -288,6 +289,20 @@ class Agent(ABC):
         """The next action, an answer, or ``None`` when the agent considers the task done."""
 
 
+class Trainer(ABC):
+    """Trains one learned part (a planner, an instruction parser, an attribute recogniser …) for ``muble train``.
+
+    A trainer builds its own training data (symbolic roll-outs, rendered crops …) from ``run.seed``, trains, and
+    leaves in ``run.out_dir`` a checkpoint that records ``run.record`` (the composed config and the code
+    version) beside the weights. Same seed, same checkpoint. With ``run.resume`` a run that was stopped goes on
+    from its last checkpoint in ``run.out_dir``; one made under another config is refused, never mixed in.
+    """
+
+    @abstractmethod
+    def train(self, run: "TrainingRun") -> dict[str, Any]:
+        """Train; return the run's figures (losses, held-out accuracy, seconds for data and for training)."""
+
+
 INTERFACES: dict[str, type] = {
     "renderer": Renderer,
     "planner": MotionPlanner,
@@ -296,4 +311,5 @@ INTERFACES: dict[str, type] = {
     "task": Task,
     "object_set": ObjectSet,
     "agent": Agent,
+    "trainer": Trainer,
 }

@@ -54,6 +54,11 @@ def muble_register_agents() -> list[PluginRecord]:
 
 
 @hookspec
+def muble_register_trainers() -> list[PluginRecord]:
+    """Trainers of learned parts (``Trainer``) for ``muble train``, e.g. ``PluginRecord("planner", PlannerTrainer)``."""
+
+
+@hookspec
 def muble_config_searchpath() -> list[str]:
     """Hydra search path entries holding the plugin's config yaml, e.g. ``["pkg://my_plugin.conf"]``.
 

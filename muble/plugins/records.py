@@ -13,6 +13,7 @@ KINDS: dict[str, str] = {
     "task": "muble_register_tasks",
     "object_set": "muble_register_object_sets",
     "agent": "muble_register_agents",
+    "trainer": "muble_register_trainers",
 }
 
 

@@ -1,0 +1,57 @@
+"""Learned parts in the style of NS-AP (Nazarczuk et al.): a planner that picks the next primitive and its target,
+an instruction parser (text to program) and an attribute recogniser (object crop to name, colour, material,
+shape, size), each trained by ``muble train trainer=NAME``, and the ``learned_planner`` agent that uses them.
+
+Needs PyTorch (``pip install "muble[learn]"``): the models' modules load only when the registry builds a part,
+so listing plugins and composing configs work without it.
+"""
+from muble import PluginRecord, hookimpl
+
+from muble_plugins.learned.config import (
+    LearnedPlannerConfig,
+    ParserTrainerConfig,
+    PlannerTrainerConfig,
+    RecogniserTrainerConfig,
+)
+
+
+def planner_trainer(**settings):
+    from muble_plugins.learned.planner import PlannerTrainer
+
+    return PlannerTrainer(**settings)
+
+
+def parser_trainer(**settings):
+    from muble_plugins.learned.parser import ParserTrainer
+
+    return ParserTrainer(**settings)
+
+
+def recogniser_trainer(**settings):
+    from muble_plugins.learned.recogniser import RecogniserTrainer
+
+    return RecogniserTrainer(**settings)
+
+
+def learned_planner(**settings):
+    from muble_plugins.learned.agent import LearnedPlannerAgent
+
+    return LearnedPlannerAgent(**settings)
+
+
+@hookimpl
+def muble_register_trainers() -> list[PluginRecord]:
+    return [
+        PluginRecord("planner", planner_trainer, "the next primitive and its target, from symbolic roll-outs",
+                     PlannerTrainerConfig),
+        PluginRecord("parser", parser_trainer, "instruction text to program (sequence to sequence)",
+                     ParserTrainerConfig),
+        PluginRecord("recogniser", recogniser_trainer, "object crop to name, colour, material, shape, size "
+                     "(ResNet-18)", RecogniserTrainerConfig),
+    ]
+
+
+@hookimpl
+def muble_register_agents() -> list[PluginRecord]:
+    return [PluginRecord("learned_planner", learned_planner, "a trained planner (with a trained parser on the "
+                         "language track and a trained recogniser in masks mode)", LearnedPlannerConfig)]

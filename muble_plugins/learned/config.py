@@ -1,0 +1,63 @@
+"""The learned parts' settings (``muble_conf/trainer/*.yaml``, ``muble_conf/agent/learned_planner.yaml``).
+
+Kept apart from the models so that listing the plugins, or composing a config, needs no PyTorch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from muble.core.ranges import bounded
+
+
+@dataclass
+class PlannerTrainerConfig:
+    """``muble train trainer=planner``: the planner learns from the oracle's roll-outs in the symbolic world."""
+
+    scenes: int = bounded(2000, ge=1)  # training scenes (each gives one instruction per template it suits)
+    epochs: int = bounded(20, ge=1)
+    batch_size: int = bounded(256, ge=1)
+    learning_rate: float = bounded(1e-3, gt=0)
+    width: int = bounded(32, ge=4)  # the Transformer encoder's width (NS-AP: 32)
+    heads: int = bounded(2, ge=1)
+    layers: int = bounded(2, ge=1)
+    # Share of roll-out steps where a random primitive is taken instead of the oracle's (the oracle labels the
+    # state it leads to), so the planner learns to recover from states the oracle never visits.
+    explore: float = bounded(0.2, ge=0, le=1)
+    validation_scenes: int = bounded(200, ge=0)
+
+
+@dataclass
+class ParserTrainerConfig:
+    """``muble train trainer=parser``: instruction text to program, on generated (text, program) pairs."""
+
+    scenes: int = bounded(2000, ge=1)
+    epochs: int = bounded(20, ge=1)
+    batch_size: int = bounded(64, ge=1)
+    learning_rate: float = bounded(1e-3, gt=0)
+    width: int = bounded(128, ge=8)
+    heads: int = bounded(4, ge=1)
+    layers: int = bounded(2, ge=1)
+    validation_scenes: int = bounded(200, ge=0)
+
+
+@dataclass
+class RecogniserTrainerConfig:
+    """``muble train trainer=recogniser``: ResNet-18 (random initialisation) from object crops to attributes."""
+
+    scenes: int = bounded(2000, ge=1)
+    epochs: int = bounded(10, ge=1)
+    batch_size: int = bounded(64, ge=1)
+    learning_rate: float = bounded(1e-3, gt=0)
+    crop_size: int = bounded(64, ge=16)  # pixels of the square crop the network sees
+    renderers: list[str] | None = None  # images of which renderers to learn from (None: every one in the data)
+    validation_fraction: float = bounded(0.1, ge=0, lt=1)
+
+
+@dataclass
+class LearnedPlannerConfig:
+    """``agent=learned_planner``: a trained planner; on the language track a trained parser gives it the program,
+    in masks mode a trained recogniser gives it the objects' attributes."""
+
+    checkpoint: str = "planner.pt"
+    parser: str | None = None  # parser checkpoint (needed on the language track)
+    recogniser: str | None = None  # recogniser checkpoint (needed in masks mode)
