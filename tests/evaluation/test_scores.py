@@ -252,3 +252,33 @@ def test_a_folder_that_is_no_eval_run_exits_2_and_writes_nothing(tmp_path):
     assert result.stderr.startswith(f"muble compare: error: {empty} has no results.json")
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
     assert not out.exists() and not any(p.name.startswith(".muble-tmp-") for p in tmp_path.iterdir())
+
+
+# --- scripts/results_table.py -----------------------------------------------------------------------------------
+def _results_table():
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[2] / "scripts" / "results_table.py"
+    spec = importlib.util.spec_from_file_location("results_table", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_results_table_counts_each_task_type_with_its_interval_beside_the_papers(tmp_path, capsys):
+    a = _run_folder(tmp_path, "oracle", _results(A_SOLVES))
+    b = _run_folder(tmp_path, "random", _results(B_SOLVES, agent="random"))
+    out = tmp_path / "table.md"
+    assert _results_table().main([f"oracle={a}", f"random={b}", "--out", str(out)]) == 0
+    rows = {line.split(" | ")[0].strip("| `*"): line.split(" | ")[1:] for line in out.read_text().splitlines()}
+    # Episodes 0-14 of 20: the even ones are move_single (8 of 10 solved), the odd ones measure_weight_single (7).
+    assert rows["move_single"][0].startswith("80.0% [49–94] (8/10)")
+    assert rows["measure_weight_single"][1].startswith("30.0% [11–60] (3/10)")  # B: the odd 1, 15 and 17
+    assert rows["overall"][0].startswith("75.0% [53–89] (15/20)")
+    assert rows["stack_weight"][-1].strip(" |") == "33%" and rows["overall"][-1].strip(" |") == "43.9%"
+    assert capsys.readouterr().out == out.read_text()
+
+
+def test_the_results_table_refuses_a_folder_without_results(tmp_path, capsys):
+    assert _results_table().main([f"mine={tmp_path}"]) == 2
+    assert "has no results.json" in capsys.readouterr().err
