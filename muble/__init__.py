@@ -50,6 +50,7 @@ from muble.core.types import (
 from muble.plugins import PluginRecord, get_registry, hookimpl
 
 __version__ = "0.1.0"
+"""MuBlE's version (also in ``pyproject.toml``); manifests record it beside the code revision."""
 
 __all__ = [
     "SEG_BACKGROUND", "SEG_ROBOT", "SEG_TABLE", "ActionCall", "ActionResult", "Agent", "Answer", "CollisionWorld",

@@ -36,6 +36,7 @@ GENERIC_NOUN = "object"
 
 
 def plural(noun: str) -> str:
+    """The plural of an object name as instructions word it ("mug" -> "mugs", "glass" -> "glasses")."""
     if noun in IRREGULAR_PLURALS:
         return IRREGULAR_PLURALS[noun]
     if noun.endswith(("s", "x", "ch", "sh")):
@@ -56,6 +57,8 @@ def describe(description: tuple[tuple[str, str], ...], *, many: bool = False) ->
 
 
 Description = tuple[tuple[str, str], ...]
+"""A description of objects: (attribute, value) pairs, e.g. ``(("colour", "red"), ("name", "mug"))``; ``describe``
+words it as a noun phrase."""
 
 _SUBSETS = [c for k in range(len(DESCRIPTION_ATTRIBUTES) + 1) for c in combinations(DESCRIPTION_ATTRIBUTES, k)]
 

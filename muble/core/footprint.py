@@ -28,11 +28,13 @@ def extents(obj: SceneObject) -> tuple[float, float, float]:
 
 
 def footprint_radius(obj: SceneObject) -> float:
+    """Half the larger horizontal extent of ``obj``'s bounding box (metres): the radius it needs on the table."""
     ex, ey, _ = extents(obj)
     return 0.5 * max(ex, ey)
 
 
 def height(obj: SceneObject) -> float:
+    """The vertical extent of ``obj``'s bounding box (metres)."""
     return extents(obj)[2]
 
 

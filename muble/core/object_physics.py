@@ -24,6 +24,7 @@ _NAME_RE = re.compile(r"^obj(\d+)(?:_|$)")
 
 
 def object_body_name(object_id: int) -> str:
+    """The MuJoCo body name of scene object ``object_id`` (``obj{id}``)."""
     return f"obj{object_id}"
 
 

@@ -9,8 +9,11 @@ import numpy as np
 
 # Segmentation labels besides object ids (objects use their scene id, >= 0).
 SEG_BACKGROUND = -1
+"""Segmentation label of pixels that show no object, table or robot (objects are labelled with their id, >= 0)."""
 SEG_TABLE = -2
+"""Segmentation label of the table's pixels."""
 SEG_ROBOT = -3
+"""Segmentation label of the robot's pixels (arm, gripper and mount)."""
 
 
 @dataclass

@@ -94,8 +94,10 @@ class EpisodeResult:
 
 
 Judge = Callable[[Instruction, SceneGraph, Answer | None], Outcome]
+"""A judge as a function: (instruction, final ground-truth scene, answer) -> outcome."""
 # Why an action call is invalid in a scene (None: valid); see ``registry_call_check``.
 CallCheck = Callable[[ActionCall, SceneGraph], "str | None"]
+"""Why an action call is invalid in a scene, or None when it is valid (``registry_call_check`` makes one)."""
 
 
 def _declared(action: Any, registry: Any = None) -> tuple:

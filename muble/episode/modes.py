@@ -49,12 +49,14 @@ _IDS_IN_TEXT = re.compile(r"\b(objects?|ids?|targets?|held)(\s*[=:]?\s*)(\[[\d,\
 
 
 def check_track(track: str) -> str:
+    """``track`` if it is a track (``TRACKS``); otherwise ``ValueError`` naming the valid ones."""
     if track not in TRACKS:
         raise ValueError(f"unknown track '{track}'; valid tracks: {', '.join(TRACKS)}")
     return track
 
 
 def check_mode(mode: str) -> str:
+    """``mode`` if it is an observation mode (``MODES``); otherwise ``ValueError`` naming the valid ones."""
     if mode not in MODES:
         raise ValueError(f"unknown observation mode '{mode}'; valid modes: {', '.join(MODES)}")
     return mode

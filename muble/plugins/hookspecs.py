@@ -16,6 +16,7 @@ from muble.plugins.records import PluginRecord
 
 hookspec = pluggy.HookspecMarker("muble")
 hookimpl = pluggy.HookimplMarker("muble")
+"""Marks a plugin's implementation of a hook below (``@muble.hookimpl``)."""
 
 
 @hookspec

@@ -1,0 +1,72 @@
+"""The reference of MuBlE's public API, generated from the docstrings with pdoc (``pip install "muble[docs]"``).
+
+    python scripts/api_reference.py            # HTML into docs/api/ (not kept in git: it is made from the code)
+    python scripts/api_reference.py --out DIR
+
+The public API is what plugins and agents use: the ``muble`` package's exports (``muble.__all__``) and the core
+modules the plugin guide (docs/plugins.md) points to. The test suite builds it too and fails on a public name
+without a docstring, so the reference cannot fall behind the code.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+# What docs/plugins.md sends a plugin writer to, beside the package's exports.
+API_MODULES = ("muble", "muble.core.types", "muble.core.program", "muble.core.descriptions", "muble.core.symbolic",
+               "muble.core.observation", "muble.core.footprint", "muble.core.object_physics", "muble.core.params",
+               "muble.core.training", "muble.episode.loop", "muble.episode.modes")
+
+
+def undocumented(modules: tuple[str, ...] = API_MODULES) -> list[str]:
+    """Public names of ``modules`` (their ``__all__``, else every name not starting with ``_``) without a
+    docstring."""
+    import pdoc.doc
+
+    missing = []
+    for name in modules:
+        module = pdoc.doc.Module.from_name(name)
+        if not module.docstring.strip():
+            missing.append(name)
+        for member in module.members.values():
+            if member.name.startswith("_") and member.name != "__version__":
+                continue
+            if isinstance(member, pdoc.doc.Variable) and (member.taken_from[0] != name or member.name == "log"):
+                continue  # a variable is documented where it is defined (pdoc reads no re-export's docstring)
+            if isinstance(member, pdoc.doc.Variable) and member.name.isupper() and name != "muble.core.types":
+                continue  # module constants are documented by the comment block above them
+            if not member.docstring.strip():
+                missing.append(f"{name}.{member.name}")
+    return missing
+
+
+def build(out: Path, modules: tuple[str, ...] = API_MODULES) -> Path:
+    """Write the HTML reference of ``modules`` into ``out``; returns its index page."""
+    import pdoc
+
+    pdoc.render.configure(docformat="restructuredtext", show_source=False,
+                          footer_text="MuBlE public API, generated from the docstrings")
+    pdoc.pdoc(*modules, output_directory=out)
+    return out / "index.html"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs" / "api")
+    args = parser.parse_args(argv)
+    try:
+        import pdoc  # noqa: F401
+    except ImportError:
+        print("api_reference: needs pdoc: pip install 'muble[docs]'", file=sys.stderr)
+        return 2
+    index = build(args.out)
+    missing = undocumented()
+    for name in missing:
+        print(f"api_reference: no docstring: {name}", file=sys.stderr)
+    print(f"API reference: {index}")
+    return 1 if missing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
