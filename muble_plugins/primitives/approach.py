@@ -11,6 +11,7 @@ import numpy as np
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
 from muble.core.symbolic import ArmState, set_flag
 from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import ATTEMPT, PART_OPEN, checked_result, rotated
 from muble_plugins.primitives.grasping import PAD_MARGIN, PRE_GRASP, grasp_approach, grasp_candidates, hand_clearance
 
@@ -121,7 +122,7 @@ def candidates_with_opening(env, obj_id: int, body: str, command: float, settle:
     table = env.table()
     if settle:
         env.set_gripper(command)
-        env.hold(0.3 if command == -1.0 else PRESHAPE_SETTLE)
+        env.hold(tol.SETTLE if command == -1.0 else PRESHAPE_SETTLE)
     if command == -1.0:
         max_width = grip.max_width  # the fingers go on opening on the way; the measured open gap applies
     else:
@@ -179,7 +180,7 @@ def _go(env, snap, obj_id: int, body: str, to_pre, down, grasp: Pose, tried: int
     """Execute the planned approach: over the object, then (the empty hand tared) straight in."""
     world = env.collision_world()
     first = ctx.execute(env, to_pre, world)
-    env.hold(0.3)
+    env.hold(tol.SETTLE)
     first = _catch_up(env, world, to_pre.q[-1], first)
     lag = _lag(env, to_pre.q[-1])
     if lag > PRE_GRASP_TRACKING:
@@ -217,7 +218,7 @@ def _catch_up(env, world, q_pre: np.ndarray, report: ctx.MotionReport) -> ctx.Mo
             break
         world.allow_contact([])
         report = ctx.execute(env, ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world), world)
-        env.hold(0.3)
+        env.hold(tol.SETTLE)
     return report
 
 
@@ -262,7 +263,7 @@ def _backed_off_grasp(env, world, body: str, grasp: Pose, grip) -> tuple[PoseGoa
     approach = grasp_approach(grasp)
     reach = min(GRIP_BACKOFF, _pad_overlap(env, body, grasp, grip) - PAD_OVERLAP)  # -inf: nothing seen
     for backoff in [0.0, *(np.arange(0.01, reach + 1e-9, 0.01) if reach >= 0.01 else [])]:
-        goal = PoseGoal(Pose(grasp.pos - approach * backoff, grasp.quat), 0.004, 0.05)
+        goal = PoseGoal(Pose(grasp.pos - approach * backoff, grasp.quat), *tol.CONTACT)
         world.allow_contact([body])
         q_grasp = world.inverse_kinematics(goal)
         if _touches_lightly(world, [q_grasp]):
@@ -278,7 +279,7 @@ def _pre_grasp(env, world, body: str, grasp: Pose, goal: PoseGoal, q_grasp: np.n
     backs = (PRE_GRASP, PRE_GRASP_HIGH) if approach[2] < -0.9 else (PRE_GRASP,)
     for k, back in enumerate(backs):
         try:
-            pre = PoseGoal(Pose(goal.pose.pos - approach * back, grasp.quat), 0.005, 0.05)
+            pre = PoseGoal(Pose(goal.pose.pos - approach * back, grasp.quat), *tol.FREE)
             world.allow_contact([])
             q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
             world.allow_contact([body])
@@ -358,7 +359,7 @@ def _rise_holding(env, world, body: str, q_grasp: np.ndarray) -> None:
     support |= {m.body(name).id for pair in world.contacts(q_grasp) for name in pair} - world.robot_bodies - {held}
     world.allow_contact(support)
     pose = world.ee_pose(q_grasp)
-    goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, FEASIBLE_RISE], pose.quat), 0.005, 0.05)
+    goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, FEASIBLE_RISE], pose.quat), *tol.FREE)
     ctx.planner(env, "straight_line").plan(q_grasp, goal, world)
 
 

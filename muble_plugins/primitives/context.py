@@ -14,6 +14,8 @@ import numpy as np
 from muble import CollisionWorld, MotionPlanner, PlanningError, Pose, PoseGoal, Trajectory
 from muble.core.environment import Environment
 
+from muble_plugins.primitives import tolerances as tol
+
 logger = logging.getLogger(__name__)
 
 HOVER = 0.12  # m between an object's top and the hand when moving above it
@@ -127,4 +129,4 @@ def execute(env, trajectory: Trajectory, world: CollisionWorld, allowed: set[int
 
 
 def hover_pose(env, xy: np.ndarray, clear_z: float, quat: np.ndarray) -> PoseGoal:
-    return PoseGoal(Pose(np.array([xy[0], xy[1], clear_z + HOVER]), quat), 0.005, 0.05)
+    return PoseGoal(Pose(np.array([xy[0], xy[1], clear_z + HOVER]), quat), *tol.FREE)

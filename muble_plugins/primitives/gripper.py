@@ -7,6 +7,8 @@ from muble import ActionResult, Param, PrimitiveAction, SceneGraph
 from muble.core.observation import MEASURED_STIFFNESS
 from muble.core.symbolic import CARRIED_TO, ArmState, set_flag
 
+from muble_plugins.primitives import tolerances as tol
+
 logger = logging.getLogger(__name__)
 
 GRIPPER_SETTLE = 0.6  # s for the fingers to travel fully and the weld to engage
@@ -27,8 +29,8 @@ class CloseGripper(PrimitiveAction):
         waited = GRIPPER_SETTLE
         while env.held_object is None and waited < GRIPPER_SETTLE_MAX:
             # A linkage gripper's jaws may still be closing onto a thin part (a stem, a rim).
-            env.hold(0.2)
-            waited += 0.2
+            env.hold(tol.STEP_SETTLE)
+            waited += tol.STEP_SETTLE
         held = env.held_object
         if held is None:
             return ActionResult(False, failure_reason="the fingers closed on nothing: approach an object first")

@@ -8,6 +8,7 @@ import numpy as np
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
 from muble.core.symbolic import RAISE_HEIGHT, ArmState
 from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import checked_result
 
 logger = logging.getLogger(__name__)
@@ -26,7 +27,7 @@ class Lift(PrimitiveAction):
         world = env.collision_world()
         support = _leaving(env, world)
         pose = env.ee_pose()
-        goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, height], pose.quat), 0.005, 0.05)
+        goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, height], pose.quat), *tol.FREE)
         try:
             trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
         except PlanningError as e:
@@ -72,7 +73,7 @@ def lift_around(env, world, support: set[int], pose: Pose, goal: PoseGoal, heigh
     rise of ``FIRST_RISE`` off the support, then a planned move to the raised pose; where even the short rise is
     blocked (something overhangs the object: a tray's flared rim over a glass's foot), a planned move the whole
     way, sideways first where needed, touching only the support."""
-    rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, min(height, FIRST_RISE)], pose.quat), 0.005, 0.05)
+    rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, min(height, FIRST_RISE)], pose.quat), *tol.FREE)
     try:
         first = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
     except PlanningError:

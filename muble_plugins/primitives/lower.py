@@ -15,6 +15,7 @@ from muble.core.symbolic import CARRIED_TO, RAISE_HEIGHT, ArmState, over, set_fl
 from muble.core.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
+from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.grasping import below
 from muble_plugins.primitives.common import (ATTEMPT, CARRY_TURNS, RELEASE_GAPS, checked_result, release_command,
                                              rotated)
@@ -174,11 +175,11 @@ def _put_down(env, world, to_above, down, support_body, held_body, held, target)
     between = _between_pads(env, held_body)
     width = ctx.pad_gap(env)
     env.set_gripper(release_command(env))
-    env.hold(0.5)
+    env.hold(tol.RELEASE_SETTLE)
     _off_neighbours(env, held_body, width)
     third = _retreat(env, held_body, between)
-    env.hold(0.3)
-    speed = wait_for_rest(env, held_body, waited=0.3)
+    env.hold(tol.SETTLE)
+    speed = wait_for_rest(env, held_body, waited=tol.SETTLE)
     contacts = first.unintended_contacts | second.unintended_contacts | third.unintended_contacts
     report = ctx.MotionReport(first.duration + second.duration + third.duration, third.final_error, contacts)
     result = checked_result(report, resting_speed=speed, released=env.held_object is None)
@@ -246,7 +247,7 @@ def _off_neighbours(env, held_body: int, width: float) -> None:
     if touched and ctx.pad_gap(env) > width + 2 * RELEASE_CLEARANCE:
         logger.info("the opened fingers touch %s: closing back to the released object's width", sorted(touched))
         env.set_gripper(gap_command(env, width + 2 * RELEASE_CLEARANCE))
-        env.hold(0.3)
+        env.hold(tol.SETTLE)
 
 
 def _finger_bodies(env) -> set[int]:
@@ -290,12 +291,12 @@ def _retreat(env, held_body: int, between: np.ndarray) -> ctx.MotionReport:
         if np.linalg.norm(drift) <= FOLLOW_DRIFT and not ctx.touching_bodies(env, {held_body}) & fingers:
             break
         report = placement.merge(report, _straight(env, world, drift, pose.quat, held_body))
-        env.hold(0.2)
+        env.hold(tol.STEP_SETTLE)
     return placement.merge(report, _straight(env, world, np.array([0.0, 0.0, RETREAT]), pose.quat, held_body))
 
 
 def _straight(env, world, step, quat, held_body) -> ctx.MotionReport:
-    goal = PoseGoal(Pose(env.ee_pose().pos + step, quat), 0.005, 0.05)
+    goal = PoseGoal(Pose(env.ee_pose().pos + step, quat), *tol.FREE)
     try:
         path = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
     except PlanningError as e:
@@ -306,16 +307,16 @@ def _straight(env, world, step, quat, held_body) -> ctx.MotionReport:
 
 RESTING_SPEED = 0.01  # m/s (the body's linear speed) below which a put-down object counts as resting
 # s a put-down object may take to come to rest after the hand let go: something set down on a round or tilted
-# base may rock a moment before it settles; checked every 0.25 s.
+# base may rock a moment before it settles; checked every ``tol.REST_CHECK`` s.
 REST_WAIT = 1.5
 
 
 def wait_for_rest(env, body: int, waited: float) -> float:
-    """Hold on in 0.25 s steps while ``body`` moves at ``RESTING_SPEED`` or more, until ``REST_WAIT`` has passed
+    """Hold on in ``tol.REST_CHECK`` s steps while ``body`` moves at ``RESTING_SPEED`` or more, until ``REST_WAIT`` has passed
     since the release (``waited`` of it already has); its last speed (m/s)."""
     speed = float(np.linalg.norm(env.data.cvel[body][3:]))
     while speed >= RESTING_SPEED and waited < REST_WAIT:
-        env.hold(0.25)
-        waited += 0.25
+        env.hold(tol.REST_CHECK)
+        waited += tol.REST_CHECK
         speed = float(np.linalg.norm(env.data.cvel[body][3:]))
     return speed

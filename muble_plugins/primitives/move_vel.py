@@ -5,6 +5,7 @@ import numpy as np
 
 from muble import ActionResult, Param, Pose, PoseGoal, PrimitiveAction, get_registry
 from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives import tolerances as tol
 
 # m between the hand's travel and velocity x duration beyond which the motion counts as blocked: 1 cm, over three
 # times the 3 mm goal tolerance the straight line is planned to.
@@ -32,7 +33,7 @@ class MoveVel(PrimitiveAction):
         world = env.collision_world()
         line = get_registry().create("planner", "straight_line",
                                      {"speed": speed, "max_distance": speed * duration + 0.01})
-        goal = PoseGoal(Pose(start.pos + velocity * duration, start.quat), 0.003, 0.05)
+        goal = PoseGoal(Pose(start.pos + velocity * duration, start.quat), *tol.VELOCITY)
         report = ctx.execute(env, line.plan(env.arm_q(), goal, world), world, settle=0.1)
         moved = env.ee_pose().pos - start.pos
         off = float(np.linalg.norm(moved - velocity * duration))

@@ -16,6 +16,7 @@ import numpy as np
 from muble import PlanningError, Pose, PoseGoal, Trajectory
 from muble.core.geometry import hull_2d, yaw_quat
 from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import PART_OPEN, release_command
 
 logger = logging.getLogger(__name__)
@@ -207,8 +208,8 @@ def plan_descent(env, world, place: Pose, above: np.ndarray, support: int,
     Raises ``PlanningError`` with the first reason when the place is out of reach or every descent is blocked.
     """
     line = ctx.planner(env, "straight_line")
-    above_goal = PoseGoal(Pose(np.asarray(above, dtype=float), place.quat), 0.005, 0.05)
-    place_goal = PoseGoal(place, 0.004, 0.05)
+    above_goal = PoseGoal(Pose(np.asarray(above, dtype=float), place.quat), *tol.FREE)
+    place_goal = PoseGoal(place, *tol.CONTACT)
     lim = world.joint_limits
     seeds = [env.arm_q(), *np.random.default_rng(7).uniform(lim[:, 0], lim[:, 1], size=(DESCENT_SEEDS, len(lim)))]
     reasons: list[str] = []
@@ -258,7 +259,7 @@ def clear_start(env, world) -> ctx.MotionReport | None:
         # ``lower`` does (part way round a thin part, else fully).
         logger.info("starting in contact with the hand closed and nothing held: opening it first")
         env.set_gripper(release_command(env))
-        env.hold(0.3)
+        env.hold(tol.SETTLE)
         world = env.collision_world()
         world.allow_contact([])
         if world.is_valid(env.arm_q()):
@@ -279,7 +280,7 @@ def clear_start(env, world) -> ctx.MotionReport | None:
             raise PlanningError(f"start configuration is in collision {world.last_contacts[:3]} (self-collision)")
         world.allow_contact(touched)
         pose = env.ee_pose()
-        rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, RISE], pose.quat), 0.005, 0.05)
+        rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, RISE], pose.quat), *tol.FREE)
         trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
         logger.info("starting in contact with %s: rising %.0f cm first", sorted(touched), RISE * 100)
         report = merge(report, ctx.execute(env, trajectory, world, allowed=touched))
