@@ -94,9 +94,7 @@ def settle(models: list[ObjectModel], placements: list[Placement], table_x, tabl
 
 
 # A stack the ground truth builds must stand: the upper object, let go centred over its base as ``lower`` lets it
-# go, comes to rest in contact with the base, leaning at most this many degrees: three quarters of the task judge's
-# upright limit (20 degrees), so that a put-down a little off centre still ends upright.
-STACK_LEAN_DEG = 15.0
+# go, comes to rest in contact with the base, leaning at most ``muble.core.rest.STACK_LEAN_DEG`` further.
 STACK_DROP = 0.003  # m between the upper object's bottom and the base under it when let go
 STACK_SETTLE = 1.0  # s of physics after each put-down
 # The way down: the upper object, lowered straight onto its release pose from this far above (m), keeps at least
@@ -109,7 +107,8 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
                  table_y, timestep: float, settle_time: float = STACK_SETTLE) -> str | None:
     """``None`` when every (top, base) pair of ``pairs`` (bottom pair first, as a stack is built) stands: the top
     object, set down centred over its base from ``STACK_DROP`` above the highest point of the base under its
-    footprint, comes to rest touching the base and leaning at most ``STACK_LEAN_DEG`` from how it was let go, and
+    footprint, comes to rest touching the base and leaning at most ``STACK_LEAN_DEG`` (``muble.core.rest``) further
+    than when it was let go, and
     every object stacked before it still does; and on its way down onto that pose (``STACK_SWEEP`` straight down)
     it keeps ``STACK_CLEARANCE`` from every object outside its stack. Else why not (the first pair that fails).
 
@@ -119,7 +118,7 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
     """
     import mujoco
 
-    from muble.core.geometry import tilt_deg
+    from muble.core.rest import STACK_LEAN_DEG, leaned_over, resting_height
 
     model = mujoco.MjModel.from_xml_string(physics_world_xml(models, placements, table_x, table_y, timestep))
     data = mujoco.MjData(model)
@@ -128,8 +127,6 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
     qpos = [model.jnt_qposadr[model.body_jntadr[b]] for b in bodies]
     qvel = [model.jnt_dofadr[model.body_jntadr[b]] for b in bodies]
     steps = max(1, int(round(settle_time / timestep)))
-    groups = np.ones(6, dtype=np.uint8)
-    hit = np.zeros(1, dtype=np.int32)
     placed: list[tuple[int, int, np.ndarray]] = []  # (top, base, the top's orientation when let go)
     for top, base in pairs:
         tb, bb = bodies[top], bodies[base]
@@ -141,16 +138,11 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
         points = np.vstack([np.zeros((1, 2)), shape, 0.5 * shape]) + centre
         start_z = float(data.xpos[bb][2]) + float(np.ptp(np.vstack(
             [np.asarray(p.vertices, float) for p in models[base].collision_parts])[:, 2])) * 2 + 0.05
-        heights = []
-        for x, y in points:
-            dist = mujoco.mj_ray(model, data, np.array([x, y, start_z]), np.array([0.0, 0.0, -1.0]), groups, 0,
-                                 tb, hit)
-            if dist >= 0 and model.geom_bodyid[hit[0]] == bb:
-                heights.append(start_z - dist)
-        if not heights:
+        height = resting_height(model, data, bb, points, start_z, tb)
+        if height is None:
             return f"object {top} has nothing of object {base} under it when centred over it"
         a = qpos[top]
-        release = max(heights) + depth + STACK_DROP
+        release = height + depth + STACK_DROP
         stack = {bodies[b] for _, b, _ in placed} | {bb}
         blocked = _in_the_way(model, data, a, tb, stack, [centre[0], centre[1], release])
         if blocked is not None:
@@ -164,8 +156,8 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
         if not np.all(np.isfinite(data.qpos)):
             return f"object {top} on object {base}: the physics diverged"
         for t, b, quat in placed:
-            lean = tilt_deg(data.xquat[bodies[t]]) - tilt_deg(quat)
-            if lean > STACK_LEAN_DEG:
+            lean = leaned_over(data.xquat[bodies[t]], quat, STACK_LEAN_DEG)
+            if lean is not None:
                 return f"object {t} on object {b} comes to rest leaning {lean:.0f} degrees"
             if not _touching(model, data, bodies[t], bodies[b]):
                 return f"object {t} does not stay on object {b}"

@@ -10,6 +10,7 @@ import numpy as np
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
 from muble.core.footprint import free_spot, height
 from muble.core.geometry import tilt_deg
+from muble.core.rest import at_rest, leaned_over
 from muble.core.observation import TOUCHING_TABLE
 from muble.core.symbolic import CARRIED_TO, RAISE_HEIGHT, ArmState, over, set_flag
 from muble.core.table import parts_at
@@ -185,7 +186,7 @@ def _put_down(env, world, to_above, down, support_body, held_body, held, target)
     result = checked_result(report, resting_speed=speed, released=env.held_object is None)
     if env.held_object is not None:
         problem = f"object {held} is still in the hand"
-    elif speed >= RESTING_SPEED:
+    elif not at_rest(speed):
         problem = f"object {held} did not come to rest (speed {speed:.3f} m/s)"
     else:
         problem = misplaced(env, held, held_body, target, support_body, others, tilt_at_release)
@@ -198,15 +199,13 @@ def _put_down(env, world, to_above, down, support_body, held_body, held, target)
 # m any other object may move while one is put down (a support settling under the added weight) before the
 # put-down counts as having disturbed the scene (a stack tipped over, a neighbour dragged along).
 DISTURBED = 0.02
-# degrees a put-down object may lean further than it did when let go (settling on a curved floor) before it counts
-# as fallen over or left leaning on a rim; the task judge's upright limit is of the same size.
-LEANING = 20.0
 
 
 def misplaced(env, held: int, held_body: int, target, support_body: int, others: dict,
               tilt_at_release: float | None = None) -> str | None:
     """Why the put-down of ``held`` did not end as asked, from the physics after it came to rest, or ``None``:
-    it must touch its target (an object, or the table for a table part) and lean at most ``LEANING`` further than
+    it must touch its target (an object, or the table for a table part) and lean at most ``LEAN_DEG``
+    (``muble.core.rest``) further than
     when it was let go (``tilt_at_release``, degrees), and no other object may have moved more than
     ``DISTURBED``. Put back without a target, it need not touch anything in particular, but it must not lean or
     fall over either."""
@@ -220,9 +219,9 @@ def misplaced(env, held: int, held_body: int, target, support_body: int, others:
         where = f"object {target}" if isinstance(target, (int, np.integer)) else "the table"
         return f"object {held} did not stay on {where} after it was let go"
     if tilt_at_release is not None:  # set down anywhere, it must still stand as it was let go
-        tilt = tilt_deg(env.object_pose(held).quat)
-        if tilt - tilt_at_release > LEANING:
-            return f"object {held} came to rest leaning {tilt:.0f} degrees (let go at {tilt_at_release:.0f})"
+        quat = env.object_pose(held).quat
+        if leaned_over(quat, tilt_at_release) is not None:
+            return f"object {held} came to rest leaning {tilt_deg(quat):.0f} degrees (let go at {tilt_at_release:.0f})"
     return None
 
 
@@ -305,17 +304,16 @@ def _straight(env, world, step, quat, held_body) -> ctx.MotionReport:
     return ctx.execute(env, path, world, allowed={held_body})
 
 
-RESTING_SPEED = 0.01  # m/s (the body's linear speed) below which a put-down object counts as resting
 # s a put-down object may take to come to rest after the hand let go: something set down on a round or tilted
 # base may rock a moment before it settles; checked every ``tol.REST_CHECK`` s.
 REST_WAIT = 1.5
 
 
 def wait_for_rest(env, body: int, waited: float) -> float:
-    """Hold on in ``tol.REST_CHECK`` s steps while ``body`` moves at ``RESTING_SPEED`` or more, until ``REST_WAIT`` has passed
-    since the release (``waited`` of it already has); its last speed (m/s)."""
+    """Hold on in ``tol.REST_CHECK`` s steps while ``body`` is not at rest (``muble.core.rest.at_rest``), until
+    ``REST_WAIT`` has passed since the release (``waited`` of it already has); its last speed (m/s)."""
     speed = float(np.linalg.norm(env.data.cvel[body][3:]))
-    while speed >= RESTING_SPEED and waited < REST_WAIT:
+    while not at_rest(speed) and waited < REST_WAIT:
         env.hold(tol.REST_CHECK)
         waited += tol.REST_CHECK
         speed = float(np.linalg.norm(env.data.cvel[body][3:]))

@@ -15,6 +15,7 @@ import numpy as np
 
 from muble import PlanningError, Pose, PoseGoal, Trajectory
 from muble.core.geometry import hull_2d, yaw_quat
+from muble.core.rest import resting_height
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import PART_OPEN, release_command
@@ -98,15 +99,8 @@ def resting_top(env, target: int, held: int) -> float:
     points = np.vstack([np.zeros((1, 2)), shape, 0.5 * shape]) + env.object_pose(target).pos[:2]
     groups = np.zeros(6, dtype=np.uint8)
     groups[3] = 1  # object collision geoms
-    hit = np.zeros(1, dtype=np.int32)
-    down = np.array([0.0, 0.0, -1.0])
-    heights = []
-    for x, y in points:
-        start = np.array([x, y, top + 0.05])
-        dist = mujoco.mj_ray(m, d, start, down, groups, 0, held_body, hit)
-        if dist >= 0 and m.geom_bodyid[hit[0]] == target_body:
-            heights.append(start[2] - dist)
-    return float(max(heights)) if heights else top
+    height = resting_height(m, d, target_body, points, top + 0.05, held_body, groups)
+    return top if height is None else height
 
 
 def footprint(env, body: int) -> np.ndarray:

@@ -12,6 +12,7 @@ from muble.core.footprint import extents, footprint_radius
 from muble.core.geometry import tilt_deg
 from muble.core.observation import TOUCHING_TABLE
 from muble.core.program import table_parts_of
+from muble.core.rest import UPRIGHT_DEG, at_rest
 from muble.core.table import BELOW_TABLE, part_region
 
 # Where SHOP-VRB2 scenes stand objects (world x, y in metres; synthetic scenes sample it). The table parts and
@@ -21,9 +22,8 @@ TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
 # what is put on it only its bottom's thickness (a few mm) above the table, while an object beside the base
 # stands level with it.
 RAISED_BY_BASE = 0.002
-# Judging the end state (docs/tasks.md): a put-down object counts only when it rests upright.
-UPRIGHT_DEG = 20.0  # degrees an object's axis may lean from the vertical and still stand upright
-RESTING_SPEED = 0.05  # m/s below which an object counts as resting
+# Judging the end state (docs/tasks.md): a put-down object counts only when it rests upright (the limits:
+# ``muble.core.rest``).
 # Room on a table part for an object to be put there: the placing primitives keep 15 mm between real footprints
 # on a 1 cm grid; here bboxes (centred on the object's origin, so a mug's handle side may reach a little past
 # them) stand in for footprints, with a wider gap.
@@ -108,12 +108,13 @@ def tilt(obj: SceneObject) -> float:
 
 
 def upright(obj: SceneObject) -> bool:
+    """``obj`` stands upright (its recorded tilt within ``muble.core.rest.UPRIGHT_DEG``)."""
     return tilt(obj) <= UPRIGHT_DEG
 
 
 def resting(obj: SceneObject) -> bool:
     """Not held and not moving (a world that records no speed counts as still)."""
-    return not obj.extra.get("in_hand") and float(obj.extra.get("speed", 0.0)) < RESTING_SPEED
+    return not obj.extra.get("in_hand") and at_rest(float(obj.extra.get("speed", 0.0)))
 
 
 def touches(obj: SceneObject, support: int | str) -> bool:
