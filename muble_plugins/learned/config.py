@@ -23,6 +23,8 @@ class PlannerTrainerConfig:
     # Share of roll-out steps where a random primitive is taken instead of the oracle's (the oracle labels the
     # state it leads to), so the planner learns to recover from states the oracle never visits.
     explore: float = bounded(0.2, ge=0, le=1)
+    # Share of roll-out primitives that fail without effect, as a physical one may (a missed grasp, no plan).
+    slip: float = bounded(0.05, ge=0, lt=1)
     validation_scenes: int = bounded(200, ge=0)
 
 

@@ -1,0 +1,274 @@
+"""``muble train trainer=planner``: the learned planner (NS-AP style), trained on the oracle's symbolic roll-outs.
+
+**Data.** Scenes are sampled deterministically from the run's seed (``muble_plugins.tasks.synthetic``: symbolic
+SHOP-VRB2 scenes, 3 to 6 objects, attributes, weights and stiffnesses of the object set's ranges); every SHOP-VRB2
+template task writes an instruction for each scene it suits (``Task.generate``), and the built-in oracle
+(``OracleAgent``, the task's ``next_actions``) plays it in the symbolic world through the core action loop. Every
+state the agent side observes is labelled with the oracle's next decision (a primitive and its target, or stop).
+With probability ``explore`` the roll-out takes a random primitive instead and the oracle labels the state it
+leads to (DAgger-like), and with probability ``slip`` a primitive fails without effect, as a physical one may (a
+grasp that misses, a move with no plan); so the planner also learns to recover from states the oracle never
+visits on its own.
+
+**Why symbolic roll-outs, not physics sequences.** The planner's decision depends only on the symbolic state
+(the gripper flags, what is measured, where objects stand relative to the goal), which the symbolic and the
+physical world report alike. A symbolic roll-out costs milliseconds; a physical scene costs about 16 CPU-seconds
+to generate (docs/scene_generation.md) plus its episode's physics, so the 2,000 scenes and ~150,000 labelled
+states of a default run come in minutes instead of CPU-days, and exploration (which physics sequences of the
+oracle would never contain) is free.
+
+**Model and training.** ``planner_net.PlannerNet``: a Transformer encoder over a goal token, one token per object
+and a token per table part (plus "none"), with a class head and a pointer (``planner_features`` documents the
+tokens). Cross-entropy on class and pointer, Adam, deterministic from ``run.seed``; a checkpoint after every epoch
+at ``OUT/planner.pt`` that a stopped run resumes from. Validation scenes come from a seed stream disjoint from the
+training scenes'; the figures are data and training seconds, train and validation action accuracy, and the
+planner's symbolic success per template on the validation instructions (arg-max decisions, no exploration).
+"""
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+import numpy as np
+
+from muble import ActionResult, Agent, Answer, Instruction, Observation, Outcome, SceneGraph
+from muble.core.interfaces import Trainer
+from muble.core.training import TrainingRun
+from muble.episode import run_episode
+
+from muble_plugins.learned.planner_features import CLASSES, FEATURE_DIM, Memory, encode, observe_features, random_call
+from muble_plugins.tasks.agents import OracleAgent
+from muble_plugins.tasks.success import check
+from muble_plugins.tasks.symbolic import SymbolicWorld
+from muble_plugins.tasks.synthetic import sample_scene
+
+log = logging.getLogger(__name__)
+
+# The ten SHOP-VRB2 templates (muble.app.config.SHOPVRB2_TEMPLATES; plugins do not import muble.app).
+TEMPLATES = ("measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
+             "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order")
+MAX_STEPS = 60  # primitives per roll-out (the oracle needs at most about 30 on SHOP-VRB2)
+
+
+def scene_for(seed: int, index: int, validation: bool) -> SceneGraph:
+    """Scene ``index`` of the training (``[seed, index]``, as ``sample_scenes``) or the validation stream
+    (``[seed, index, 1]``: disjoint from every training scene of the seed)."""
+    key = [seed, index, 1] if validation else [seed, index]
+    return sample_scene(np.random.default_rng(key), index, stiffness_rng=np.random.default_rng(key + [5]))
+
+
+def instructions_for(scene: SceneGraph, seed: int, index: int, validation: bool,
+                     templates: tuple[str, ...] = TEMPLATES) -> list[Instruction]:
+    """One instruction per template that suits ``scene`` (deterministic from the seed and the index)."""
+    from muble import get_registry
+
+    out = []
+    for k, name in enumerate(templates):
+        task = get_registry().create("task", name, {})
+        rng = np.random.default_rng([seed, index, 2 if validation else 3, k])
+        out.extend(task.generate(scene, rng))
+    return out
+
+
+class _SlippingWorld(SymbolicWorld):
+    """The symbolic world, where a primitive fails without effect with probability ``slip``."""
+
+    def __init__(self, scene: SceneGraph, rng: np.random.Generator, slip: float):
+        super().__init__(scene)
+        self.rng, self.slip = rng, slip
+
+    def apply(self, call):
+        if self.slip and self.rng.random() < self.slip:
+            self.steps += 1
+            return ActionResult(False, failure_reason=f"{call}: failed (simulated)")
+        return super().apply(call)
+
+
+class _Recorder(Agent):
+    """Plays the oracle (or, with probability ``explore``, a random primitive) and records every observed state
+    with the oracle's decision there."""
+
+    def __init__(self, rng: np.random.Generator, explore: float):
+        self.rng, self.explore = rng, explore
+        self.oracle = OracleAgent()
+        self.memory = Memory()
+        self.samples: list[tuple[np.ndarray, int, int]] = []
+
+    def reset(self, instruction: Instruction, observation: Observation) -> None:
+        self.oracle.reset(instruction, observation)
+        self.memory = Memory()
+
+    def act(self, instruction: Instruction, observation: Observation):
+        failed = self.memory.observe(observation)
+        label = self.oracle.act(instruction, observation)
+        tokens, _, scene = observe_features(self.memory, instruction.program, observation, failed)
+        cls, pointer = encode(label, scene)
+        self.samples.append((tokens.astype(np.float16), cls, pointer))
+        if label is None or isinstance(label, Answer):
+            return label
+        if self.explore and self.rng.random() < self.explore:
+            label = random_call(self.rng, observation.scene)
+            self.oracle.last = label
+        self.memory.last = label
+        return label
+
+
+def rollouts(seed: int, indices: range, validation: bool, explore: float, slip: float, progress=None
+             ) -> tuple[list[tuple[np.ndarray, int, int]], list[tuple[Instruction, SceneGraph]]]:
+    """Labelled states of the oracle's roll-outs on the scenes ``indices``, and the (instruction, scene) pairs."""
+    samples: list[tuple[np.ndarray, int, int]] = []
+    episodes: list[tuple[Instruction, SceneGraph]] = []
+    items = progress(indices) if progress else indices
+    quiet = logging.getLogger("muble_plugins.tasks.agents")
+    level = quiet.level
+    quiet.setLevel(logging.WARNING)  # the oracle logs every failed primitive it retries: most explored ones
+    try:
+        for index in items:
+            _scene_rollouts(seed, index, validation, explore, slip, samples, episodes)
+    finally:
+        quiet.setLevel(level)
+    return samples, episodes
+
+
+def _scene_rollouts(seed: int, index: int, validation: bool, explore: float, slip: float,
+                    samples: list, episodes: list) -> None:
+    scene = scene_for(seed, index, validation)
+    for k, instruction in enumerate(instructions_for(scene, seed, index, validation)):
+        episodes.append((instruction, scene))
+        rng = np.random.default_rng([seed, index, 4 if validation else 6, k])
+        recorder = _Recorder(rng, explore)
+        world = _SlippingWorld(scene, rng, slip)
+        run_episode(instruction, world, recorder, check, max_steps=MAX_STEPS)
+        samples.extend(recorder.samples)
+
+
+def symbolic_success(agent: Agent, episodes: list[tuple[Instruction, SceneGraph]]) -> dict[str, tuple[int, int]]:
+    """(solved, episodes) per template of ``agent`` played in the symbolic world."""
+    counts: dict[str, list[int]] = {}
+    for instruction, scene in episodes:
+        result = run_episode(instruction, SymbolicWorld(scene), agent, check, max_steps=MAX_STEPS)
+        entry = counts.setdefault(instruction.template_id, [0, 0])
+        entry[0] += result.outcome is Outcome.SUCCESS
+        entry[1] += 1
+    return {k: (v[0], v[1]) for k, v in sorted(counts.items())}
+
+
+class PlannerTrainer(Trainer):
+    """Trains ``planner_net.PlannerNet`` on symbolic roll-outs of the oracle (see the module doc)."""
+
+    def __init__(self, scenes: int = 2000, epochs: int = 20, batch_size: int = 256, learning_rate: float = 1e-3,
+                 width: int = 32, heads: int = 2, layers: int = 2, explore: float = 0.2, slip: float = 0.05,
+                 validation_scenes: int = 200):
+        self.settings = {"scenes": scenes, "epochs": epochs, "batch_size": batch_size,
+                         "learning_rate": learning_rate, "width": width, "heads": heads, "layers": layers,
+                         "explore": explore, "slip": slip, "validation_scenes": validation_scenes}
+        if width % heads:
+            from muble.core.errors import ConfigError
+
+            raise ConfigError(f"trainer.width={width} must be a multiple of trainer.heads={heads}")
+
+    def train(self, run: TrainingRun) -> dict[str, Any]:
+        from muble_plugins.learned import checkpoint as ck
+
+        torch = ck.torch_module()
+        from muble_plugins.learned.planner_net import PlannerNet, batch, loss_and_hits
+
+        s = self.settings
+        ident = ck.identity(run, s)
+        ck.set_threads(run)
+        ck.seed_everything(run.seed)
+        path = run.out_dir / "planner.pt"
+        previous = ck.resume_from(path, "planner", run, ident)
+
+        start = time.perf_counter()
+        bar = (lambda items: ck.progress(items, run, "roll-outs", total=len(items)))
+        train_samples, _ = rollouts(run.seed, range(s["scenes"]), False, s["explore"], s["slip"], bar)
+        val_samples, val_episodes = rollouts(run.seed, range(s["validation_scenes"]), True, s["explore"],
+                                             s["slip"], bar)
+        data_s = time.perf_counter() - start
+
+        model = {"in_dim": FEATURE_DIM, "width": s["width"], "heads": s["heads"], "layers": s["layers"],
+                 "classes": len(CLASSES)}
+        net = PlannerNet(**model)
+        optimiser = torch.optim.Adam(net.parameters(), lr=s["learning_rate"])
+        epoch0, history, train_s = 0, [], 0.0
+        if previous is not None:
+            net.load_state_dict(previous["state"]["model"])
+            optimiser.load_state_dict(previous["state"]["optimiser"])
+            ck.restore_rng(previous["state"]["rng"])
+            epoch0 = int(previous["epoch"])
+            history = list(previous["extra"].get("history", []))
+            train_s = float(previous["extra"].get("train_s", 0.0))
+            log.info("resuming %s after epoch %d", path, epoch0)
+
+        def tensors(samples, order):
+            for b in range(0, len(order), s["batch_size"]):
+                chunk = [samples[i] for i in order[b:b + s["batch_size"]]]
+                x, pad, allowed = batch([c[0] for c in chunk])
+                y_cls = torch.tensor([c[1] for c in chunk], dtype=torch.long)
+                y_ptr = torch.tensor([c[2] for c in chunk], dtype=torch.long)
+                yield x, pad, allowed, y_cls, y_ptr
+
+        def accuracy(samples) -> float:
+            if not samples:
+                return float("nan")
+            net.eval()
+            hits = 0
+            with torch.no_grad():
+                for x, pad, allowed, y_cls, y_ptr in tensors(samples, range(len(samples))):
+                    hits += int(loss_and_hits(net, x, pad, allowed, y_cls, y_ptr)[1].sum())
+            return hits / len(samples)
+
+        for epoch in range(epoch0, s["epochs"]):
+            t = time.perf_counter()
+            net.train()
+            order = torch.randperm(len(train_samples), generator=torch.Generator().manual_seed(
+                run.seed * 1000 + epoch)).tolist()
+            hits = total = 0
+            loss_sum = 0.0
+            steps = -(-len(order) // s["batch_size"])
+            for x, pad, allowed, y_cls, y_ptr in ck.progress(tensors(train_samples, order), run,
+                                                              f"epoch {epoch + 1}/{s['epochs']}", total=steps):
+                loss, batch_hits = loss_and_hits(net, x, pad, allowed, y_cls, y_ptr)
+                optimiser.zero_grad()
+                loss.backward()
+                optimiser.step()
+                hits += int(batch_hits.sum())
+                total += len(y_cls)
+                loss_sum += float(loss.detach()) * len(y_cls)
+            train_s += time.perf_counter() - t
+            entry = {"epoch": epoch + 1, "loss": loss_sum / max(total, 1), "train_accuracy": hits / max(total, 1),
+                     "validation_accuracy": accuracy(val_samples)}
+            history.append(entry)
+            log.info("epoch %d: loss %.4f, train accuracy %.4f, validation accuracy %.4f", epoch + 1,
+                     entry["loss"], entry["train_accuracy"], entry["validation_accuracy"])
+            ck.save(path, "planner", run, ident, epoch + 1,
+                    {"model": net.state_dict(), "optimiser": optimiser.state_dict(), "rng": ck.rng_states()},
+                    {"model": model, "history": history, "train_s": train_s})
+
+        net.eval()
+        from muble_plugins.learned.agent import LearnedPlannerAgent
+
+        start = time.perf_counter()
+        success = symbolic_success(LearnedPlannerAgent(network=net), val_episodes)
+        eval_s = time.perf_counter() - start
+        solved = sum(v[0] for v in success.values())
+        episodes = sum(v[1] for v in success.values())
+        last = history[-1] if history else {}
+        figures: dict[str, Any] = {
+            "train_samples": len(train_samples), "validation_samples": len(val_samples),
+            "data_s": round(data_s, 2), "train_s": round(train_s, 2), "symbolic_eval_s": round(eval_s, 2),
+            "epochs": len(history), "loss": last.get("loss"),
+            "train_accuracy": last.get("train_accuracy"), "validation_accuracy": last.get("validation_accuracy"),
+            "validation_episodes": episodes,
+            "symbolic_success": solved / episodes if episodes else float("nan"),
+            **{f"symbolic_success/{k}": f"{v[0]}/{v[1]}" for k, v in success.items()},
+        }
+        payload = ck.load(path, "planner")
+        ck.save(path, "planner", run, ident, payload["epoch"], payload["state"],
+                {**payload["extra"], "figures": figures})
+        return figures
+
+
+__all__ = ["PlannerTrainer", "TEMPLATES", "instructions_for", "rollouts", "scene_for", "symbolic_success"]
