@@ -97,12 +97,20 @@ class EpisodeFactory:
     def generated(self, scene_index: int, templates: Sequence[str] | None = None,
                   weights: Sequence[float] | None = None) -> EpisodeSpec | None:
         """Scene ``scene_index`` of the configured generator and seed with an instruction of ``templates``: the
-        one template's first instruction (as ``muble run``), or one drawn from the mix (as ``muble generate``).
-        None when no template applies to the scene."""
+        one template's first instruction (as ``muble run``), or one drawn from the mix for that scene
+        (``choose_from_mix``: a template drawn by ``weights``, then the others in drawn order). None when no
+        template applies to the scene.
+
+        ``templates`` and ``weights`` default to the configured mix (``dataset.templates`` and
+        ``dataset.template_weights``, read and checked as ``muble generate`` reads them); named templates without
+        weights get equal shares. (``muble generate`` goes the other way: the template of each index first, then a
+        scene that suits it; so the same index is not the same episode in both.)"""
         from muble.episode.runner import choose_instruction, instruction_rng
-        from muble.generation.task_mix import choose_from_mix
+        from muble.generation.task_mix import choose_from_mix, template_weights
 
         seed = int(self.cfg.seed)
+        if templates is None and weights is None:
+            weights = list(self.cfg.dataset.template_weights)
         templates = list(templates or self.mix)
         tasks = [self.task(t) for t in templates]
         scene = self.generator().generate(int(scene_index))
@@ -113,9 +121,7 @@ class EpisodeFactory:
             except ConfigError:
                 return None
             return EpisodeSpec(scene, instruction, tasks[0], {**source, "template": templates[0]})
-        w = np.asarray(weights if weights else [1.0] * len(tasks), dtype=float)
-        if len(w) != len(tasks) or np.any(w < 0) or w.sum() <= 0:
-            raise ConfigError("template weights need one non-negative weight per template, not all zero")
+        w = np.asarray(template_weights(templates, weights), dtype=float)
         task, instruction = choose_from_mix(tasks, w / w.sum(), scene, instruction_rng(seed, int(scene_index)))
         if instruction is None:
             return None

@@ -170,8 +170,13 @@ def choose_from_mix(tasks: list[Any], weights: np.ndarray, scene: Any, rng: np.r
     order. (``suited_scene`` goes the other way: the template first, then a scene that suits it.)
 
     Returns (None, None) when no template of the mix applies to the scene (e.g. a weight comparison in a scene
-    with a single object of each kind)."""
-    order = rng.choice(len(tasks), size=len(tasks), replace=False, p=weights)
+    with a single object of each kind). A template of weight zero is never tried."""
+    weights = np.asarray(weights, dtype=float)
+    if np.all(weights > 0):
+        order = rng.choice(len(tasks), size=len(tasks), replace=False, p=weights)
+    else:
+        drawn = np.flatnonzero(weights > 0)
+        order = drawn[rng.choice(len(drawn), size=len(drawn), replace=False, p=weights[drawn] / weights[drawn].sum())]
     for k in order:
         candidates = tasks[int(k)].generate(scene, rng)
         if candidates:

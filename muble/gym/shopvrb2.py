@@ -71,8 +71,9 @@ class ShopVRB2Env(gym.Env):
     """A SHOP-VRB2 episode through the same action loop as ``muble run``/``muble eval`` (``run_episode``).
 
     Configure with ``config`` (a Hydra-composed MuBlE config) and/or ``overrides`` (``["renderer.width=640",
-    "robot=UR5e", "episode.max_steps=60"]``); ``templates`` (default: the configured mix, ``dataset.templates``)
-    and ``template_weights`` choose the instruction mix; ``render=False`` leaves the images out (faster, no GL).
+    "robot=UR5e", "episode.max_steps=60"]``); ``templates`` and ``template_weights`` choose the instruction mix
+    (default: the configured one, ``dataset.templates`` and ``dataset.template_weights``, read as ``muble generate``
+    reads them; named templates without weights get equal shares); ``render=False`` leaves the images out (faster, no GL).
 
     ``reset(seed=s)`` draws the scene index from the seeded generator (same seed, same scene and instruction);
     ``reset(options=...)`` picks an episode: ``{"scene_index": i, "template": t}`` (a generated scene),
@@ -96,6 +97,7 @@ class ShopVRB2Env(gym.Env):
         for t in self.templates:
             self.factory.task(t)  # an unknown template fails here, listing the valid ones
         self.template_weights = list(template_weights) if template_weights else None
+        self.mix_named = templates is not None or template_weights is not None
         self.render_mode = render_mode
         self.max_text = int(max_text)
         self.cameras = [str(c) for c in self.cfg.episode.cameras]
@@ -196,7 +198,9 @@ class ShopVRB2Env(gym.Env):
         if key not in self._scenes:
             if len(self._scenes) >= 8:
                 self._scenes.pop(next(iter(self._scenes)))
-            self._scenes[key] = self.factory.generated(index, templates, self.template_weights)
+            configured = not self.mix_named and list(templates) == self.templates
+            self._scenes[key] = (self.factory.generated(index) if configured
+                                 else self.factory.generated(index, templates, self.template_weights))
         return copy.deepcopy(self._scenes[key])
 
     def _start(self, spec: EpisodeSpec) -> Step:

@@ -104,3 +104,21 @@ def test_tabletop_fast_rendering_defaults_apply_to_the_mujoco_renderer_only():
     assert not set(FAST_MUJOCO_OVERRIDES) & set(default_overrides(["renderer=blender"]))
     with pytest.raises(ConfigError, match="render_mode"):
         gymnasium.make("MuBlE/Tabletop-v0", render=False, render_mode="rgb_array")
+
+
+@pytest.mark.slow
+def test_shopvrb2_draws_its_templates_by_the_configured_weights_and_checks_them_as_generate_does():
+    mix = ["dataset.templates=[measure_weight_single,move_single]"]
+    env = gymnasium.make("MuBlE/ShopVRB2-v0", overrides=[*mix, "dataset.template_weights=[0,1]"], render=False)
+    try:
+        drawn = {env.reset(seed=s)[1]["instruction"]["template_id"] for s in range(3)}
+        assert drawn == {"move_single"}  # a zero weight is never drawn first, and move_single suits any scene
+    finally:
+        env.close()
+    with pytest.raises(ConfigError, match=r"dataset.template_weights has 3 entries for 2 templates"):
+        bad = gymnasium.make("MuBlE/ShopVRB2-v0", overrides=[*mix, "dataset.template_weights=[1,1,1]"],
+                             render=False)
+        try:
+            bad.reset(seed=0)
+        finally:
+            bad.close()
