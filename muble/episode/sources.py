@@ -26,6 +26,23 @@ from muble.episode.modes import track_instruction
 log = logging.getLogger(__name__)
 
 _SPLIT_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+
+# The ways to name an episode (Gymnasium's reset options, ``muble serve``'s ``episode`` document), by their keys.
+EPISODE_FORMS = "{scene_index[, template]}, {split, index} or {scene, instruction}"
+
+
+def episode_kind(request: Any) -> str | None:
+    """Which source a mapping names an episode from, by its keys: ``generated`` (``scene_index``, optionally
+    ``template``), ``stored`` (``split``, ``index``) or ``data`` (``scene``, ``instruction``); None for any other
+    keys (``EPISODE_FORMS`` says what to give)."""
+    keys = set(request) if isinstance(request, dict) else None
+    if keys in ({"scene_index"}, {"scene_index", "template"}):
+        return "generated"
+    if keys == {"split", "index"}:
+        return "stored"
+    if keys == {"scene", "instruction"}:
+        return "data"
+    return None
 # Keys of an instruction record that are ground truth for the judge and the records, not for the agent.
 GROUND_TRUTH_KEYS = ("ground_truth_actions",)
 

@@ -31,7 +31,7 @@ from muble.core.instructions_io import instruction_to_dict
 from muble.core.types import Outcome
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
 from muble.episode.components import benchmark_settings
-from muble.episode.sources import EpisodeFactory, EpisodeSpec, agent_instruction
+from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, agent_instruction, episode_kind
 from muble.episode.stepped import EpisodeStateError, Step, SteppedEpisode
 from muble.gym.config import environment_config
 from muble.gym.spaces import as_text, image_space, json_text, text_space
@@ -178,20 +178,19 @@ class ShopVRB2Env(gym.Env):
 
     # -------------------------------------------------------------------------------------------- internals
     def _chosen(self, options: dict[str, Any]) -> EpisodeSpec:
-        keys = set(options)
-        if keys <= {"scene_index", "template"} and "scene_index" in options:
+        kind = episode_kind(options)
+        if kind == "generated":
             templates = [options["template"]] if "template" in options else self.templates
             spec = self._generated(int(options["scene_index"]), templates)
             if spec is None:
                 raise ConfigError(f"no instruction of {templates} applies to scene {options['scene_index']} "
                                   f"(seed {self.cfg.seed}); choose another scene_index or template")
             return spec
-        if keys == {"split", "index"}:
+        if kind == "stored":
             return self.factory.stored(options["split"], options["index"])
-        if keys == {"scene", "instruction"}:
+        if kind == "data":
             return self.factory.from_data(options["scene"], options["instruction"])
-        raise ConfigError(f"reset options {sorted(keys)} name no episode; give {{scene_index[, template]}}, "
-                          "{split, index} or {scene, instruction}")
+        raise ConfigError(f"reset options {sorted(map(str, options))[:6]} name no episode; give {EPISODE_FORMS}")
 
     def _generated(self, index: int, templates: Sequence[str]) -> EpisodeSpec | None:
         key = (index, tuple(templates), tuple(self.template_weights or ()))

@@ -18,14 +18,13 @@ from typing import Any
 
 from muble.core.errors import MubleError
 from muble.core.layout import DatasetLayout
-from muble.episode.sources import EpisodeFactory, EpisodeSpec
+from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, episode_kind
 from muble.remote.protocol import ProtocolError
 
 # A split the server may name: one folder name (muble.core.layout.SPLIT_NAME) without dots.
 _SPLIT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 # An absolute path of two or more parts, not inside a word ("val/3" and "1/2" are left alone).
 _ABSOLUTE_PATH = re.compile(r"(?<![\w.~-])/(?:[^\s/'\"():,;]+/)+([^\s/'\"():,;]*)")
-EPISODE_FORMS = "{scene_index[, template]}, {split, index} or {scene, instruction}"
 
 
 def dataset_root(cfg: Any) -> Path | None:
@@ -64,21 +63,21 @@ class EpisodeRequest:
         registered ones)."""
         if not isinstance(episode, dict):
             raise ProtocolError("bad_request", f"'episode' must be an object: {EPISODE_FORMS}")
-        keys = set(episode)
-        if keys in ({"scene_index", "template"}, {"scene_index"}):
+        kind = episode_kind(episode)
+        if kind == "generated":
             index, template = episode["scene_index"], episode.get("template")
             if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < 2**31:
                 raise ProtocolError("bad_request", "'scene_index' must be an integer in [0, 2**31)")
             if template is not None:
                 _known_template(template, templates)
             return cls("generated", episode)
-        if keys == {"split", "index"}:
+        if kind == "stored":
             _stored_exists(episode["split"], episode["index"], root)
             return cls("stored", episode)
-        if keys == {"scene", "instruction"}:
+        if kind == "data":
             _check_data(episode["scene"], episode["instruction"], templates, max_objects)
             return cls("data", episode)
-        raise ProtocolError("bad_request", f"'episode' keys {sorted(map(str, keys))[:6]} name no episode; give "
+        raise ProtocolError("bad_request", f"'episode' keys {sorted(map(str, episode))[:6]} name no episode; give "
                             + EPISODE_FORMS)
 
     def build(self, factory: EpisodeFactory, root: Path | None, max_objects: int) -> EpisodeSpec:
