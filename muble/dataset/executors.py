@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
-from muble.core.errors import ConfigError, unknown_name
+from muble.core.errors import ConfigError, MubleError, unknown_name
 
 log = logging.getLogger(__name__)
 
@@ -210,7 +210,16 @@ def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: 
     pending = [remote.remote(item) for item in items]
     while pending:
         done, pending = ray.wait(pending, num_returns=1)
-        yield ray.get(done[0])
+        try:
+            result = ray.get(done[0])
+        except ray.exceptions.RayTaskError as e:
+            # What the worker raised, as the other executors raise it: a full disk or a refused setting reaches
+            # the command line as its own one-line message, not inside Ray's traceback of the remote task.
+            cause = getattr(e, "cause", None)
+            if isinstance(cause, (OSError, MubleError)):
+                raise cause from None
+            raise
+        yield result
 
 
 EXECUTORS: dict[str, Callable[..., Iterator[Any]]] = {

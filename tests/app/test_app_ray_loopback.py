@@ -3,6 +3,7 @@ TCP socket of the run is on the loopback interface, its token and session files 
 can enter, and that folder is gone when the run ends."""
 from __future__ import annotations
 
+import errno
 import ipaddress
 import os
 import shutil
@@ -181,3 +182,34 @@ def test_a_private_ray_cluster_listens_only_on_loopback_and_keeps_its_files_priv
                 except ProcessLookupError:
                     pass
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+RAY_FULL_DISK = """
+import errno, os, sys
+from muble.dataset.executors import run_all
+
+def work(path):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), path)
+
+if __name__ == "__main__":
+    try:
+        list(run_all("ray", work, [sys.argv[1]], workers=1))
+    except OSError as e:
+        print(type(e).__name__, e.errno, e.filename, flush=True)
+"""
+
+
+def test_a_full_disk_in_a_ray_worker_reaches_the_caller_as_the_workers_own_error(tmp_path):
+    script = tmp_path / "full.py"
+    script.write_text(RAY_FULL_DISK)
+    tmp = Path(tempfile.mkdtemp(prefix="mt-", dir="/tmp"))
+    env = {**os.environ, "TMPDIR": str(tmp), "HOME": str(tmp_path)}
+    for key in ("RAY_ADDRESS", "RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH"):
+        env.pop(key, None)
+    try:
+        done = subprocess.run([sys.executable, str(script), str(tmp_path / "scene.json")], env=env, text=True,
+                              capture_output=True, timeout=300, cwd=Path(__file__).parents[2])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    # The OSError itself (not Ray's RayTaskError wrapping it), with its errno and file, as the process pool gives.
+    assert done.stdout.split() == ["OSError", str(errno.ENOSPC), str(tmp_path / "scene.json")], done.stderr[-3000:]
