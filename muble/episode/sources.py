@@ -84,6 +84,7 @@ class EpisodeFactory:
         self.components = build_components(cfg, renderer=False, task=False)
         self.renderer_options = OmegaConf.to_container(cfg.renderer, resolve=True)
         self._generator = None
+        self._kept_renderer = None
 
     @property
     def templates(self) -> list[str]:
@@ -95,15 +96,30 @@ class EpisodeFactory:
         the ten SHOP-VRB2 templates unless changed; the stiffness family only when named)."""
         return list(self.cfg.dataset.templates)
 
-    def runner(self):
-        """A runner of its own (its own renderer): one per episode, so episodes never share a GL context."""
+    def runner(self, keep_renderer: bool = False):
+        """A runner for one episode. Its renderer is its own (episodes on threads of their own never share a GL
+        context), or with ``keep_renderer`` the factory's one renderer, kept across episodes (its GL context and
+        uploaded meshes reused): only for episodes that all run on one thread, one at a time (``EpisodeThread``),
+        which must also call ``close_renderer``."""
         from muble.episode.components import episode_runner
 
         components = dict(self.components)
         if self.render:
-            components["renderer"] = self.registry.create("renderer", self.renderer_options["name"],
-                                                          self.renderer_options)
+            if not keep_renderer:
+                components["renderer"] = self.registry.create("renderer", self.renderer_options["name"],
+                                                              self.renderer_options)
+            else:
+                if self._kept_renderer is None:
+                    self._kept_renderer = self.registry.create("renderer", self.renderer_options["name"],
+                                                               self.renderer_options)
+                components["renderer"] = _KeptRenderer(self._kept_renderer)
         return episode_runner(self.cfg, components)
+
+    def close_renderer(self) -> None:
+        """Close the renderer kept across episodes (call it on the thread the episodes ran on)."""
+        if self._kept_renderer is not None:
+            self._kept_renderer.close()
+            self._kept_renderer = None
 
     def task(self, template: str) -> Task:
         if template not in self.templates:
@@ -185,3 +201,23 @@ class EpisodeFactory:
         if self._generator is not None:
             self._generator.close()
             self._generator = None
+
+
+class _KeptRenderer:
+    """A renderer kept across episodes, as an episode runner sees it: the runner's ``close`` at the episode's end
+    leaves it open (``EpisodeFactory.close_renderer`` closes it)."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+
+    def setup(self, scene: Any, model: Any) -> None:
+        self.inner.setup(scene, model)
+
+    def render(self, data: Any, camera: str):
+        return self.inner.render(data, camera)
+
+    def close(self) -> None:
+        pass
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)

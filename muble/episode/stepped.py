@@ -8,7 +8,9 @@ thread, with an agent whose ``act`` hands the observation over and waits for the
 
 Only one of the two threads works at any time (they hand over through queues), so the simulation is as
 deterministic as in-process. The worker makes and frees its own GL context (renderers are set up and closed
-inside ``execute``), so a thread per episode is safe.
+inside ``execute``), so a thread per episode is safe. An ``EpisodeThread`` passed as ``worker`` runs episode after
+episode on one thread instead, so what a thread keeps (its GL contexts, a renderer kept across episodes) serves
+them all: the Gymnasium environment's resets pay no new context.
 """
 from __future__ import annotations
 
@@ -66,6 +68,47 @@ class _Bridge(Agent):
         return decision
 
 
+class EpisodeThread:
+    """One worker thread that runs episodes one after another (``submit``), and anything that must run where their
+    GL contexts are current (``call``: closing a renderer kept across episodes)."""
+
+    def __init__(self) -> None:
+        self._jobs: queue.Queue = queue.Queue()
+        self._thread: threading.Thread | None = None
+
+    def submit(self, job: Callable[[], None]) -> None:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._loop, name="muble-episodes", daemon=True)
+            self._thread.start()
+        self._jobs.put(job)
+
+    def call(self, fn: Callable[[], Any], timeout: float = 60.0) -> Any:
+        """``fn()`` run on the worker thread (after the jobs before it); its result, or what it raised."""
+        done: queue.Queue = queue.Queue()
+
+        def job() -> None:
+            try:
+                done.put((True, fn()))
+            except BaseException as e:  # noqa: BLE001 - raised on the caller's side
+                done.put((False, e))
+
+        self.submit(job)
+        ok, value = done.get(timeout=timeout)
+        if not ok:
+            raise value
+        return value
+
+    def close(self, timeout: float = 60.0) -> None:
+        if self._thread is not None and self._thread.is_alive():
+            self._jobs.put(None)
+            self._thread.join(timeout=timeout)
+        self._thread = None
+
+    def _loop(self) -> None:
+        while (job := self._jobs.get()) is not None:
+            job()
+
+
 class SteppedEpisode:
     """One episode of ``runner`` on ``scene`` and ``instruction``, judged by ``task``, one decision at a time.
 
@@ -73,10 +116,12 @@ class SteppedEpisode:
     returns the next. ``Answer`` decisions end the episode unless ``stop=False`` is passed with them (the action
     loop then keeps going, as with an in-process agent that answers and acts on). ``close()`` abandons an episode
     that has not ended. ``timeout`` (s) bounds how long one primitive may take before the episode is abandoned.
+    ``worker``: an ``EpisodeThread`` to run on (default: a thread of its own).
     """
 
     def __init__(self, runner: Any, scene: SceneGraph, instruction: Instruction, task: Task,
-                 timeout: float = 600.0, on_end: Callable[[Any], None] | None = None):
+                 timeout: float = 600.0, on_end: Callable[[Any], None] | None = None,
+                 worker: EpisodeThread | None = None):
         self.runner = runner
         self.scene = scene
         self.instruction = instruction
@@ -86,6 +131,9 @@ class SteppedEpisode:
         self._to_worker: queue.Queue = queue.Queue()
         self._from_worker: queue.Queue = queue.Queue()
         self._thread: threading.Thread | None = None
+        self.worker = worker
+        self._started = False
+        self._ended = threading.Event()
         self.last: Step | None = None
         self.output: Any = None
         self.error: BaseException | None = None
@@ -96,17 +144,21 @@ class SteppedEpisode:
         return self.last is not None and self.last.done
 
     def start(self) -> Step:
-        if self._thread is not None:
+        if self._started:
             raise EpisodeStateError("the episode has started already")
+        self._started = True
         self.runner.agent = _Bridge(self)
-        self._thread = threading.Thread(target=self._work, name="muble-episode", daemon=True)
-        self._thread.start()
+        if self.worker is not None:
+            self.worker.submit(self._work)
+        else:
+            self._thread = threading.Thread(target=self._work, name="muble-episode", daemon=True)
+            self._thread.start()
         return self._receive()
 
     def decide(self, decision: Decision, stop: bool = True) -> Step:
         """Hand the loop the next decision (an ``ActionCall``, an ``Answer``, None to stop, or anything the loop
         should judge as an invalid action); returns what follows."""
-        if self._thread is None:
+        if not self._started:
             raise EpisodeStateError("the episode has not started; call start() first")
         if self.done:
             raise EpisodeStateError("the episode has ended; start a new one")
@@ -115,10 +167,9 @@ class SteppedEpisode:
 
     def close(self) -> None:
         """Abandon the episode if it is still running and wait for the worker to clean up."""
-        if self._thread is not None and self._thread.is_alive():
+        if self._started and not self._ended.is_set():
             self._to_worker.put(None)
-            self._thread.join(timeout=60.0)
-            if self._thread.is_alive():
+            if not self._ended.wait(timeout=60.0):
                 log.warning("episode worker did not stop within 60 s")
 
     def _receive(self) -> Step:
@@ -158,4 +209,6 @@ class SteppedEpisode:
         except BaseException as e:  # noqa: BLE001 - handed to the agent side, which raises it there
             self._from_worker.put(("error", e))
             return
+        finally:
+            self._ended.set()
         self._from_worker.put(("done", output))

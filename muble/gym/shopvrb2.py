@@ -32,7 +32,7 @@ from muble.core.types import Outcome
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
 from muble.episode.components import benchmark_settings
 from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, agent_instruction, episode_kind
-from muble.episode.stepped import EpisodeStateError, Step, SteppedEpisode
+from muble.episode.stepped import EpisodeStateError, EpisodeThread, Step, SteppedEpisode
 from muble.gym.config import environment_config
 from muble.gym.spaces import as_text, image_space, json_text, text_space
 
@@ -118,6 +118,7 @@ class ShopVRB2Env(gym.Env):
         self.spec_now: EpisodeSpec | None = None
         self._last: Step | None = None
         self._scenes: dict[tuple, Any] = {}  # generated episodes by (index, templates): resets repeat them cheaply
+        self._worker = EpisodeThread()
 
     # ----------------------------------------------------------------------------------------------- episode
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -174,7 +175,11 @@ class ShopVRB2Env(gym.Env):
 
     def close(self) -> None:
         self._end_episode()
-        self.factory.close()
+        try:
+            self._worker.call(self.factory.close_renderer)  # where its GL context is current
+        finally:
+            self._worker.close()
+            self.factory.close()
 
     # -------------------------------------------------------------------------------------------- internals
     def _chosen(self, options: dict[str, Any]) -> EpisodeSpec:
@@ -204,7 +209,10 @@ class ShopVRB2Env(gym.Env):
 
     def _start(self, spec: EpisodeSpec) -> Step:
         self._end_episode()
-        self.episode = SteppedEpisode(self.factory.runner(), spec.scene, spec.instruction, spec.task)
+        # Every episode on the one worker thread, with the one renderer: its GL context, compiled shaders and
+        # uploaded meshes serve every reset after the first.
+        self.episode = SteppedEpisode(self.factory.runner(keep_renderer=True), spec.scene, spec.instruction,
+                                      spec.task, worker=self._worker)
         try:
             return self.episode.start()
         except SceneValidationError:

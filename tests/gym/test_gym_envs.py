@@ -122,3 +122,21 @@ def test_shopvrb2_draws_its_templates_by_the_configured_weights_and_checks_them_
             bad.reset(seed=0)
         finally:
             bad.close()
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_shopvrb2_keeps_one_renderer_across_resets_and_draws_what_a_fresh_one_draws():
+    kept = gymnasium.make("MuBlE/ShopVRB2-v0", overrides=SMALL).unwrapped
+    fresh = gymnasium.make("MuBlE/ShopVRB2-v0", overrides=SMALL).unwrapped
+    try:
+        kept.reset(seed=11)
+        renderer = kept.factory._kept_renderer
+        after_another, _ = kept.reset(seed=12)
+        assert kept.factory._kept_renderer is renderer is not None  # the same renderer, its context kept
+        first, _ = fresh.reset(seed=12)
+        assert np.array_equal(after_another["images"]["front"], first["images"]["front"])
+    finally:
+        kept.close()
+        fresh.close()
+    assert kept.factory._kept_renderer is None  # closed with the environment, on its worker thread
