@@ -50,7 +50,7 @@ class RecogniserTrainerConfig:
     epochs: int = bounded(10, ge=1)
     batch_size: int = bounded(64, ge=1)
     learning_rate: float = bounded(1e-3, gt=0)
-    crop_size: int = bounded(64, ge=16)  # pixels of the square crop the network sees
+    crop_size: int = bounded(32, ge=16)  # pixels of the square crop the network sees (ResNet-18 cost ~ its square)
     renderers: list[str] | None = None  # images of which renderers to learn from (None: every one in the data)
     validation_fraction: float = bounded(0.1, ge=0, lt=1)
 

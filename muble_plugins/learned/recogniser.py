@@ -1,0 +1,486 @@
+"""The attribute recogniser: an object's crop to its name, colour, material, shape and size (NS-AP's ResNet).
+
+It learns from the files of a dataset written by ``muble generate``: each complete scene index (its instruction
+file written) has a scene file, whose objects carry their attribute words and a COCO-RLE mask of the scene's
+image, and that image. Each visible object becomes one *crop*: the image cut to the square around the mask's
+bounding box (10 % margin, zero padding past the border), resized to ``crop_size``, with the mask as a fourth
+channel, so the network knows which of two overlapping objects is meant. A crop loses the object's size in the
+image, which ``size`` (scale 0.85, 1 or 1.15 of a model) depends on, so five numbers of the mask's geometry go
+beside it: its bounding box in image fractions (left, top, right, bottom) and the square root of its area
+fraction. Everything is read through ``muble.core`` (scene files, the dataset's layout), so the crops of the
+training data and of an episode's observation are cut by the same function.
+
+The network is torchvision's ResNet-18 (random initialisation, a four-channel first convolution, no classifier)
+with a small layer for the geometry and one linear head per attribute. Affordances (stackable, stack base,
+pickupable) are not learned: they are looked up from the predicted name, as the training data pairs them (the
+most frequent triple of each name).
+
+``data_root`` is either one dataset (a folder with ``dataset_config.json``) or a folder whose sub-folders (or
+links) are datasets, e.g. one rendered with MuJoCo and one with Blender; ``renderers`` picks which ones count by
+the renderer their ``dataset_config.json`` names. Scenes, not crops, are held out for validation: a scene's key is
+its generator seed and index, so the same scene drawn by two renderers falls on the same side.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from muble import Trainer
+from muble.core.errors import ConfigError
+from muble.core.layout import DatasetLayout
+from muble.core.scene_io import load_scene
+from muble.core.training import TrainingRun
+
+from muble_plugins.learned import checkpoint as ck
+from muble_plugins.learned.config import RecogniserTrainerConfig
+
+log = logging.getLogger(__name__)
+
+KIND = "recogniser"
+ATTRIBUTES = ("name", "colour", "material", "shape", "size")
+AFFORDANCES = ("stackable", "stack_base", "pickupable")
+GEOMETRY = 5  # left, top, right, bottom (fractions of the image), sqrt(area fraction)
+MARGIN = 0.1  # of the bounding box's longer side, on each side
+MIN_PIXELS = 4  # fewer visible pixels: no crop
+
+
+# -- crops ------------------------------------------------------------------------------------------------------
+def decode_mask(rle: Any, shape: tuple[int, int] | None = None) -> np.ndarray:
+    """A COCO RLE (``muble.core.scene.RLE`` or its dict) as a boolean (H, W) mask, resized (nearest) to ``shape``
+    when given and different (a mask of another resolution than the image)."""
+    from pycocotools import mask as coco
+
+    if hasattr(rle, "to_dict"):
+        rle = rle.to_dict()
+    counts = rle["counts"]
+    mask = coco.decode({"size": list(rle["size"]), "counts": counts.encode() if isinstance(counts, str) else counts})
+    mask = mask.astype(bool)
+    if shape is not None and mask.shape != tuple(shape):
+        from PIL import Image
+
+        mask = np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize((shape[1], shape[0]),
+                                                                              Image.NEAREST)) > 127
+    return mask
+
+
+def object_crop(rgb: np.ndarray, mask: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(crop (4, size, size) uint8: RGB and the mask, geometry (5,) float32) of one object, or None when fewer
+    than ``MIN_PIXELS`` of it are visible."""
+    from PIL import Image
+
+    ys, xs = np.nonzero(mask)
+    if len(ys) < MIN_PIXELS:
+        return None
+    height, width = mask.shape
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    side = int(np.ceil(max(y1 - y0, x1 - x0) * (1 + 2 * MARGIN))) + 2
+    top, left = (y0 + y1 - side) // 2, (x0 + x1 - side) // 2
+    canvas = np.zeros((side, side, 4), np.uint8)
+    sy0, sy1, sx0, sx1 = max(top, 0), min(top + side, height), max(left, 0), min(left + side, width)
+    canvas[sy0 - top:sy1 - top, sx0 - left:sx1 - left, :3] = rgb[sy0:sy1, sx0:sx1, :3]
+    canvas[sy0 - top:sy1 - top, sx0 - left:sx1 - left, 3] = mask[sy0:sy1, sx0:sx1] * 255
+    rgb_small = np.asarray(Image.fromarray(canvas[..., :3]).resize((size, size), Image.BILINEAR))
+    mask_small = np.asarray(Image.fromarray(canvas[..., 3]).resize((size, size), Image.BILINEAR))
+    crop = np.concatenate([rgb_small, mask_small[..., None]], axis=2).transpose(2, 0, 1)
+    geometry = np.array([x0 / width, y0 / height, x1 / width, y1 / height,
+                         np.sqrt(len(ys) / (height * width))], np.float32)
+    return np.ascontiguousarray(crop), geometry
+
+
+@dataclass
+class Crops:
+    """Object crops with their labels: ``images`` (N, 4, S, S) uint8, ``geometry`` (N, 5) float32, ``labels``
+    attribute -> N words, ``affordances`` N triples, ``scene`` N scene keys, ``renderer`` N renderer names."""
+
+    images: np.ndarray
+    geometry: np.ndarray
+    labels: dict[str, list[str]]
+    affordances: list[tuple[bool, bool, bool]]
+    scene: list[str]
+    renderer: list[str]
+    scenes_read: int = 0
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def subset(self, keep: Iterable[int]) -> "Crops":
+        idx = np.asarray(list(keep), dtype=np.int64)
+        pick = lambda items: [items[i] for i in idx]  # noqa: E731
+        return Crops(self.images[idx], self.geometry[idx], {a: pick(v) for a, v in self.labels.items()},
+                     pick(self.affordances), pick(self.scene), pick(self.renderer),
+                     len(set(pick(self.scene))))
+
+
+def dataset_folders(root: str | Path) -> list[tuple[Path, str]]:
+    """(dataset root, renderer name) of ``root`` itself, or of each folder in it, that ``muble generate`` wrote
+    (holds ``dataset_config.json``); ``ConfigError`` when there is none."""
+    root = Path(root)
+    if not root.is_dir():
+        raise ConfigError(f"recogniser data: '{root}' is not a folder; give train.data_root=DIR, the root of a "
+                          "dataset written by `muble generate` (or a folder of such datasets)")
+    candidates = [root] if (root / "dataset_config.json").is_file() else sorted(
+        p for p in root.iterdir() if p.is_dir() and (p / "dataset_config.json").is_file())
+    found = []
+    for folder in candidates:
+        try:
+            config = json.loads((folder / "dataset_config.json").read_text())
+            renderer = str((config.get("renderer") or {}).get("name") or "none")
+        except (OSError, ValueError, AttributeError) as e:
+            raise ConfigError(f"recogniser data: '{folder / 'dataset_config.json'}' is not readable ({e})") from e
+        found.append((folder, renderer))
+    if not found:
+        raise ConfigError(f"recogniser data: '{root}' holds no dataset (no dataset_config.json in it or in its "
+                          "sub-folders); write one with `muble generate dataset.root=DIR` (dataset.sequences=false "
+                          "is enough) and give train.data_root=DIR")
+    return found
+
+
+def _splits(folder: Path) -> list[str]:
+    try:
+        splits = json.loads((folder / "dataset_splits.json").read_text()).get("splits") or {}
+        return sorted(splits)
+    except (OSError, ValueError, AttributeError):
+        return sorted(p.name for p in folder.iterdir() if (p / "scenes").is_dir())
+
+
+def scene_entries(root: str | Path, renderers: list[str] | None = None) -> list[tuple[str, str, Path, Path]]:
+    """(scene key, renderer, scene file, image file) of every complete scene index of the datasets under
+    ``root`` (its instruction file written, its image present), ordered by key then renderer."""
+    entries = []
+    folders = dataset_folders(root)
+    chosen = [(f, r) for f, r in folders if renderers is None or r in renderers]
+    if not chosen:
+        raise ConfigError(f"recogniser data: no dataset under '{root}' was rendered with "
+                          f"{', '.join(renderers or [])}; found: {', '.join(f'{f.name} ({r})' for f, r in folders)}")
+    for folder, renderer in chosen:
+        config = json.loads((folder / "dataset_config.json").read_text())
+        seed = config.get("seed")
+        for split in _splits(folder):
+            layout = DatasetLayout(folder, split)
+            for scene_path in sorted((layout.split_dir / "scenes").glob("*.json")):
+                stem = scene_path.stem
+                image = layout.split_dir / "images" / f"{stem}.png"
+                if not (layout.split_dir / "instructions" / f"{stem}.json").is_file() or not image.is_file():
+                    continue
+                entries.append((f"{seed}/{split}/{stem.rsplit('_', 1)[-1]}", renderer, scene_path, image))
+    return sorted(entries, key=lambda e: (e[0], e[1]))
+
+
+def read_crops(entries: list[tuple[str, str, Path, Path]], crop_size: int, progress=None) -> Crops:
+    """The crops of every visible object of these scenes (``scene_entries``)."""
+    from PIL import Image
+
+    images, geometry, affordances, scenes, renderers = [], [], [], [], []
+    labels: dict[str, list[str]] = {a: [] for a in ATTRIBUTES}
+    items = entries if progress is None else progress(entries)
+    for key, renderer, scene_path, image_path in items:
+        scene = load_scene(scene_path)
+        rgb = np.asarray(Image.open(image_path).convert("RGB"))
+        for obj in scene.objects:
+            if obj.mask is None:
+                continue
+            cut = object_crop(rgb, decode_mask(obj.mask, rgb.shape[:2]), crop_size)
+            if cut is None:
+                continue
+            images.append(cut[0])
+            geometry.append(cut[1])
+            for a in ATTRIBUTES:
+                labels[a].append(str(getattr(obj, a)))
+            affordances.append((bool(obj.stackable), bool(obj.stack_base), bool(obj.pickupable)))
+            scenes.append(key)
+            renderers.append(renderer)
+    if not images:
+        return Crops(np.zeros((0, 4, crop_size, crop_size), np.uint8), np.zeros((0, GEOMETRY), np.float32),
+                     labels, [], [], [], 0)
+    return Crops(np.stack(images), np.stack(geometry), labels, affordances, scenes, renderers,
+                 len({e[0] for e in entries}))
+
+
+def load_dataset_crops(root: str | Path, crop_size: int, renderers: list[str] | None = None,
+                       scenes: int | None = None) -> Crops:
+    """The crops of the first ``scenes`` scene keys (all when None) of the datasets under ``root``."""
+    entries = scene_entries(root, renderers)
+    if scenes is not None:
+        keys = sorted({e[0] for e in entries}, key=_key_order)[:scenes]
+        keep = set(keys)
+        entries = [e for e in entries if e[0] in keep]
+    return read_crops(entries, crop_size)
+
+
+def _key_order(key: str) -> tuple:
+    seed, split, index = key.split("/")
+    return (seed, split, int(index) if index.isdigit() else index)
+
+
+# -- the network ------------------------------------------------------------------------------------------------
+def build_network(sizes: dict[str, int]):
+    """ResNet-18 (random initialisation) on four channels, plus the geometry, with one head per attribute."""
+    import torch
+    import torchvision
+    from torch import nn
+
+    class RecogniserNet(nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            backbone = torchvision.models.resnet18(weights=None)
+            backbone.conv1 = nn.Conv2d(4, 64, kernel_size=7, stride=2, padding=3, bias=False)
+            backbone.fc = nn.Identity()
+            self.backbone = backbone
+            self.geometry = nn.Sequential(nn.Linear(GEOMETRY, 32), nn.ReLU())
+            self.heads = nn.ModuleDict({a: nn.Linear(512 + 32, n) for a, n in sizes.items()})
+
+        def forward(self, images, geometry):
+            x = images.float() / 127.5 - 1.0
+            features = torch.cat([self.backbone(x), self.geometry(geometry * 4.0 - 2.0)], dim=1)
+            return {a: head(features) for a, head in self.heads.items()}
+
+    return RecogniserNet()
+
+
+def _logits(net, images: np.ndarray, geometry: np.ndarray, batch: int = 256) -> dict[str, np.ndarray]:
+    import torch
+
+    out: dict[str, list[np.ndarray]] = {}
+    with torch.no_grad():
+        for start in range(0, len(images), batch):
+            found = net(torch.from_numpy(images[start:start + batch]),
+                        torch.from_numpy(geometry[start:start + batch]))
+            for a, v in found.items():
+                out.setdefault(a, []).append(v.numpy())
+    return {a: np.concatenate(v) for a, v in out.items()}
+
+
+def accuracy(predicted: dict[str, list[str]], crops: Crops) -> dict[str, float]:
+    """Share of crops whose word is right, per attribute (and ``all``: every attribute right)."""
+    n = len(crops)
+    if n == 0:
+        return {a: float("nan") for a in ATTRIBUTES + ("all",)}
+    right = {a: np.array([p == t for p, t in zip(predicted[a], crops.labels[a])]) for a in ATTRIBUTES}
+    out = {a: float(v.mean()) for a, v in right.items()}
+    out["all"] = float(np.logical_and.reduce([right[a] for a in ATTRIBUTES]).mean())
+    return out
+
+
+# -- training ---------------------------------------------------------------------------------------------------
+def _vocabularies(crops: Crops) -> dict[str, list[str]]:
+    return {a: sorted(set(crops.labels[a])) for a in ATTRIBUTES}
+
+
+def _affordance_table(crops: Crops) -> dict[str, dict[str, bool]]:
+    """Per name, the affordance triple the data pairs it with most often."""
+    from collections import Counter
+
+    counts: dict[str, Counter] = {}
+    for name, triple in zip(crops.labels["name"], crops.affordances):
+        counts.setdefault(name, Counter())[triple] += 1
+    return {name: dict(zip(AFFORDANCES, c.most_common(1)[0][0])) for name, c in sorted(counts.items())}
+
+
+def _indices(crops: Crops, vocabularies: dict[str, list[str]]) -> dict[str, np.ndarray]:
+    out = {}
+    for a in ATTRIBUTES:
+        lookup = {w: i for i, w in enumerate(vocabularies[a])}
+        out[a] = np.array([lookup.get(w, -100) for w in crops.labels[a]], np.int64)  # -100: ignored by the loss
+    return out
+
+
+def _hold_out(keys: list[str], fraction: float, seed: int) -> set[str]:
+    unique = sorted(set(keys), key=_key_order)
+    count = int(round(fraction * len(unique)))
+    if fraction > 0 and len(unique) > 1:
+        count = min(max(count, 1), len(unique) - 1)
+    order = np.random.default_rng([seed, 7919]).permutation(len(unique))
+    return {unique[i] for i in order[:count]}
+
+
+class RecogniserTrainer(Trainer):
+    """``muble train trainer=recogniser train.data_root=DIR``: ResNet-18 on object crops of a generated dataset."""
+
+    def __init__(self, **settings: Any) -> None:
+        settings = {k: v for k, v in settings.items() if k != "name"}
+        self.config = RecogniserTrainerConfig(**settings)
+
+    def settings(self) -> dict[str, Any]:
+        settings = asdict(self.config)
+        if settings["renderers"] is not None:
+            settings["renderers"] = sorted(str(r) for r in settings["renderers"])
+        return settings
+
+    def train(self, run: TrainingRun) -> dict[str, Any]:
+        torch = ck.torch_module()
+        cfg = self.config
+        if run.data_root is None:
+            raise ConfigError("the recogniser learns from a generated dataset's images: give train.data_root=DIR "
+                              "(written by `muble generate dataset.root=DIR`, dataset.sequences=false is enough)")
+        ck.set_threads(run)
+        ck.seed_everything(run.seed)
+        began = time.perf_counter()
+        entries = scene_entries(run.data_root, cfg.renderers)
+        keys = sorted({e[0] for e in entries}, key=_key_order)[:cfg.scenes]
+        chosen = set(keys)
+        entries = [e for e in entries if e[0] in chosen]
+        crops = read_crops(entries, cfg.crop_size, lambda items: ck.progress(items, run, "crops", len(entries)))
+        if len(crops) == 0:
+            raise ConfigError(f"recogniser data: no object crops under '{run.data_root}' (no complete scene with "
+                              "an image and object masks)")
+        held = _hold_out(crops.scene, cfg.validation_fraction, run.seed)
+        train = crops.subset(i for i, k in enumerate(crops.scene) if k not in held)
+        val = crops.subset(i for i, k in enumerate(crops.scene) if k in held)
+        data_seconds = time.perf_counter() - began
+        vocabularies = _vocabularies(train)
+        affordances = _affordance_table(train)
+        targets = _indices(train, vocabularies)
+
+        net = build_network({a: len(v) for a, v in vocabularies.items()})
+        optimiser = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
+        path = run.out_dir / f"{KIND}.pt"
+        ident = ck.identity(run, self.settings())
+        start_epoch, history = 0, []
+        previous = ck.resume_from(path, KIND, run, ident)
+        if previous is not None:
+            net.load_state_dict(previous["state"]["model"])
+            optimiser.load_state_dict(previous["state"]["optimiser"])
+            ck.restore_rng(previous["state"]["rng"])
+            start_epoch = int(previous["epoch"])
+            history = list(previous["extra"].get("history", []))
+            log.info("recogniser: resuming after epoch %d of %d", start_epoch, cfg.epochs)
+
+        images = torch.from_numpy(train.images)
+        geometry = torch.from_numpy(train.geometry)
+        labels = {a: torch.from_numpy(v) for a, v in targets.items()}
+        train_seconds = float(previous["extra"].get("train_seconds", 0.0)) if previous else 0.0
+        extra: dict[str, Any] = {}
+        for epoch in range(start_epoch, cfg.epochs):
+            epoch_began = time.perf_counter()
+            net.train()
+            # The order of an epoch depends only on (seed, epoch), so a resumed run draws the same batches.
+            order = torch.randperm(len(train), generator=torch.Generator().manual_seed(run.seed * 1009 + epoch))
+            flips = torch.rand(len(train), generator=torch.Generator().manual_seed(run.seed * 2003 + epoch)) < 0.5
+            total, batches = 0.0, 0
+            steps = range(0, len(train), cfg.batch_size)
+            for start in ck.progress(steps, run, f"epoch {epoch + 1}/{cfg.epochs}", len(steps)):
+                idx = order[start:start + cfg.batch_size]
+                if len(idx) < 2:  # batch norm needs two crops; the one left over waits for the next epoch
+                    continue
+                x, g = images[idx], geometry[idx].clone()
+                flip = flips[idx]
+                if flip.any():  # a mirrored object is the same object: its box mirrors too
+                    x = x.clone()
+                    x[flip] = x[flip].flip(-1)
+                    g[flip, 0], g[flip, 2] = 1 - geometry[idx][flip, 2], 1 - geometry[idx][flip, 0]
+                out = net(x, g)
+                loss = sum(torch.nn.functional.cross_entropy(out[a], labels[a][idx], ignore_index=-100)
+                           for a in ATTRIBUTES)
+                optimiser.zero_grad()
+                loss.backward()
+                optimiser.step()
+                total += float(loss.detach())
+                batches += 1
+            train_seconds += time.perf_counter() - epoch_began
+            net.eval()
+            val_acc = accuracy(predict_words(net, vocabularies, val.images, val.geometry), val)
+            history.append({"epoch": epoch + 1, "loss": total / max(batches, 1),
+                            **{f"val_{a}": v for a, v in val_acc.items()}})
+            log.info("recogniser epoch %d: loss %.3f, validation %s", epoch + 1, total / max(batches, 1),
+                     ", ".join(f"{a} {v:.3f}" for a, v in val_acc.items()))
+            extra = {"vocabularies": vocabularies, "affordances": affordances, "crop_size": cfg.crop_size,
+                     "geometry": GEOMETRY, "history": history, "train_seconds": train_seconds,
+                     "data": {"scenes": len(keys), "train_scenes": train.scenes_read,
+                              "validation_scenes": val.scenes_read, "train_crops": len(train),
+                              "validation_crops": len(val), "renderers": sorted(set(crops.renderer))}}
+            ck.save(path, KIND, run, ident, epoch + 1,
+                    {"model": net.state_dict(), "optimiser": optimiser.state_dict(), "rng": ck.rng_states()}, extra)
+        last = history[-1] if history else {}
+        figures: dict[str, Any] = {
+            "data_seconds": data_seconds, "train_seconds": train_seconds, "scenes": len(keys),
+            "train_crops": len(train), "validation_scenes": val.scenes_read, "validation_crops": len(val),
+            "renderers": ",".join(sorted(set(crops.renderer))), "epochs": len(history)}
+        for a in ATTRIBUTES + ("all",):
+            figures[f"val_accuracy_{a}"] = last.get(f"val_{a}", float("nan"))
+        figures["checkpoint"] = str(path)
+        return figures
+
+
+def predict_words(net, vocabularies: dict[str, list[str]], images: np.ndarray,
+                  geometry: np.ndarray) -> dict[str, list[str]]:
+    if len(images) == 0:
+        return {a: [] for a in vocabularies}
+    logits = _logits(net, images, geometry)
+    return {a: [vocabularies[a][i] for i in logits[a].argmax(1)] for a in vocabularies}
+
+
+# -- using a trained recogniser ---------------------------------------------------------------------------------
+@dataclass
+class AttributeRecogniser:
+    """A trained recogniser (``AttributeRecogniser.load(path)``): ``predict`` on crops, ``recognise`` on a
+    masks-mode observation."""
+
+    net: Any
+    vocabularies: dict[str, list[str]]
+    affordances: dict[str, dict[str, bool]]
+    crop_size: int
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "AttributeRecogniser":
+        payload = ck.load(path, KIND)
+        extra = payload.get("extra") or {}
+        try:
+            vocabularies, crop_size = extra["vocabularies"], int(extra["crop_size"])
+            net = build_network({a: len(vocabularies[a]) for a in ATTRIBUTES})
+            net.load_state_dict(payload["state"]["model"])
+        except (KeyError, TypeError, RuntimeError) as e:
+            raise ConfigError(f"'{path}' does not hold this recogniser's network ({e}); train it again with "
+                              "`muble train trainer=recogniser`") from e
+        net.eval()
+        return cls(net, vocabularies, extra.get("affordances") or {}, crop_size, extra)
+
+    def predict(self, crops: np.ndarray | Crops, geometry: np.ndarray | None = None) -> dict[str, list[str]]:
+        """Words per attribute for crops (``Crops``, or (N, 4, S, S) uint8 images with their (N, 5) geometry)."""
+        if isinstance(crops, Crops):
+            crops, geometry = crops.images, crops.geometry
+        if geometry is None:
+            raise ValueError("predict needs each crop's geometry (object_crop returns it)")
+        if len(crops) and crops.shape[-1] != self.crop_size:
+            raise ValueError(f"crops of {crops.shape[-1]} pixels given; this recogniser was trained on "
+                             f"{self.crop_size}")
+        return predict_words(self.net, self.vocabularies, np.asarray(crops, np.uint8),
+                             np.asarray(geometry, np.float32))
+
+    def recognise(self, observation: Any) -> dict[int, dict[str, Any]]:
+        """Per visible object id of a masks-mode observation: its name, colour, material, shape and size, and
+        the affordances of that name (stackable, stack_base, pickupable). The masks are those of the first
+        camera's latest image; an object with no visible pixel is left out (ask again after another image)."""
+        if not observation.images:
+            raise ValueError("recognise needs the observation's images (masks mode)")
+        frame = next(iter(observation.images.values()))
+        rgb = np.asarray(frame.rgb)
+        ids, images, geometry = [], [], []
+        for obj in observation.scene.objects:
+            if obj.mask is not None:
+                mask = decode_mask(obj.mask, rgb.shape[:2])
+            elif frame.segmentation is not None:
+                mask = np.asarray(frame.segmentation) == obj.id
+            else:
+                continue
+            cut = object_crop(rgb, mask, self.crop_size)
+            if cut is None:
+                continue
+            ids.append(int(obj.id))
+            images.append(cut[0])
+            geometry.append(cut[1])
+        if not ids:
+            return {}
+        words = self.predict(np.stack(images), np.stack(geometry))
+        out = {}
+        for i, obj_id in enumerate(ids):
+            found: dict[str, Any] = {a: words[a][i] for a in ATTRIBUTES}
+            found.update(self.affordances.get(found["name"], {a: None for a in AFFORDANCES}))
+            out[obj_id] = found
+        return out

@@ -1,0 +1,129 @@
+"""The attribute recogniser (muble_plugins.learned.recogniser): crops from a generated dataset, training through
+`muble train`, loading, recognising a masks-mode observation, determinism, and bad data roots."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from muble.core.training import TrainingRun  # noqa: E402
+from muble_plugins.learned import checkpoint as ckpt  # noqa: E402
+from muble_plugins.learned.recogniser import (  # noqa: E402
+    AFFORDANCES,
+    ATTRIBUTES,
+    AttributeRecogniser,
+    RecogniserTrainer,
+    load_dataset_crops,
+    object_crop,
+)
+
+TINY = {"epochs": 1, "crop_size": 16, "batch_size": 8, "validation_fraction": 0.25}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    """Four scenes written by `muble generate` with the cheapest settings: no episode, no rest or reach check,
+    a small MuJoCo image without shadows (the masks are drawn at the image's size). In a process of its own:
+    torch's deterministic mode imports its compiler, which crashed in a process that had rendered with EGL."""
+    root = tmp_path_factory.mktemp("recogniser") / "data"
+    done = subprocess.run(
+        [sys.executable, "-m", "muble.app.cli", "generate", f"dataset.root={root}", "dataset.splits=[train]",
+         "dataset.sizes=[4]", "dataset.sequences=false", "dataset.executor=serial",
+         "dataset.templates=[move_single]", "generator.reach_check=false", "generator.stability=false",
+         "generator.stack_check=false", "renderer.width=160", "renderer.height=120", "renderer.shadows=false"],
+        capture_output=True, text=True, env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})
+    assert done.returncode == 0, done.stderr[-2000:]
+    return root
+
+
+def _train(data_root, out_dir, seed=0, **settings):
+    run = TrainingRun(out_dir=out_dir, seed=seed, progress=False, threads=1, data_root=data_root)
+    return RecogniserTrainer(**{**TINY, **settings}).train(run)
+
+
+def _masks_observation(data_root):
+    """A masks-mode observation of the dataset's first scene, as `muble eval` would show it."""
+    from PIL import Image
+
+    from muble.core.scene_io import load_scene
+    from muble.core.types import SEG_BACKGROUND, Frame, Observation
+    from muble.episode.modes import ObservationView
+    from muble_plugins.learned.recogniser import decode_mask
+
+    scene_path = sorted((data_root / "train" / "scenes").glob("*.json"))[0]
+    scene = load_scene(scene_path)
+    rgb = np.asarray(Image.open(data_root / "train" / "images" / f"{scene_path.stem}.png").convert("RGB"))
+    segmentation = np.full(rgb.shape[:2], SEG_BACKGROUND, np.int32)
+    for obj in scene.objects:
+        segmentation[decode_mask(obj.mask, rgb.shape[:2])] = obj.id
+    observation = Observation(scene=scene, images={"front": Frame("front", rgb, segmentation=segmentation)})
+    return ObservationView("masks")(observation), scene
+
+
+def test_cli_round_trip_then_load_and_recognise(dataset, tmp_path):
+    from muble.app.cli import main
+
+    out = tmp_path / "run"
+    assert main(["train", "trainer=recogniser", f"train.data_root={dataset}", f"train.out_dir={out}",
+                 "trainer.epochs=1", "trainer.crop_size=16", "trainer.batch_size=8",
+                 "trainer.validation_fraction=0.25", "train.threads=1", "train.progress=false"]) == 0
+    figures = json.loads((out / "train.json").read_text())["figures"]
+    assert figures["train_crops"] > 0 and figures["validation_scenes"] == 1
+    assert figures["data_seconds"] >= 0 and figures["train_seconds"] > 0
+    for a in ATTRIBUTES:
+        assert 0.0 <= figures[f"val_accuracy_{a}"] <= 1.0
+
+    recogniser = AttributeRecogniser.load(out / "recogniser.pt")
+    observation, scene = _masks_observation(dataset)
+    assert all(o.name is None for o in observation.scene.objects)  # masks mode withholds the words
+    found = recogniser.recognise(observation)
+    assert found and set(found) <= {o.id for o in scene.objects}
+    for words in found.values():
+        assert set(words) == set(ATTRIBUTES) | set(AFFORDANCES)
+        for a in ATTRIBUTES:
+            assert words[a] in recogniser.vocabularies[a]
+        # affordances are those the training data pairs the predicted name with
+        assert [words[k] for k in AFFORDANCES] == [recogniser.affordances[words["name"]][k] for k in AFFORDANCES]
+
+    crops = load_dataset_crops(dataset, 16)
+    predicted = recogniser.predict(crops)
+    assert all(len(predicted[a]) == len(crops) for a in ATTRIBUTES)
+
+
+def test_same_seed_same_weights(dataset, tmp_path):
+    _train(dataset, tmp_path / "a")
+    _train(dataset, tmp_path / "b")
+    a, b = (ckpt.load(tmp_path / k / "recogniser.pt", "recogniser")["state"]["model"] for k in "ab")
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_bad_data_root_is_one_clear_error(tmp_path, capsys):
+    from muble.app.cli import main
+
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for root in (empty, tmp_path / "missing"):
+        assert main(["train", "trainer=recogniser", f"train.data_root={root}", f"train.out_dir={tmp_path / 'o'}",
+                     "train.progress=false"]) == 2
+        err = capsys.readouterr().err
+        assert "muble generate" in err and str(root.name) in err
+    assert main(["train", "trainer=recogniser", f"train.out_dir={tmp_path / 'o'}", "train.progress=false"]) == 2
+    assert "train.data_root" in capsys.readouterr().err
+
+
+def test_crop_is_square_around_the_mask_with_its_geometry():
+    rgb = np.zeros((40, 80, 3), np.uint8)
+    rgb[10:20, 60:80] = 200
+    mask = np.zeros((40, 80), bool)
+    mask[10:20, 60:80] = True  # touches the right border: the crop is padded there
+    crop, geometry = object_crop(rgb, mask, 16)
+    assert crop.shape == (4, 16, 16) and crop.dtype == np.uint8
+    assert crop[3].max() == 255 and crop[3, 0].max() == 0  # the mask channel, empty above the object
+    assert np.allclose(geometry[:4], [60 / 80, 10 / 40, 1.0, 20 / 40])
+    assert object_crop(rgb, np.zeros_like(mask), 16) is None
