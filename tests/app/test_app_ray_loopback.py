@@ -106,6 +106,16 @@ def test_address_decoding():
     assert not is_loopback(_address("020200C0"))  # 192.0.2.2
 
 
+def private_ray_env(home: Path) -> tuple[Path, dict[str, str]]:
+    """A short temporary folder (Ray's Unix sockets live under it and their paths must stay under 107 characters)
+    and an environment that starts a private cluster there, with ``home`` as HOME and no cluster to join."""
+    tmp = Path(tempfile.mkdtemp(prefix="mt-", dir="/tmp"))
+    env = {**os.environ, "TMPDIR": str(tmp), "HOME": str(home)}
+    for key in ("RAY_ADDRESS", "RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH"):
+        env.pop(key, None)
+    return tmp, env
+
+
 def _alive(pid: int) -> bool:
     status = Path(f"/proc/{pid}/status")
     try:
@@ -120,11 +130,7 @@ def test_a_private_ray_cluster_listens_only_on_loopback_and_keeps_its_files_priv
     home.mkdir()
     script = tmp_path / "owner.py"
     script.write_text(RAY_OWNER)
-    # A short temporary folder: Ray's Unix sockets live under it and their paths must stay under 107 characters.
-    tmp = Path(tempfile.mkdtemp(prefix="mt-", dir="/tmp"))
-    env = {**os.environ, "TMPDIR": str(tmp), "HOME": str(home)}
-    for key in ("RAY_ADDRESS", "RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH"):
-        env.pop(key, None)
+    tmp, env = private_ray_env(home)
     owner = subprocess.Popen([sys.executable, str(script), str(marks)], cwd=Path(__file__).parents[2], env=env,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     pids: list[int] = []
@@ -202,10 +208,7 @@ if __name__ == "__main__":
 def test_a_full_disk_in_a_ray_worker_reaches_the_caller_as_the_workers_own_error(tmp_path):
     script = tmp_path / "full.py"
     script.write_text(RAY_FULL_DISK)
-    tmp = Path(tempfile.mkdtemp(prefix="mt-", dir="/tmp"))
-    env = {**os.environ, "TMPDIR": str(tmp), "HOME": str(tmp_path)}
-    for key in ("RAY_ADDRESS", "RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH"):
-        env.pop(key, None)
+    tmp, env = private_ray_env(tmp_path)
     try:
         done = subprocess.run([sys.executable, str(script), str(tmp_path / "scene.json")], env=env, text=True,
                               capture_output=True, timeout=300, cwd=Path(__file__).parents[2])
