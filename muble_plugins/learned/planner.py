@@ -26,18 +26,21 @@ planner's symbolic success per template on the validation instructions (arg-max 
 """
 from __future__ import annotations
 
+import dataclasses
+import functools
 import logging
 import time
 from typing import Any
 
 import numpy as np
 
-from muble import ActionResult, Agent, Answer, Instruction, Observation, Outcome, SceneGraph
+from muble import ActionResult, Agent, Answer, Instruction, Observation, Outcome, SceneGraph, Task, get_registry
 from muble.core.interfaces import Trainer
 from muble.core.training import TrainingRun
 from muble.episode import run_episode
 
-from muble_plugins.learned.planner_features import CLASSES, FEATURE_DIM, Memory, encode, observe_features, random_call
+from muble_plugins.learned.planner_features import (CLASSES, FEATURE_DIM, Memory, encode, features, known_view,
+                                                    random_call)
 from muble_plugins.tasks.agents import OracleAgent
 from muble_plugins.tasks.success import check
 from muble_plugins.tasks.symbolic import SymbolicWorld
@@ -61,14 +64,31 @@ def scene_for(seed: int, index: int, validation: bool) -> SceneGraph:
 def instructions_for(scene: SceneGraph, seed: int, index: int, validation: bool,
                      templates: tuple[str, ...] = TEMPLATES) -> list[Instruction]:
     """One instruction per template that suits ``scene`` (deterministic from the seed and the index)."""
-    from muble import get_registry
-
     out = []
     for k, name in enumerate(templates):
-        task = get_registry().create("task", name, {})
+        task = _task(name)
         rng = np.random.default_rng([seed, index, 2 if validation else 3, k])
         out.extend(task.generate(scene, rng))
     return out
+
+
+@functools.cache
+def _task(name: str) -> Task:
+    return get_registry().create("task", name, {})
+
+
+class _Oracle(OracleAgent):
+    """The oracle, its view of the scene (measurements and flags filled in) built by ``known_view`` (the same
+    bookkeeping, without deep copies of the scene) and kept for the features."""
+
+    view: SceneGraph | None = None
+
+    def _task(self, instruction: Instruction) -> Task:
+        return _task(instruction.template_id)
+
+    def _known(self, observation: Observation) -> Observation:
+        self.view = known_view(observation, self.measured, self.stiffness, self.last)
+        return dataclasses.replace(observation, scene=self.view)
 
 
 class _SlippingWorld(SymbolicWorld):
@@ -91,7 +111,7 @@ class _Recorder(Agent):
 
     def __init__(self, rng: np.random.Generator, explore: float):
         self.rng, self.explore = rng, explore
-        self.oracle = OracleAgent()
+        self.oracle = _Oracle()
         self.memory = Memory()
         self.samples: list[tuple[np.ndarray, int, int]] = []
 
@@ -102,7 +122,8 @@ class _Recorder(Agent):
     def act(self, instruction: Instruction, observation: Observation):
         failed = self.memory.observe(observation)
         label = self.oracle.act(instruction, observation)
-        tokens, _, scene = observe_features(self.memory, instruction.program, observation, failed)
+        scene = self.oracle.view
+        tokens, _ = features(instruction.program, scene, self.memory.measured, self.memory.stiffness, failed)
         cls, pointer = encode(label, scene)
         self.samples.append((tokens.astype(np.float16), cls, pointer))
         if label is None or isinstance(label, Answer):
@@ -157,7 +178,7 @@ def symbolic_success(agent: Agent, episodes: list[tuple[Instruction, SceneGraph]
 class PlannerTrainer(Trainer):
     """Trains ``planner_net.PlannerNet`` on symbolic roll-outs of the oracle (see the module doc)."""
 
-    def __init__(self, scenes: int = 2000, epochs: int = 20, batch_size: int = 256, learning_rate: float = 1e-3,
+    def __init__(self, scenes: int = 2000, epochs: int = 5, batch_size: int = 256, learning_rate: float = 1e-3,
                  width: int = 32, heads: int = 2, layers: int = 2, explore: float = 0.2, slip: float = 0.05,
                  validation_scenes: int = 200):
         self.settings = {"scenes": scenes, "epochs": epochs, "batch_size": batch_size,

@@ -1,0 +1,124 @@
+"""The learned planner: ``muble train trainer=planner`` end to end, determinism, resuming, refusals, and a small
+trained planner solving symbolic episodes it never saw."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from muble import Outcome  # noqa: E402
+from muble.app.cli import main as muble_main  # noqa: E402
+from muble.core.errors import ConfigError  # noqa: E402
+from muble.core.training import TrainingRun  # noqa: E402
+
+from muble_plugins.learned import checkpoint as ck  # noqa: E402
+from muble_plugins.learned.agent import LearnedPlannerAgent  # noqa: E402
+from muble_plugins.learned.planner import PlannerTrainer, instructions_for, scene_for  # noqa: E402
+from muble_plugins.tasks.episodes import run_symbolic_episode  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def _run(out, seed=0, resume=True) -> TrainingRun:
+    return TrainingRun(out_dir=out, seed=seed, resume=resume, record={"config": {"train": {}}}, progress=False,
+                       threads=1)
+
+
+def _weights(path):
+    return ck.load(path, "planner")["state"]["model"]
+
+
+def _same(a, b) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_train_from_the_command_line_then_the_agent_plays_the_checkpoint(tmp_path, clear_hydra, capsys):
+    out = tmp_path / "planner"
+    assert muble_main(["train", "trainer=planner", "trainer.scenes=30", "trainer.epochs=1",
+                       "trainer.validation_scenes=2", "train.threads=1", "train.progress=false",
+                       f"train.out_dir={out}"]) == 0
+    figures = json.loads((out / "train.json").read_text())["figures"]
+    for key in ("data_s", "train_s", "train_accuracy", "validation_accuracy", "symbolic_success"):
+        assert key in figures
+    assert figures["train_samples"] > 1000 and figures["epochs"] == 1
+    assert "symbolic_success:" in capsys.readouterr().out
+    payload = ck.load(out / "planner.pt", "planner")
+    assert payload["epoch"] == 1 and payload["record"]["config"]["trainer"]["scenes"] == 30
+    # The agent loads what was written and plays an episode to its end (one epoch: solving is not expected).
+    agent = LearnedPlannerAgent(checkpoint=str(out / "planner.pt"))
+    scene = scene_for(99, 0, True)
+    instruction = instructions_for(scene, 99, 0, True)[0]
+    result = run_symbolic_episode(instruction, scene, agent)
+    assert result.outcome is not Outcome.AGENT_ERROR, result.error
+
+
+def test_same_seed_same_weights_and_another_seed_others(tmp_path):
+    settings = {"scenes": 5, "epochs": 1, "validation_scenes": 0}
+    for name, seed in (("a", 3), ("b", 3), ("c", 4)):
+        PlannerTrainer(**settings).train(_run(tmp_path / name, seed))
+    a, b, c = (_weights(tmp_path / name / "planner.pt") for name in "abc")
+    assert _same(a, b)
+    assert not _same(a, c)
+
+
+def test_a_stopped_run_resumes_to_the_weights_of_an_unstopped_one(tmp_path, monkeypatch):
+    settings = {"scenes": 5, "epochs": 3, "validation_scenes": 0}
+    PlannerTrainer(**settings).train(_run(tmp_path / "whole"))
+    saves = []
+    real_save = ck.save
+
+    class Stopped(Exception):
+        pass
+
+    def stop_after_first_epoch(*args, **kwargs):
+        saves.append(args[4])
+        real_save(*args, **kwargs)
+        if args[4] == 1:
+            raise Stopped
+
+    monkeypatch.setattr(ck, "save", stop_after_first_epoch)
+    with pytest.raises(Stopped):
+        PlannerTrainer(**settings).train(_run(tmp_path / "stopped"))
+    assert ck.load(tmp_path / "stopped" / "planner.pt", "planner")["epoch"] == 1
+    saves.clear()
+    PlannerTrainer(**settings).train(_run(tmp_path / "stopped"))
+    assert saves[0] == 2  # went on with the second epoch
+    assert _same(_weights(tmp_path / "whole" / "planner.pt"), _weights(tmp_path / "stopped" / "planner.pt"))
+
+
+def test_a_checkpoint_of_other_settings_is_refused_and_a_missing_one_named(tmp_path):
+    PlannerTrainer(scenes=4, epochs=1, validation_scenes=0).train(_run(tmp_path / "run"))
+    with pytest.raises(ConfigError, match="other settings"):
+        PlannerTrainer(scenes=4, epochs=1, validation_scenes=0, learning_rate=0.01).train(_run(tmp_path / "run"))
+    with pytest.raises(ConfigError, match="no planner checkpoint"):
+        LearnedPlannerAgent(checkpoint=str(tmp_path / "nothing.pt"))
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(ConfigError, match="not a readable checkpoint"):
+        LearnedPlannerAgent(checkpoint=str(tmp_path / "junk.pt"))
+
+
+def test_a_small_trained_planner_solves_unseen_symbolic_episodes(tmp_path):
+    """24 training scenes, 6 epochs: the planner solves most instructions of seed-disjoint scenes, across
+    templates (untrained, or after one epoch, it solves few)."""
+    PlannerTrainer(scenes=24, epochs=6, validation_scenes=0, batch_size=64).train(_run(tmp_path / "run", seed=1))
+    agent = LearnedPlannerAgent(checkpoint=str(tmp_path / "run" / "planner.pt"))
+    solved, total, templates = 0, 0, set()
+    for index in range(5):
+        scene = scene_for(1, index, True)
+        for instruction in instructions_for(scene, 1, index, True):
+            result = run_symbolic_episode(instruction, scene, agent)
+            total += 1
+            if result.outcome is Outcome.SUCCESS:
+                solved += 1
+                templates.add(instruction.template_id)
+    assert total >= 25
+    assert solved >= 0.8 * total, f"{solved}/{total}"
+    assert len(templates) >= 6
