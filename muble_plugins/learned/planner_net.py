@@ -13,6 +13,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from muble.core.table import TABLE_PARTS
 from muble_plugins.learned.planner_features import CLASSES, FEATURE_DIM, IGNORE, TARGET_KINDS, target_mask
 
 NEG = -1e9
@@ -61,7 +62,7 @@ _MASKS: dict[int, np.ndarray] = {}
 
 def _mask(tokens: int) -> np.ndarray:
     if tokens not in _MASKS:
-        _MASKS[tokens] = target_mask(tokens - 7)  # goal + parts (5) + none
+        _MASKS[tokens] = target_mask(tokens - len(TABLE_PARTS) - 2)  # less the goal, part and none tokens
     return _MASKS[tokens]
 
 
