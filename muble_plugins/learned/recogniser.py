@@ -5,9 +5,10 @@ file written) has a scene file, whose objects carry their attribute words and a 
 image, and that image. Each visible object becomes one *crop*: the image cut to the square around the mask's
 bounding box (10 % margin, zero padding past the border), resized to ``crop_size``, with the mask as a fourth
 channel, so the network knows which of two overlapping objects is meant. A crop loses the object's size in the
-image, which ``size`` (scale 0.85, 1 or 1.15 of a model) depends on, so five numbers of the mask's geometry go
-beside it: its bounding box in image fractions (left, top, right, bottom) and the square root of its area
-fraction. Everything is read through ``muble.core`` (scene files, the dataset's layout), so the crops of the
+image, which ``size`` (scale 0.85, 1 or 1.15 of a model) depends on, so eight numbers go beside it: the mask's
+bounding box in image fractions (left, top, right, bottom), the square root of its area fraction, and the
+object's bounding-box extents in metres (x, y, z of its own frame), which the scene file holds and ``masks``
+mode shows every agent (docs/protocol.md). Everything is read through ``muble.core`` (scene files, the dataset's layout), so the crops of the
 training data and of an episode's observation are cut by the same function.
 
 The network is torchvision's ResNet-18 (random initialisation, a four-channel first convolution, no classifier)
@@ -22,6 +23,7 @@ its generator seed and index, so the same scene drawn by two renderers falls on 
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import time
@@ -45,7 +47,8 @@ log = logging.getLogger(__name__)
 KIND = "recogniser"
 ATTRIBUTES = ("name", "colour", "material", "shape", "size")
 AFFORDANCES = ("stackable", "stack_base", "pickupable")
-GEOMETRY = 5  # left, top, right, bottom (fractions of the image), sqrt(area fraction)
+GEOMETRY = 8  # left, top, right, bottom (fractions of the image), sqrt(area fraction), extents x, y, z (m)
+EXTENT_SCALE = 5.0  # metres to the network's input scale (objects are 0.05-0.4 m)
 MARGIN = 0.1  # of the bounding box's longer side, on each side
 MIN_PIXELS = 4  # fewer visible pixels: no crop
 
@@ -93,9 +96,32 @@ def object_crop(rgb: np.ndarray, mask: np.ndarray, size: int) -> tuple[np.ndarra
     return np.ascontiguousarray(crop), geometry
 
 
+def object_extents(obj: Any) -> np.ndarray:
+    """The object's bounding-box extents (x, y, z, metres) from its ``bbox`` ({x, y, z} extents, or eight corners),
+    zeros when it has none."""
+    box = getattr(obj, "bbox", None)
+    try:
+        if isinstance(box, dict):
+            return np.array([float(box["x"]), float(box["y"]), float(box["z"])], np.float32)
+        if box is not None and len(box) == 8:
+            corners = np.asarray(box, np.float32)
+            return (corners.max(0) - corners.min(0)).astype(np.float32)
+    except (KeyError, TypeError, ValueError):
+        pass
+    return np.zeros(3, np.float32)
+
+
+def object_features(rgb: np.ndarray, mask: np.ndarray, obj: Any, size: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(crop, geometry (8,)) of one object: ``object_crop`` with the object's extents; None when not visible."""
+    cut = object_crop(rgb, mask, size)
+    if cut is None:
+        return None
+    return cut[0], np.concatenate([cut[1], object_extents(obj)]).astype(np.float32)
+
+
 @dataclass
 class Crops:
-    """Object crops with their labels: ``images`` (N, 4, S, S) uint8, ``geometry`` (N, 5) float32, ``labels``
+    """Object crops with their labels: ``images`` (N, 4, S, S) uint8, ``geometry`` (N, 8) float32, ``labels``
     attribute -> N words, ``affordances`` N triples, ``scene`` N scene keys, ``renderer`` N renderer names."""
 
     images: np.ndarray
@@ -185,7 +211,7 @@ def read_crops(entries: list[tuple[str, str, Path, Path]], crop_size: int, progr
         for obj in scene.objects:
             if obj.mask is None:
                 continue
-            cut = object_crop(rgb, decode_mask(obj.mask, rgb.shape[:2]), crop_size)
+            cut = object_features(rgb, decode_mask(obj.mask, rgb.shape[:2]), obj, crop_size)
             if cut is None:
                 continue
             images.append(cut[0])
@@ -237,7 +263,8 @@ def build_network(sizes: dict[str, int]):
 
         def forward(self, images, geometry):
             x = images.float() / 127.5 - 1.0
-            features = torch.cat([self.backbone(x), self.geometry(geometry * 4.0 - 2.0)], dim=1)
+            g = torch.cat([geometry[:, :5] * 4.0 - 2.0, geometry[:, 5:] * EXTENT_SCALE], dim=1)
+            features = torch.cat([self.backbone(x), self.geometry(g)], dim=1)
             return {a: head(features) for a, head in self.heads.items()}
 
     return RecogniserNet()
@@ -341,6 +368,8 @@ class RecogniserTrainer(Trainer):
         optimiser = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
         path = run.out_dir / f"{KIND}.pt"
         ident = ck.identity(run, self.settings())
+        # What the data root held: a resumed run over a dataset that has grown since would train on other crops.
+        ident["data"] = hashlib.sha256(json.dumps([[e[0], e[1]] for e in entries]).encode()).hexdigest()
         start_epoch, history = 0, []
         previous = ck.resume_from(path, KIND, run, ident)
         if previous is not None:
@@ -442,11 +471,12 @@ class AttributeRecogniser:
         return cls(net, vocabularies, extra.get("affordances") or {}, crop_size, extra)
 
     def predict(self, crops: np.ndarray | Crops, geometry: np.ndarray | None = None) -> dict[str, list[str]]:
-        """Words per attribute for crops (``Crops``, or (N, 4, S, S) uint8 images with their (N, 5) geometry)."""
+        """Words per attribute for crops (``Crops``, or (N, 4, S, S) uint8 images with their (N, 8) geometry,
+        ``object_features``)."""
         if isinstance(crops, Crops):
             crops, geometry = crops.images, crops.geometry
         if geometry is None:
-            raise ValueError("predict needs each crop's geometry (object_crop returns it)")
+            raise ValueError("predict needs each crop's geometry (object_features returns it)")
         if len(crops) and crops.shape[-1] != self.crop_size:
             raise ValueError(f"crops of {crops.shape[-1]} pixels given; this recogniser was trained on "
                              f"{self.crop_size}")
@@ -469,7 +499,7 @@ class AttributeRecogniser:
                 mask = np.asarray(frame.segmentation) == obj.id
             else:
                 continue
-            cut = object_crop(rgb, mask, self.crop_size)
+            cut = object_features(rgb, mask, obj, self.crop_size)
             if cut is None:
                 continue
             ids.append(int(obj.id))
