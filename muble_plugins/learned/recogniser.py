@@ -8,13 +8,17 @@ channel, so the network knows which of two overlapping objects is meant. A crop 
 image, which ``size`` (scale 0.85, 1 or 1.15 of a model) depends on, so eight numbers go beside it: the mask's
 bounding box in image fractions (left, top, right, bottom), the square root of its area fraction, and the
 object's bounding-box extents in metres (x, y, z of its own frame), which the scene file holds and ``masks``
-mode shows every agent (docs/protocol.md). Everything is read through ``muble.core`` (scene files, the dataset's layout), so the crops of the
-training data and of an episode's observation are cut by the same function.
+mode shows every agent (docs/protocol.md). Everything is read through ``muble.core`` (scene files, the
+dataset's layout), and the crops of the training data and of an episode's observation are cut by the same
+function.
 
 The network is torchvision's ResNet-18 (random initialisation, a four-channel first convolution, no classifier)
 with a small layer for the geometry and one linear head per attribute. Affordances (stackable, stack base,
 pickupable) are not learned: they are looked up from the predicted name, as the training data pairs them (the
-most frequent triple of each name).
+most frequent triple of each name). ``size`` is a model's scale (0.85, 1, 1.15), which a crop shows only as a
+few per cent of the mask's size and the network's head learns poorly (about half right); the training data's
+(name, extents) -> size pairs make a nearest-neighbour table, which gives the size from the predicted name and
+the object's extents (``size_table`` in the checkpoint; the head's word where a checkpoint has none).
 
 ``data_root`` is either one dataset (a folder with ``dataset_config.json``) or a folder whose sub-folders (or
 links) are datasets, e.g. one rendered with MuJoCo and one with Blender; ``renderers`` picks which ones count by
@@ -309,6 +313,32 @@ def _affordance_table(crops: Crops) -> dict[str, dict[str, bool]]:
     return {name: dict(zip(AFFORDANCES, c.most_common(1)[0][0])) for name, c in sorted(counts.items())}
 
 
+def _size_table(crops: Crops) -> list[list]:
+    """[name, [x, y, z], size] of every (name, extents to the millimetre) of the crops, its most frequent size."""
+    from collections import Counter
+
+    counts: dict[tuple, Counter] = {}
+    for name, extents, size in zip(crops.labels["name"], crops.geometry[:, 5:8], crops.labels["size"]):
+        counts.setdefault((name, tuple(np.round(extents, 3).tolist())), Counter())[size] += 1
+    return [[name, list(extents), c.most_common(1)[0][0]] for (name, extents), c in sorted(counts.items())]
+
+
+def sizes_from_table(names: list[str], geometry: np.ndarray, table: list[list]) -> list[str | None]:
+    """Per crop, the size of the nearest (by extents) table entry of its name; None where the name has none."""
+    by_name: dict[str, tuple[np.ndarray, list[str]]] = {}
+    for name, extents, size in table:
+        points, words = by_name.setdefault(name, (np.zeros((0, 3), np.float32), []))
+        by_name[name] = (np.vstack([points, np.asarray(extents, np.float32)[None]]), words + [size])
+    out: list[str | None] = []
+    for name, extents in zip(names, np.asarray(geometry, np.float32)[:, 5:8]):
+        if name not in by_name or not extents.any():
+            out.append(None)
+            continue
+        points, words = by_name[name]
+        out.append(words[int(np.argmin(((points - extents) ** 2).sum(1)))])
+    return out
+
+
 def _indices(crops: Crops, vocabularies: dict[str, list[str]]) -> dict[str, np.ndarray]:
     out = {}
     for a in ATTRIBUTES:
@@ -362,6 +392,7 @@ class RecogniserTrainer(Trainer):
         data_seconds = time.perf_counter() - began
         vocabularies = _vocabularies(train)
         affordances = _affordance_table(train)
+        size_table = _size_table(train)
         targets = _indices(train, vocabularies)
 
         net = build_network({a: len(v) for a, v in vocabularies.items()})
@@ -413,12 +444,13 @@ class RecogniserTrainer(Trainer):
                 batches += 1
             train_seconds += time.perf_counter() - epoch_began
             net.eval()
-            val_acc = accuracy(predict_words(net, vocabularies, val.images, val.geometry), val)
+            val_acc = accuracy(predict_words(net, vocabularies, val.images, val.geometry, size_table), val)
             history.append({"epoch": epoch + 1, "loss": total / max(batches, 1),
                             **{f"val_{a}": v for a, v in val_acc.items()}})
             log.info("recogniser epoch %d: loss %.3f, validation %s", epoch + 1, total / max(batches, 1),
                      ", ".join(f"{a} {v:.3f}" for a, v in val_acc.items()))
-            extra = {"vocabularies": vocabularies, "affordances": affordances, "crop_size": cfg.crop_size,
+            extra = {"vocabularies": vocabularies, "affordances": affordances, "size_table": size_table,
+                     "crop_size": cfg.crop_size,
                      "geometry": GEOMETRY, "history": history, "train_seconds": train_seconds,
                      "data": {"scenes": len(keys), "train_scenes": train.scenes_read,
                               "validation_scenes": val.scenes_read, "train_crops": len(train),
@@ -436,12 +468,18 @@ class RecogniserTrainer(Trainer):
         return figures
 
 
-def predict_words(net, vocabularies: dict[str, list[str]], images: np.ndarray,
-                  geometry: np.ndarray) -> dict[str, list[str]]:
+def predict_words(net, vocabularies: dict[str, list[str]], images: np.ndarray, geometry: np.ndarray,
+                  size_table: list[list] | None = None) -> dict[str, list[str]]:
+    """Words per attribute: each head's best word; ``size`` from ``size_table`` (``sizes_from_table``) where it
+    has the predicted name."""
     if len(images) == 0:
         return {a: [] for a in vocabularies}
     logits = _logits(net, images, geometry)
-    return {a: [vocabularies[a][i] for i in logits[a].argmax(1)] for a in vocabularies}
+    words = {a: [vocabularies[a][i] for i in logits[a].argmax(1)] for a in vocabularies}
+    if size_table:
+        looked_up = sizes_from_table(words["name"], geometry, size_table)
+        words["size"] = [t if t is not None else w for t, w in zip(looked_up, words["size"])]
+    return words
 
 
 # -- using a trained recogniser ---------------------------------------------------------------------------------
@@ -481,7 +519,7 @@ class AttributeRecogniser:
             raise ValueError(f"crops of {crops.shape[-1]} pixels given; this recogniser was trained on "
                              f"{self.crop_size}")
         return predict_words(self.net, self.vocabularies, np.asarray(crops, np.uint8),
-                             np.asarray(geometry, np.float32))
+                             np.asarray(geometry, np.float32), self.extra.get("size_table"))
 
     def recognise(self, observation: Any) -> dict[int, dict[str, Any]]:
         """Per visible object id of a masks-mode observation: its name, colour, material, shape and size, and

@@ -21,6 +21,7 @@ from muble_plugins.learned.recogniser import (  # noqa: E402
     RecogniserTrainer,
     load_dataset_crops,
     object_crop,
+    sizes_from_table,
 )
 
 TINY = {"epochs": 1, "crop_size": 16, "batch_size": 8, "validation_fraction": 0.25}
@@ -80,6 +81,7 @@ def test_cli_round_trip_then_load_and_recognise(dataset, tmp_path):
         assert 0.0 <= figures[f"val_accuracy_{a}"] <= 1.0
 
     recogniser = AttributeRecogniser.load(out / "recogniser.pt")
+    assert recogniser.extra["size_table"]  # (name, extents) -> size, from the training crops
     observation, scene = _masks_observation(dataset)
     assert all(o.name is None for o in observation.scene.objects)  # masks mode withholds the words
     found = recogniser.recognise(observation)
@@ -127,3 +129,11 @@ def test_crop_is_square_around_the_mask_with_its_geometry():
     assert crop[3].max() == 255 and crop[3, 0].max() == 0  # the mask channel, empty above the object
     assert np.allclose(geometry[:4], [60 / 80, 10 / 40, 1.0, 20 / 40])
     assert object_crop(rgb, np.zeros_like(mask), 16) is None
+
+
+def test_size_comes_from_the_nearest_extents_of_the_predicted_name():
+    table = [["bowl", [0.128, 0.128, 0.055], "small"], ["bowl", [0.15, 0.15, 0.065], "medium-sized"],
+             ["plate", [0.2, 0.2, 0.02], "large"]]
+    geometry = np.zeros((3, 8), np.float32)
+    geometry[:, 5:] = [[0.149, 0.151, 0.064], [0.13, 0.13, 0.05], [0.13, 0.13, 0.05]]
+    assert sizes_from_table(["bowl", "bowl", "mug"], geometry, table) == ["medium-sized", "small", None]
