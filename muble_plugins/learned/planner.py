@@ -13,9 +13,10 @@ visits on its own.
 **Why symbolic roll-outs, not physics sequences.** The planner's decision depends only on the symbolic state
 (the gripper flags, what is measured, where objects stand relative to the goal), which the symbolic and the
 physical world report alike. A symbolic roll-out costs milliseconds; a physical scene costs about 16 CPU-seconds
-to generate (docs/scene_generation.md) plus its episode's physics, so the 2,000 scenes and ~150,000 labelled
-states of a default run come in minutes instead of CPU-days, and exploration (which physics sequences of the
-oracle would never contain) is free.
+to generate (docs/scene_generation.md) and each of its episodes about 14 CPU-seconds of physics (the oracle's 100
+mini episodes: about 700 s on 2 cores), so the 2,000 scenes, ~14,000 episodes and ~250,000 labelled states of a
+default run take CPU-minutes instead of some 60 CPU-hours, and exploration (which physics sequences of the oracle
+would never contain) is free.
 
 **Model and training.** ``planner_net.PlannerNet``: a Transformer encoder over a goal token, one token per object
 and a token per table part (plus "none"), with a class head and a pointer (``planner_features`` documents the
