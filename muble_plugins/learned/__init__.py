@@ -5,7 +5,18 @@ shape, size), each trained by ``muble train trainer=NAME``, and the ``learned_pl
 Needs PyTorch (``pip install "muble[learn]"``): the models' modules load only when the registry builds a part,
 so listing plugins and composing configs work without it.
 """
+import os
+import sys
+
 from muble import PluginRecord, hookimpl
+
+# The learned parts run PyTorch on the CPU. PyTorch's CUDA wheels import Triton (a GPU kernel compiler) when an
+# optimiser is made, and Triton's bundled LLVM clashes with the LLVM that Mesa's software rasteriser loads for
+# an EGL context: a process that has rendered with MuJoCo (an evaluation, the test suite) ends in a segmentation
+# fault. Marking Triton absent makes PyTorch go without it (CPU kernels need none). MUBLE_ALLOW_TRITON=1 lifts it,
+# for a process that renders on a GPU and compiles with Triton.
+if os.environ.get("MUBLE_ALLOW_TRITON") != "1":
+    sys.modules.setdefault("triton", None)
 
 from muble_plugins.learned.config import (
     LearnedPlannerConfig,
