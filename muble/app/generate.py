@@ -32,7 +32,7 @@ _EXECUTION_KEYS = ("root", "executor", "workers", "shard", "num_shards", "ray_ad
 
 
 def dataset_config_record(config: dict[str, Any]) -> dict[str, Any]:
-    record = {k: v for k, v in config.items() if k not in ("output",)}
+    record = {k: v for k, v in config.items() if k not in ("output", "train", "trainer")}
     record["dataset"] = {k: v for k, v in config["dataset"].items() if k not in _EXECUTION_KEYS}
     return record
 

@@ -14,7 +14,7 @@ from muble.core.errors import ConfigError
 IDENTITY_FILE = "dataset_config.json"
 
 # Top-level keys that do not change a dataset's files (the other jobs' settings, where outputs go).
-_NOT_IDENTITY = ("output", "evaluation", "scene_index", "dry_run", "task", "hydra", "benchmark")
+_NOT_IDENTITY = ("output", "evaluation", "scene_index", "dry_run", "task", "hydra", "benchmark", "train", "trainer")
 # dataset.* keys that choose which indices are produced, where and how, not what each one holds.
 _NOT_IDENTITY_DATASET = ("root", "executor", "workers", "shard", "num_shards", "ray_address", "splits", "sizes",
                          "start")

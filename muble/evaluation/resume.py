@@ -35,6 +35,8 @@ _EXECUTION: dict[str, set[str] | None] = {
     "dataset": {"executor", "workers", "ray_address", "sizes", "start", "shard", "num_shards", "templates",
                 "template_weights", "sequences", "gif"},
     "evaluation": {"limit", "plot"},
+    "train": None,  # `muble train`'s own settings
+    "trainer": None,
 }
 
 
