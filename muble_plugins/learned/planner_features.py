@@ -27,6 +27,7 @@ from muble.core.program import execute, stack_pairs, table_parts_of
 from muble.core.symbolic import ArmState, over
 from muble.core.table import TABLE_PARTS
 
+from muble_plugins.tasks.agents import fill_known
 from muble_plugins.tasks.geometry import on_table_part, rests_on, upright
 from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH  # noqa: F401
 
@@ -128,22 +129,7 @@ def known_view(observation: Observation, measured: dict[int, float], stiffness: 
     # scenes were most of a roll-out's time.
     scene = dataclasses.replace(observation.scene, objects=[
         dataclasses.replace(o, extra=dict(o.extra)) for o in observation.scene.objects])
-    for o in scene.objects:
-        if o.weight is None and o.id in measured:
-            o.weight = measured[o.id]
-        if MEASURED_STIFFNESS not in o.extra and o.id in stiffness:
-            o.extra[MEASURED_STIFFNESS] = stiffness[o.id]
-    result = observation.last_result
-    reported = any("gripper_over" in o.extra or "approached" in o.extra for o in scene.objects)
-    if last is not None and result is not None and not result.success:
-        for o in scene.objects:
-            o.extra["approached"] = o.extra["gripper_over"] = False
-    elif not reported and last is not None and result is not None:
-        target = last.params.get("target")
-        held = ArmState.of(scene).held
-        for o in scene.objects:
-            o.extra["gripper_over"] = last.name == MOVE and o.id == target
-            o.extra["approached"] = last.name == APPROACH and held is None and o.id == target
+    fill_known(scene, measured, stiffness, last, observation.last_result)
     return scene
 
 

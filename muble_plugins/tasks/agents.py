@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from muble import ActionCall, Agent, Answer, Instruction, Observation, Task, get_registry
+from muble import ActionCall, ActionResult, Agent, Answer, Instruction, Observation, SceneGraph, Task, get_registry
 
 from muble.core.observation import MEASURED_STIFFNESS
 from muble.core.symbolic import ArmState
@@ -72,23 +72,7 @@ class OracleAgent(Agent):
     def _known(self, observation: Observation) -> Observation:
         """The observation with this agent's measurements and the gripper's hover state filled in."""
         scene = copy.deepcopy(observation.scene)
-        for o in scene.objects:
-            if o.weight is None and o.id in self.measured:
-                o.weight = self.measured[o.id]
-            if MEASURED_STIFFNESS not in o.extra and o.id in self.stiffness:
-                o.extra[MEASURED_STIFFNESS] = self.stiffness[o.id]
-        result, last = observation.last_result, self.last
-        reported = any("gripper_over" in o.extra or "approached" in o.extra for o in scene.objects)
-        if last is not None and result is not None and not result.success:
-            # Start over from hovering: a failed grasp or put-down leaves the hand where it should not stay.
-            for o in scene.objects:
-                o.extra["approached"] = o.extra["gripper_over"] = False
-        elif not reported and last is not None and result is not None:
-            target = last.params.get("target")
-            held = ArmState.of(scene).held
-            for o in scene.objects:
-                o.extra["gripper_over"] = last.name == MOVE and o.id == target
-                o.extra["approached"] = last.name == APPROACH and held is None and o.id == target
+        fill_known(scene, self.measured, self.stiffness, self.last, observation.last_result)
         return dataclasses.replace(observation, scene=scene)
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
@@ -122,6 +106,30 @@ class OracleAgent(Agent):
         if attempt and "attempt" in primitive_params(action.name):
             return ActionCall(action.name, {**action.params, "attempt": attempt})
         return action
+
+
+def fill_known(scene: SceneGraph, measured: dict[int, float], stiffness: dict[int, float],
+               last: ActionCall | None, result: ActionResult | None) -> None:
+    """Fill an agent's copy of the observed ``scene`` with what it knows: the weights and stiffnesses it measured,
+    and the gripper's hover state. After a failed primitive (``result`` of ``last``) the hover and grasp-pose
+    flags are cleared, so the plan starts over from hovering (a failed grasp or put-down leaves the hand where it
+    should not stay); a world that reports no hover flags has them filled in from the last primitive. The oracle
+    and the learned planner keep the same books, so the planner's labels fit."""
+    for o in scene.objects:
+        if o.weight is None and o.id in measured:
+            o.weight = measured[o.id]
+        if MEASURED_STIFFNESS not in o.extra and o.id in stiffness:
+            o.extra[MEASURED_STIFFNESS] = stiffness[o.id]
+    reported = any("gripper_over" in o.extra or "approached" in o.extra for o in scene.objects)
+    if last is not None and result is not None and not result.success:
+        for o in scene.objects:
+            o.extra["approached"] = o.extra["gripper_over"] = False
+    elif not reported and last is not None and result is not None:
+        target = last.params.get("target")
+        held = ArmState.of(scene).held
+        for o in scene.objects:
+            o.extra["gripper_over"] = last.name == MOVE and o.id == target
+            o.extra["approached"] = last.name == APPROACH and held is None and o.id == target
 
 
 RETRY_LIMIT = 16  # the highest ``attempt`` the built-in primitives take
