@@ -124,6 +124,9 @@ class ActionCall:
     params: dict[str, Any] = field(default_factory=dict)
 
     def __str__(self) -> str:
+        # An agent's malformed call (params not a mapping) is reported and logged as it came, never a crash.
+        if not isinstance(self.params, dict):
+            return f"{self.name}(params={self.params!r:.200})"
         args = ", ".join(f"{k}={v!r}" for k, v in self.params.items())
         return f"{self.name}({args})"
 

@@ -129,3 +129,9 @@ def test_final_state_is_judged_on_ground_truth_not_on_what_the_agent_saw(episode
 
     result = run_episode(ins, SymbolicWorld(scene), Guess(), check)
     assert result.outcome is Outcome.INCORRECT_ANSWER  # it saw no weight, so it could not copy one
+
+
+def test_a_malformed_call_prints_as_it_came():
+    """Logged and reported, an agent's call with parameters that are no mapping names them, never raises."""
+    assert str(ActionCall("lift", [0.1])) == "lift(params=[0.1])"
+    assert str(ActionCall("approach", {"target": 3})) == "approach(target=3)"
