@@ -137,7 +137,7 @@ class BenchmarkConfig:
 class TrainConfig:
     """``muble train``: where the part's checkpoints go and how the run goes (the part is ``trainer=NAME``)."""
 
-    out_dir: str = "${hydra:runtime.output_dir}"
+    out_dir: str | None = None  # None: the run's output folder (output.dir)
     resume: bool = True  # go on from the last checkpoint in out_dir (refused if it was made under another config)
     progress: bool = True
     threads: int = bounded(0, ge=0)  # CPU threads for training; 0: the library's default

@@ -41,7 +41,7 @@ def training_run(cfg: DictConfig) -> TrainingRun:
     config = OmegaConf.to_container(cfg, resolve=True)
     record = make_manifest({"seed": int(cfg.seed)}, {k: v for k, v in config.items() if k not in ("output",)})
     protocol = config.get("protocol")
-    return TrainingRun(out_dir=Path(cfg.train.out_dir), seed=int(cfg.seed), resume=bool(cfg.train.resume),
+    return TrainingRun(out_dir=Path(cfg.train.out_dir or cfg.output.dir), seed=int(cfg.seed), resume=bool(cfg.train.resume),
                        record=record, progress=bool(cfg.train.progress), protocol=protocol,
                        data_root=Path(cfg.train.data_root) if cfg.train.data_root else None,
                        threads=int(cfg.train.threads))
