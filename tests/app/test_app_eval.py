@@ -255,7 +255,7 @@ def test_random_agent_does_not_beat_the_oracle(dataset, oracle_run, tmp_path):
 
 @pytest.mark.parametrize("overrides, message", [
     (["agent=oracle", "dataset.root={missing}"], "does not exist; set dataset.root="),
-    (["agent.name=teleporter", "dataset.root={root}"], "set agent= to one of: llm, oracle, random"),
+    (["agent.name=teleporter", "dataset.root={root}"], "set agent= to one of: learned_planner, llm, oracle, random"),
     (["agent=oracle", "dataset.root={root}", "dataset.splits=[test]"], "splits present: val"),
 ])
 def test_bad_input_says_what_to_change(tmp_path, overrides, message):
