@@ -120,6 +120,16 @@ def resume_from(path: str | Path, kind: str, run: TrainingRun, ident: dict[str, 
     return payload
 
 
+def restore(payload: dict[str, Any], model: Any, optimiser: Any, schedule: Any = None) -> int:
+    """Load a checkpoint's model, optimiser (and learning-rate schedule) and RNG states; its finished epochs."""
+    model.load_state_dict(payload["state"]["model"])
+    optimiser.load_state_dict(payload["state"]["optimiser"])
+    if schedule is not None:
+        schedule.load_state_dict(payload["state"]["schedule"])
+    restore_rng(payload["state"]["rng"])
+    return int(payload["epoch"])
+
+
 def progress(items: Iterable, run: TrainingRun, desc: str, total: int | None = None) -> Iterator:
     """``items`` with a progress bar on stderr when the run shows one."""
     if not run.progress:

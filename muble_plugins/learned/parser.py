@@ -341,11 +341,7 @@ class ParserTrainer:
             (step + 1) / warmup, 0.5 * (1 + math.cos(math.pi * min(1.0, step / max(1, total_steps))))))
         start_epoch, losses, train_seconds = 0, [], 0.0
         if resumed is not None:
-            model.load_state_dict(resumed["state"]["model"])
-            optimiser.load_state_dict(resumed["state"]["optimiser"])
-            schedule.load_state_dict(resumed["state"]["schedule"])
-            ckpt.restore_rng(resumed["state"]["rng"])
-            start_epoch = int(resumed["epoch"])
+            start_epoch = ckpt.restore(resumed, model, optimiser, schedule)
             losses = list(resumed["extra"].get("losses", []))
             train_seconds = float(resumed["extra"].get("train_seconds", 0.0))
 

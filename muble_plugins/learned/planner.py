@@ -216,10 +216,7 @@ class PlannerTrainer(Trainer):
         optimiser = torch.optim.Adam(net.parameters(), lr=s["learning_rate"])
         epoch0, history, train_s, train_cpu_s = 0, [], 0.0, 0.0
         if previous is not None:
-            net.load_state_dict(previous["state"]["model"])
-            optimiser.load_state_dict(previous["state"]["optimiser"])
-            ck.restore_rng(previous["state"]["rng"])
-            epoch0 = int(previous["epoch"])
+            epoch0 = ck.restore(previous, net, optimiser)
             history = list(previous["extra"].get("history", []))
             train_s = float(previous["extra"].get("train_s", 0.0))
             train_cpu_s = float(previous["extra"].get("train_cpu_s", 0.0))

@@ -404,10 +404,7 @@ class RecogniserTrainer(Trainer):
         start_epoch, history = 0, []
         previous = ck.resume_from(path, KIND, run, ident)
         if previous is not None:
-            net.load_state_dict(previous["state"]["model"])
-            optimiser.load_state_dict(previous["state"]["optimiser"])
-            ck.restore_rng(previous["state"]["rng"])
-            start_epoch = int(previous["epoch"])
+            start_epoch = ck.restore(previous, net, optimiser)
             history = list(previous["extra"].get("history", []))
             log.info("recogniser: resuming after epoch %d of %d", start_epoch, cfg.epochs)
 
