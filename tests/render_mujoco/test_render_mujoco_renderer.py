@@ -125,3 +125,36 @@ def test_labels_follow_object_table_and_robot_names():
       <body name="gripper0_finger"><geom type="sphere" size=".01"/></body></worldbody></mujoco>"""
     labels = geom_labels(mujoco.MjModel.from_xml_string(xml)).tolist()
     assert labels == [SEG_BACKGROUND, SEG_TABLE, 3, 3, 7, SEG_ROBOT, SEG_ROBOT]
+
+
+def test_a_kept_renderer_refills_its_context_for_a_new_scene_and_draws_as_a_fresh_one():
+    """Scenes of one stage (arena, robot, textures) share a GL context: only the mesh slots whose contents differ
+    are uploaded again, and RGB (with shadows), depth and labels are the same as a fresh renderer's."""
+    from muble.app.config import compose
+    from muble.episode.components import build_components, generated_env
+
+    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
+    components = build_components(cfg, renderer=False, task=False)
+    envs = [generated_env(cfg, components, i) for i in (0, 4)]  # 113 and 120 meshes: the larger one first
+    envs.sort(key=lambda e: -e.model.nmesh)
+    kept = get_registry().create("renderer", "mujoco", {"width": 320, "height": 240})
+    try:
+        contexts = []
+        for env in envs:
+            scene = env.sync_scene_graph()
+            kept.setup(scene, env.model)
+            contexts.append(kept._context)
+            drawn = kept.render(env.data, "front")
+            own = get_registry().create("renderer", "mujoco", {"width": 320, "height": 240})
+            try:
+                own.setup(scene, env.model)
+                fresh = own.render(env.data, "front")
+            finally:
+                own.close()
+            for part in ("rgb", "depth", "segmentation"):
+                np.testing.assert_array_equal(getattr(drawn, part), getattr(fresh, part), err_msg=part)
+        assert contexts[0] is contexts[1], "the second scene was given a new context instead of refilled slots"
+    finally:
+        kept.close()
+        for env in envs:
+            env.close()

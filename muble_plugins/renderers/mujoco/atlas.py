@@ -85,3 +85,54 @@ class MeshAtlas:
                 return None
         log.debug("mesh atlas now holds %d meshes", len(self._sources))
         return self.remap(model)
+
+
+# --- refilling a context's mesh slots ----------------------------------------------------------------------------
+# A GL context keeps, besides the meshes, what ``MjrContext`` copies from the model it was made from: the textures,
+# the materials' texture bindings, a display list per plane geom, and visual settings (some scaled by the model's
+# extent). Two models that agree on all of that (a scene generator's scenes: the same arena and robot, other
+# objects) can share one context whose mesh slots are re-uploaded (``mjr_uploadMesh``) where their contents differ.
+
+
+def stage_key(model) -> bytes | None:
+    """A digest of everything a GL context takes from ``model`` but its meshes; None for models with height
+    fields, skins or flexes, whose GPU data this does not cover."""
+    if model.nhfield or model.nskin or model.nflex:
+        return None
+    h = hashlib.blake2b(digest_size=16)
+    vis, q, mp, gl = model.vis, model.vis.quality, model.vis.map, model.vis.global_
+    numbers = [q.shadowsize, q.offsamples, q.numslices, q.numstacks, q.numquads, mp.zfar, mp.znear, mp.shadowclip,
+               mp.shadowscale, mp.fogstart, mp.fogend, gl.linewidth, gl.offwidth, gl.offheight, model.stat.extent,
+               *vis.rgba.fog]
+    h.update(np.asarray(numbers, dtype=np.float64).tobytes())
+    for arr in (model.tex_type, model.tex_width, model.tex_height, model.tex_nchannel, model.tex_colorspace,
+                model.tex_data, model.mat_texid, model.mat_texuniform, model.mat_texrepeat):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    planes = np.flatnonzero(model.geom_type == 0)  # mjGEOM_PLANE
+    h.update(np.ascontiguousarray(model.geom_size[planes]).tobytes())
+    h.update(np.ascontiguousarray(model.geom_matid[planes]).tobytes())
+    return h.digest()
+
+
+def mesh_slot_keys(model) -> list[bytes]:
+    """A content key per mesh of ``model`` covering everything ``mjr_uploadMesh`` draws from: vertices, faces,
+    normals, texture coordinates and the convex hull."""
+    keys = []
+    for i in range(model.nmesh):
+        v0, nv = model.mesh_vertadr[i], model.mesh_vertnum[i]
+        f0, nf = model.mesh_faceadr[i], model.mesh_facenum[i]
+        n0, nn = model.mesh_normaladr[i], model.mesh_normalnum[i]
+        t0, nt = model.mesh_texcoordadr[i], model.mesh_texcoordnum[i]
+        g0 = model.mesh_graphadr[i]
+        h = hashlib.blake2b(digest_size=16)
+        for part in (model.mesh_vert[v0:v0 + nv], model.mesh_face[f0:f0 + nf], model.mesh_normal[n0:n0 + nn],
+                     model.mesh_facenormal[f0:f0 + nf]):
+            h.update(np.ascontiguousarray(part).tobytes())
+        if t0 >= 0:
+            h.update(np.ascontiguousarray(model.mesh_texcoord[t0:t0 + nt]).tobytes())
+            h.update(np.ascontiguousarray(model.mesh_facetexcoord[f0:f0 + nf]).tobytes())
+        if g0 >= 0:
+            nvert, nface = int(model.mesh_graph[g0]), int(model.mesh_graph[g0 + 1])
+            h.update(np.ascontiguousarray(model.mesh_graph[g0:g0 + 2 + 3 * nvert + 6 * nface]).tobytes())
+        keys.append(h.digest())
+    return keys

@@ -10,7 +10,7 @@ import numpy as np
 from muble import Frame, RenderError, Renderer, SceneGraph, bounded
 from muble.core.errors import unknown_name
 
-from muble_plugins.renderers.mujoco.atlas import MeshAtlas, atlas_compatible
+from muble_plugins.renderers.mujoco.atlas import MeshAtlas, atlas_compatible, mesh_slot_keys, stage_key
 from muble_plugins.renderers.mujoco.labels import geom_labels
 from muble_plugins.renderers.mujoco.simplify import SimplifiedMeshes
 
@@ -75,7 +75,9 @@ class MujocoRenderer(Renderer):
         self._simplified = None if mesh_cell is None else SimplifiedMeshes(float(mesh_cell))
         self._gl = None
         self._context = None  # MjrContext
-        self._context_model = None  # the model the context was made from
+        self._context_model = None  # the model the context was made from, or whose meshes it was refilled with
+        self._context_stage: bytes | None = None  # stage_key of that model (None: the context cannot be refilled)
+        self._context_slots: list[bytes | None] = []  # content key of each mesh slot of the context
         self._atlas = MeshAtlas()
         self._model = None
         self._scene = None  # MjvScene
@@ -117,7 +119,7 @@ class MujocoRenderer(Renderer):
             elif self._context_model is not self._atlas.model:
                 self._make_context(self._atlas.model)
         if remap is None:
-            self._make_context(model)
+            self._context_for(model)
         self._mesh_remap = remap
         self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
         self._option = mujoco.MjvOption()
@@ -128,8 +130,32 @@ class MujocoRenderer(Renderer):
         self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = int(self.config.reflection)
         self._set_up_with = (scene, model)
 
+    def _context_for(self, model) -> None:
+        """A context for ``model``: the current one with the mesh slots whose contents differ re-uploaded, where
+        it was made for a model of the same stage (``stage_key``) with as many mesh slots; else a new one. The
+        drawing is the same either way: only slots ``model`` uses are drawn, and each holds ``model``'s mesh."""
+        import mujoco
+
+        stage = stage_key(model)
+        context = self._context
+        if stage is None or context is None or stage != self._context_stage or context.rangeMesh < 2 * model.nmesh:
+            self._make_context(model)
+            self._context_stage = stage
+            self._context_slots = mesh_slot_keys(model) if stage is not None else []
+            return
+        slots = mesh_slot_keys(model)
+        changed = [i for i, key in enumerate(slots) if i >= len(self._context_slots) or self._context_slots[i] != key]
+        if changed:
+            with self._simplified.drawn_in(model) if self._simplified is not None else nullcontext():
+                for i in changed:
+                    mujoco.mjr_uploadMesh(model, context, i)
+            self._context_slots = slots + self._context_slots[len(slots):]
+        self._context_model = model
+
     def _make_context(self, model) -> None:
         import mujoco
+
+        self._context_stage, self._context_slots = None, []
 
         if self._context is not None:
             self._context.free()
