@@ -1,12 +1,14 @@
 """Objects' sizes on the table as a scene graph gives them (bbox extents), and the symbolic world's free spot.
 
 No physics reads these: they serve worlds and checks that know objects only by their scene-graph records (the
-symbolic world's ``move`` and ``lower``, the tasks' success checks).
+symbolic world's ``move`` and ``lower``, the tasks' success checks). Where the symbolic world puts an object down
+is the physical world's rule (``muble.core.free_place``) applied to bounding boxes.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from muble.core.free_place import free_places
 from muble.core.scene import SceneGraph, SceneObject
 from muble.core.table import part_region
 
@@ -38,18 +40,22 @@ def height(obj: SceneObject) -> float:
     return extents(obj)[2]
 
 
-def free_spot(scene: SceneGraph, obj: SceneObject, part: str, step: float = 0.02) -> list[float]:
-    """The point of ``part`` with the most clearance from every other object (deterministic)."""
+def outline(obj: SceneObject) -> np.ndarray:
+    """The corners, on the table plane, of ``obj``'s bounding box about its position (scene graphs keep world
+    axis-aligned boxes)."""
+    ex, ey, _ = extents(obj)
+    corners = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]]) * [ex, ey]
+    return corners + np.asarray(obj.position[:2], dtype=float)
+
+
+def free_spot(scene: SceneGraph, obj: SceneObject, part: str) -> list[float] | None:
+    """Where ``obj`` is put down on ``part``: the first free place of the one free-place rule
+    (``muble.core.free_place``, nearest the part's centre) with bounding boxes as footprints; None when the part
+    has no room for it."""
     (x0, x1), (y0, y1) = part_region(part)
-    r = footprint_radius(obj)
-    xs = np.arange(x0 + r, x1 - r + 1e-9, step) if x1 - x0 > 2 * r else np.array([(x0 + x1) / 2])
-    ys = np.arange(y0 + r, y1 - r + 1e-9, step) if y1 - y0 > 2 * r else np.array([(y0 + y1) / 2])
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    clearance = np.full(gx.shape, np.inf)
-    for other in scene.objects:
-        if other.id == obj.id:
-            continue
-        d = np.hypot(gx - other.position[0], gy - other.position[1]) - footprint_radius(other) - r
-        clearance = np.minimum(clearance, d)
-    best = np.unravel_index(int(np.argmax(clearance)), clearance.shape)
-    return [round(float(gx[best]), 4), round(float(gy[best]), 4), 0.0]
+    held = outline(obj) - np.asarray(obj.position[:2], dtype=float)
+    others = [outline(other) for other in scene.objects if other.id != obj.id]
+    places = free_places((x0, y0), (x1, y1), held, others)
+    if not places:
+        return None
+    return [round(float(places[0][0]), 4), round(float(places[0][1]), 4), 0.0]

@@ -63,7 +63,7 @@ class Lower(PrimitiveAction):
 
     def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
         """The raised object is set down upright and let go, the hand over it: on the object the hand hovers
-        over, on the table spot it was carried to (or the part's freest spot), else back where it stood."""
+        over, on the table spot it was carried to (or the part's first free place), else back where it stood."""
         hand = ArmState.of(scene)
         held = hand.held_object(scene)
         if held is None or not hand.raised:
@@ -72,6 +72,8 @@ class Lower(PrimitiveAction):
         spot = held.extra.get(CARRIED_TO)
         if isinstance(target, str) and spot is None:
             spot = free_spot(scene, held, target)
+            if spot is None:
+                return ActionResult(False, failure_reason=placement.no_room(target, held.id))
         elif target is not None and not isinstance(target, str) and hand.over != int(target) and \
                 not over(held, scene.object(int(target))):
             return ActionResult(False, failure_reason=f"move over object {target} before lowering onto it")
@@ -108,8 +110,7 @@ def _places(env, target, held, table):
         lo, hi = table.part_region(target)
         places = placement.free_places(env, lo, hi, held)
         if not places:
-            raise PlanningError(f"no free space on the {target} part of the table for object {held}; "
-                                "choose another part")
+            raise PlanningError(placement.no_room(target, held))
         inside = bool(np.all(here >= lo) and np.all(here <= hi))
         if inside and placement.is_free(env, here, held):
             places = [here, *places]

@@ -51,7 +51,7 @@ class Move(PrimitiveAction):
 
     def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
         """The hand hovers over the object, or over the table part; a raised object in it travels along, to the
-        part's freest spot (``free_spot``), where ``lower`` will put it."""
+        part's first free place (``free_spot``), where ``lower`` will put it."""
         hand = ArmState.of(scene)
         held = hand.held_object(scene)
         if held is not None and not hand.raised:
@@ -60,6 +60,8 @@ class Move(PrimitiveAction):
         if isinstance(self.arguments.get("target"), str):  # a table part
             set_flag(scene, "gripper_over", None)
             spot = free_spot(scene, held, self.arguments["target"]) if held is not None else None
+            if held is not None and spot is None:
+                return ActionResult(False, failure_reason=placement.no_room(self.arguments["target"], held.id))
             if held is not None:
                 held.extra[CARRIED_TO] = spot
             xy = spot[:2] if spot else None
@@ -158,7 +160,6 @@ def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
                 logger.debug("no descent to %s (turn %.0f deg): %s", np.round(xy, 3).tolist(), np.degrees(yaw), e)
                 reasons.append(f"{np.round(xy, 3).tolist()}: {e}")
     if not any_free:
-        raise PlanningError(f"no free space on the {part} part of the table for object {env.held_object}; "
-                            "choose another part")
+        raise PlanningError(placement.no_room(part, env.held_object))
     raise PlanningError(f"no free place on the {part} part of the table can be reached and descended to "
                         f"({len(reasons)} places and turns tried): {reasons[0]}")

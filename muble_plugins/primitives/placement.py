@@ -1,10 +1,9 @@
 """Putting a held object down: free places on the table from the objects' real footprints, and descents onto a
 place that are checked (reachable, continuous, collision-free) before anything moves.
 
-A footprint is the convex hull, seen from above, of a body's collision geometry in its current pose. The held
-object keeps its orientation while carried, so the centres where it would overlap another object form that
-object's footprint grown by the held one's (a Minkowski sum), grown again by the gap to keep; a place is free
-when it lies outside every such region.
+A footprint is the convex hull, seen from above, of a body's collision geometry in its current pose. Which
+centres are free is decided by the one rule of ``muble.core.free_place`` (the held object's footprint, grown by
+the gap, must not meet another's), which the symbolic world applies to the scene graph's bounding boxes.
 """
 from __future__ import annotations
 
@@ -14,6 +13,8 @@ import mujoco
 import numpy as np
 
 from muble import PlanningError, Pose, PoseGoal, Trajectory
+from muble.core import free_place
+from muble.core.free_place import DISC, PLACE_GAP, PLACE_SPACING
 from muble.core.geometry import hull_2d, yaw_quat
 from muble.core.rest import resting_height
 from muble_plugins.primitives import context as ctx
@@ -22,15 +23,11 @@ from muble_plugins.primitives.common import PART_OPEN, release_command
 
 logger = logging.getLogger(__name__)
 
-PLACE_GAP = 0.015  # m kept between a placed object's footprint and the others'
-PLACE_SPACING = 0.01  # m between the places searched
 CANDIDATE_SPACING = 0.04  # m between the places a primitive tries in turn (neighbours fail alike)
 MAX_CANDIDATES = 20
 DESCENT_SEEDS = 6  # random arm configurations tried for a place the current arm cannot descend to
 RISE = 0.04  # m risen straight up to leave what the arm or held object touches at the start of a move
 CLEAR_RISE = 0.12  # m risen in such steps at most (the hover height over an object), still in contact or not
-_ANGLES = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
-_DISC = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1)  # unit circle, for round geoms and the gap
 
 
 def held_depth(env) -> float:
@@ -120,58 +117,40 @@ def footprint(env, body: int) -> np.ndarray:
             corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * m.geom_size[g]
             points.append((corners @ rot.T + pos)[:, :2])
         else:  # round shapes: their bounding circle
-            points.append(pos[:2] + m.geom_rbound[g] * _DISC)
+            points.append(pos[:2] + m.geom_rbound[g] * DISC)
     if not points:
         return d.xpos[body][:2][None].copy()
     return hull_2d(np.vstack(points))
 
 
-def _forbidden(obstacle: np.ndarray, held: np.ndarray, gap: float) -> np.ndarray:
-    """Half-planes (a, b, c: a x + b y + c <= 0 inside) of the centres where ``held`` (points relative to its
-    centre) comes closer than ``gap`` to ``obstacle``."""
-    from scipy.spatial import ConvexHull
+def obstacles(env, held: int) -> list[np.ndarray]:
+    """The footprints of every object but ``held``."""
+    m = env.model
+    return [footprint(env, m.body(name).id) for i, name in env.names.objects.items() if i != held]
 
-    grown = (obstacle[:, None, :] - held[None, :, :]).reshape(-1, 2)
-    grown = (hull_2d(grown)[:, None, :] + gap * _DISC[None]).reshape(-1, 2)
-    return ConvexHull(grown).equations
+
+def held_outline(env, held: int) -> np.ndarray:
+    """The held object's footprint relative to its centre, as it is turned now."""
+    body = env.model.body(env.names.objects[held]).id
+    return footprint(env, body) - env.data.xpos[body][:2]
 
 
 def free_places(env, lo: np.ndarray, hi: np.ndarray, held: int, prefer: np.ndarray | None = None,
                 gap: float = PLACE_GAP, spacing: float = PLACE_SPACING, yaw: float = 0.0) -> list[np.ndarray]:
     """Centres in the box ``lo``-``hi`` where the held object, as it is turned now and then by ``yaw`` about the
     vertical, keeps ``gap`` from every other object's footprint; nearest ``prefer`` (default: the box's centre)
-    first."""
-    xs = np.arange(lo[0], hi[0] + 1e-9, spacing)
-    ys = np.arange(lo[1], hi[1] + 1e-9, spacing)
-    if len(xs) == 0 or len(ys) == 0:
-        return []
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    points = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    free = _free_mask(env, points, held, gap, yaw)
-    chosen = points[free]
-    prefer = 0.5 * (np.asarray(lo) + np.asarray(hi)) if prefer is None else np.asarray(prefer, dtype=float)
-    return list(chosen[np.argsort(np.linalg.norm(chosen - prefer, axis=1), kind="stable")])
+    first (the rule of ``muble.core.free_place``, on the bodies' collision geometry)."""
+    return free_place.free_places(lo, hi, held_outline(env, held), obstacles(env, held), prefer, gap, spacing, yaw)
 
 
-def _free_mask(env, points: np.ndarray, held: int, gap: float, yaw: float = 0.0) -> np.ndarray:
-    m = env.model
-    held_body = m.body(env.names.objects[held]).id
-    held_shape = footprint(env, held_body) - env.data.xpos[held_body][:2]
-    if yaw:
-        c, s = np.cos(yaw), np.sin(yaw)
-        held_shape = held_shape @ np.array([[c, -s], [s, c]]).T
-    free = np.ones(len(points), dtype=bool)
-    for i, name in env.names.objects.items():
-        if i == held:
-            continue
-        eq = _forbidden(footprint(env, m.body(name).id), held_shape, gap)
-        inside = np.all(points @ eq[:, :2].T + eq[:, 2] <= 0.0, axis=1)
-        free &= ~inside
-    return free
+def no_room(part: str, held: int) -> str:
+    """The failure of a put-down on a table part with no free place, in both worlds."""
+    return f"no free space on the {part} part of the table for object {held}; choose another part"
 
 
 def is_free(env, xy: np.ndarray, held: int, gap: float = PLACE_GAP) -> bool:
-    return bool(_free_mask(env, np.asarray(xy, dtype=float)[None], held, gap)[0])
+    return bool(free_place.free_mask(np.asarray(xy, dtype=float)[None], held_outline(env, held),
+                                     obstacles(env, held), gap)[0])
 
 
 def spread(places: list[np.ndarray], spacing: float = CANDIDATE_SPACING, limit: int = MAX_CANDIDATES):

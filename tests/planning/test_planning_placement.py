@@ -88,3 +88,30 @@ def test_lower_without_target_puts_the_object_back_in_its_parts(env):
     pos = env.object_pose(HELD).pos
     assert parts_at(*pos[:2]) == before
     assert np.linalg.norm(pos[:2] - [0.45, 0.15]) < 0.05
+
+
+def test_the_symbolic_world_puts_down_by_the_same_rule_in_the_same_slot(env):
+    """Bounding boxes contain the collision geometry, so the symbolic world's spot is free in physics too."""
+    from muble.core.footprint import free_spot
+
+    env.reset()
+    scene = env.sync_scene_graph()
+    spot = free_spot(scene, scene.object(HELD), "left")
+    assert spot is not None
+    assert 0.485 <= spot[0] <= 0.535, spot  # the slot between the boards, as in physics
+    assert placement.is_free(env, np.array(spot[:2]), HELD)
+
+
+def test_a_part_without_room_fails_alike_in_the_symbolic_world(env):
+    from muble.core.footprint import free_spot
+
+    env.reset()
+    scene = env.sync_scene_graph()
+    wide = scene.object(HELD)
+    wide.bbox = {"x": 0.2, "y": 0.2, "z": 0.1}  # wider than the slot
+    assert free_spot(scene, wide, "left") is None
+    # The symbolic move of a raised object to that part reports what physics reports.
+    wide.extra.update(in_hand=True, raised=True)  # held and lifted, as the symbolic world records it
+    result = get_registry().create("primitive", "move", {"target": "left"}).symbolic_effect(scene)
+    assert not result.success
+    assert result.failure_reason == placement.no_room("left", HELD)
