@@ -94,10 +94,12 @@ def compare(scene, original: np.ndarray, rgb: np.ndarray, segmentation: np.ndarr
         if obj.mask is None:
             continue
         mask = _resized_mask(decode_mask(obj.mask), size)
-        delta = ciede2000(mean_lab(original, mask), mean_lab(rgb, mask))
-        objects.append({"id": obj.id, "name": obj.name, "material": obj.material,
+        theirs, ours = mean_lab(original, mask), mean_lab(rgb, mask)
+        delta = ciede2000(theirs, ours)
+        objects.append({"id": obj.id, "name": obj.name, "material": obj.material, "colour": obj.colour,
                         "iou": round(mask_iou(segmentation == obj.id, mask), 4),
-                        "ciede2000": None if np.isnan(delta) else round(float(delta), 2)})
+                        "ciede2000": None if np.isnan(delta) else round(float(delta), 2),
+                        "lab_original": np.round(theirs, 1).tolist(), "lab_here": np.round(ours, 1).tolist()})
     parts = {}
     for part, label in (("table", SEG_TABLE), ("robot", SEG_ROBOT)):
         record = getattr(scene, part, None) or {}
@@ -202,8 +204,8 @@ def main(argv: list[str] | None = None) -> int:
               f"table {result['table_iou']}  robot {result['robot_iou']}  SSIM {result['ssim']:.3f}  "
               f"CIEDE2000 {' '.join(f'{d:.1f}' for d in deltas)}  ({seconds:.1f} s)", flush=True)
         for o in result["objects"]:
-            print(f"    {o['id']} {o['name']:14s} {o['material'] or '':8s} IoU {o['iou']:.3f}  "
-                  f"CIEDE2000 {o['ciede2000']}")
+            print(f"    {o['id']} {o['name']:14s} {o['material'] or '':8s} {o['colour'] or '':11s} IoU {o['iou']:.3f}  "
+                  f"CIEDE2000 {o['ciede2000']}  L*a*b* {o['lab_original']} -> {o['lab_here']}")
         sheet += [original, rgb]
         labels += [f"original {scene.image_index}", f"here {scene.image_index}"]
     figures = summary(results)

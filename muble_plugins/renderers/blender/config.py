@@ -8,6 +8,8 @@ from muble import bounded
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("CPU", "GPU", "auto")
 DENOISER_QUALITIES = ("FAST", "BALANCED", "HIGH")
+BACKDROPS = ("studio", "sky")
+COLOUR_SPACES = ("linear", "srgb")
 
 
 @dataclass
@@ -46,8 +48,16 @@ class BlenderRendererConfig:
     # Draw robosuite's room (the arena's walls). Off by default: the scene lamps stand where the original's stood,
     # outside that room, and the walls turn the lit table into a box of bounced light (noisy, slow to converge).
     walls: bool = False
+    # How an object's MuJoCo colour becomes its reflectance: ``linear`` takes the values as linear reflectance, as the
+    # original SHOP-VRB2 generator put its colours into Blender (its objects look lighter than the same colour
+    # shown as sRGB); ``srgb`` decodes them as the display colours MuJoCo shows.
+    object_colours: str = "linear"
     table_material: str = "wood"
-    table_rgb: list[float] | None = field(default_factory=lambda: [0.78, 0.66, 0.5])  # None: MuJoCo's colour
+    # The original's light oak under its varnish and lamps: the mean colour of its desk in the reference frames.
+    table_rgb: list[float] | None = field(default_factory=lambda: [0.725, 0.58, 0.44])  # None: MuJoCo's colour
+    # What the camera sees where nothing is hit: the original's studio backdrop, a light grey brightening towards
+    # the horizon (``studio``), or the sky colour (``sky``). Either way the sky lights the scene.
+    backdrop: str = "studio"
     background_rgb: list[float] = field(default_factory=lambda: [0.78, 0.80, 0.84])
     background_strength: float = 0.3
     light_energy: float = 1.0  # multiplies the key/fill/back rig

@@ -59,7 +59,8 @@ def _bump(nodes: Any, links: Any, bsdf: Any, height: Any, strength: float, dista
 
 
 def _plastic(mat, bsdf, rgb, nodes, links):
-    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.2, Specular_IOR_Level=0.5, IOR=1.46)
+    # A satin sheen: softer and weaker than a ceramic's glaze, so the two stay apart in the lighter object colours.
+    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.4, Specular_IOR_Level=0.35, IOR=1.46)
 
 
 def _painted(mat, bsdf, rgb, nodes, links):
@@ -77,9 +78,10 @@ def _rubber(mat, bsdf, rgb, nodes, links):
 
 
 def _metal(mat, bsdf, rgb, nodes, links):
-    # Brushed metal: anisotropic highlights and roughness streaks stretched along the object's z axis.
-    tint = 0.35 + 0.65 * np.asarray(rgb)
-    _set(bsdf, Base_Color=(*tint, 1), Metallic=1.0, Anisotropic=0.6)
+    # Coloured metal, as the original's: the paint colour itself is the reflectance (a red thermos stays red
+    # rather than turning pink under a whitened tint), glossy (roughness 0.1-0.2, as its two mixed glossy
+    # layers), with a light brushing: roughness streaks stretched along the object's z axis.
+    _set(bsdf, Base_Color=(*rgb, 1), Metallic=1.0, Anisotropic=0.6)
     coords = _object_coords(nodes, links)
     stretch = nodes.new("ShaderNodeMapping")
     stretch.inputs["Scale"].default_value = (300.0, 300.0, 4.0)
@@ -88,21 +90,32 @@ def _metal(mat, bsdf, rgb, nodes, links):
     noise.inputs["Scale"].default_value = 1.0
     links.new(stretch.outputs["Vector"], noise.inputs["Vector"])
     ramp = nodes.new("ShaderNodeMapRange")
-    ramp.inputs["To Min"].default_value = 0.12
-    ramp.inputs["To Max"].default_value = 0.3
+    ramp.inputs["To Min"].default_value = 0.1
+    ramp.inputs["To Max"].default_value = 0.2
     links.new(noise.outputs["Fac"], ramp.inputs["Value"])
     links.new(ramp.outputs["Result"], bsdf.inputs["Roughness"])
 
 
 def _glass(mat, bsdf, rgb, nodes, links):
-    # Clear glass with a light tint of the object's colour.
-    tint = 0.6 + 0.4 * np.asarray(rgb)
-    _set(bsdf, Base_Color=(*tint, 1), Roughness=0.02, IOR=1.5, Transmission_Weight=1.0)
+    # Clear glass (IOR 1.45, as the original's, whose glass passes 98 %) with a faint tint of the object's colour:
+    # a light passes four walls of a tumbler, so a stronger tint per wall greys the glass. Thin walls: the models
+    # are solid, and refraction through a solid base showed the table under it, in the glass's own shadow, as a
+    # black pool. Refractive caustics are off (noise), so shadow rays pass through instead, in the tint.
+    tint = 1.0 - 0.15 * (1.0 - np.asarray(rgb))
+    _set(bsdf, Base_Color=(*tint, 1), Roughness=0.02, IOR=1.45, Transmission_Weight=1.0)
+    output = next(n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    clear = nodes.new("ShaderNodeBsdfTransparent")
+    clear.inputs["Color"].default_value = (*np.clip(0.9 * tint, 0, 1), 1)
+    mix = nodes.new("ShaderNodeMixShader")
+    links.new(nodes.new("ShaderNodeLightPath").outputs["Is Shadow Ray"], mix.inputs["Fac"])
+    links.new(bsdf.outputs["BSDF"], mix.inputs[1])
+    links.new(clear.outputs["BSDF"], mix.inputs[2])
+    links.new(mix.outputs["Shader"], output.inputs["Surface"])
 
 
 def _ceramic(mat, bsdf, rgb, nodes, links):
-    # Glazed: a diffuse body under a sharp clear coat, with a touch of subsurface light.
-    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.4, Coat_Weight=1.0, Coat_Roughness=0.03, Coat_IOR=1.5,
+    # Glazed: a diffuse body under a sharp, strongly reflecting clear coat, with a touch of subsurface light.
+    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.4, Coat_Weight=1.0, Coat_Roughness=0.03, Coat_IOR=1.7,
          Subsurface_Weight=0.1, Subsurface_Scale=0.01)
 
 
@@ -133,24 +146,55 @@ def _wood(mat, bsdf, rgb, nodes, links, rings: float | None = None):
     _bump(nodes, links, bsdf, wave.outputs["Fac"], 0.05, 0.001)
 
 
+# The desk's grain: growth rings per metre of the second, finer set of rings (the first is ``rings``); where in its
+# period a ring's dark late-wood line starts (it ends with the period), and how dark the line is against the
+# early wood. Measured on the original's frames: thin dark lines, unevenly about 4-8 mm apart, on a light body.
+FINE_RINGS = 1.63
+LATE_WOOD_START = 0.8
+LATE_WOOD_TONE = 0.55
+
+
+def _saw_rings(nodes, links, vector, scale: float, distortion: float, offset: float) -> Any:
+    """A thin line at the end of each period of slowly wandering bands along the object's x axis (0..1)."""
+    shift = nodes.new("ShaderNodeMapping")
+    shift.inputs["Location"].default_value = (0.0, offset, offset)
+    links.new(vector, shift.inputs["Vector"])
+    wave = nodes.new("ShaderNodeTexWave")
+    wave.wave_type = "BANDS"
+    wave.bands_direction = "Y"
+    wave.wave_profile = "SAW"
+    wave.inputs["Scale"].default_value = scale * math.pi / 10  # a BANDS period is 2 pi / (20 scale)
+    wave.inputs["Distortion"].default_value = distortion
+    wave.inputs["Detail"].default_value = 2.0
+    wave.inputs["Detail Scale"].default_value = 0.6
+    links.new(shift.outputs["Vector"], wave.inputs["Vector"])
+    line = nodes.new("ShaderNodeMapRange")
+    line.inputs["From Min"].default_value = LATE_WOOD_START
+    line.inputs["From Max"].default_value = 1.0
+    links.new(wave.outputs["Fac"], line.inputs["Value"])
+    return line.outputs["Result"]
+
+
 def _boards(bsdf, rgb, nodes, links, rings: float) -> None:
-    # Flat-sawn boards, as the original's desk: growth rings are bands running along the object's x axis (the
-    # table's depth, away from the camera), wandering slowly along it, each a light early-wood band ending in a
-    # thin dark late-wood line; fine fibres are noise stretched along the same axis. Object coordinates are
-    # metres: ``rings`` per metre across the grain.
+    # Flat-sawn oak boards, as the original's desk: growth rings run along the object's x axis (the table's depth,
+    # away from the camera) and wander slowly along it. Each ring is a light early-wood body ending in a thin dark
+    # late-wood line; two sets of rings at unrelated spacings make the lines irregular, not a regular ridge
+    # pattern, and fine fibres stretched along the grain break them up. Object coordinates are metres: ``rings``
+    # per metre across the grain. Under a glossy varnish that mirrors what stands on the table.
     coords = _object_coords(nodes, links)
     along = nodes.new("ShaderNodeMapping")  # compress x: every feature is long along the grain
     along.inputs["Scale"].default_value = (0.06, 1.0, 1.0)
     links.new(coords, along.inputs["Vector"])
-    wave = nodes.new("ShaderNodeTexWave")
-    wave.wave_type = "BANDS"
-    wave.bands_direction = "Y"
-    wave.wave_profile = "SAW"  # a ring's early wood fades into its sharp late-wood line
-    wave.inputs["Scale"].default_value = rings * math.pi / 10  # a BANDS period is 2 pi / (20 scale)
-    wave.inputs["Distortion"].default_value = 12.0
-    wave.inputs["Detail"].default_value = 2.0
-    wave.inputs["Detail Scale"].default_value = 0.6
-    links.new(along.outputs["Vector"], wave.inputs["Vector"])
+    coarse = _saw_rings(nodes, links, along.outputs["Vector"], rings, 10.0, 0.0)
+    fine = _saw_rings(nodes, links, along.outputs["Vector"], rings * FINE_RINGS, 14.0, 3.7)
+    weaker = nodes.new("ShaderNodeMath")
+    weaker.operation = "MULTIPLY"
+    weaker.inputs[1].default_value = 0.7
+    links.new(fine, weaker.inputs[0])
+    late = nodes.new("ShaderNodeMath")
+    late.operation = "MAXIMUM"
+    links.new(coarse, late.inputs[0])
+    links.new(weaker.outputs["Value"], late.inputs[1])
     fibre_map = nodes.new("ShaderNodeMapping")
     fibre_map.inputs["Scale"].default_value = (4.0, 350.0, 350.0)
     links.new(coords, fibre_map.inputs["Vector"])
@@ -158,22 +202,21 @@ def _boards(bsdf, rgb, nodes, links, rings: float) -> None:
     fibres.inputs["Scale"].default_value = 1.0
     fibres.inputs["Detail"].default_value = 3.0
     links.new(fibre_map.outputs["Vector"], fibres.inputs["Vector"])
-    mix = nodes.new("ShaderNodeMix")  # float mix: 55 % rings, 45 % fibres
+    mix = nodes.new("ShaderNodeMix")  # float mix: 80 % late-wood lines, 20 % fibres
     mix.data_type = "FLOAT"
-    mix.inputs["Factor"].default_value = 0.45
-    links.new(wave.outputs["Fac"], mix.inputs["A"])
+    mix.inputs["Factor"].default_value = 0.2
+    links.new(late.outputs["Value"], mix.inputs["A"])
     links.new(fibres.outputs["Fac"], mix.inputs["B"])
     ramp = nodes.new("ShaderNodeValToRGB")
     rgb = np.asarray(rgb)
-    ramp.color_ramp.elements[0].position = 0.3
-    ramp.color_ramp.elements[0].color = (*np.clip(1.05 * rgb, 0, 1), 1)  # early wood, light
-    ramp.color_ramp.elements[1].position = 0.85
-    ramp.color_ramp.elements[1].color = (*(0.72 * rgb), 1)  # late wood, dark
+    ramp.color_ramp.elements[0].position = 0.1
+    ramp.color_ramp.elements[0].color = (*rgb, 1)  # early wood
+    ramp.color_ramp.elements[1].position = 0.8
+    ramp.color_ramp.elements[1].color = (*(LATE_WOOD_TONE * rgb), 1)  # late wood
     links.new(mix.outputs["Result"], ramp.inputs["Fac"])
     links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
-    # A thin satin varnish: soft reflections of what stands on the table.
-    _set(bsdf, Roughness=0.45, Specular_IOR_Level=0.5, Coat_Weight=0.35, Coat_Roughness=0.2, Coat_IOR=1.5)
-    _bump(nodes, links, bsdf, fibres.outputs["Fac"], 0.08, 0.0005)
+    _set(bsdf, Roughness=0.5, Specular_IOR_Level=0.5, Coat_Weight=1.0, Coat_Roughness=0.08, Coat_IOR=1.5)
+    _bump(nodes, links, bsdf, fibres.outputs["Fac"], 0.05, 0.0005)
 
 
 RECIPES = {"plastic": _plastic, "metal": _metal, "glass": _glass, "rubber": _rubber, "wood": _wood,
@@ -186,9 +229,10 @@ class MaterialLibrary:
     def __init__(self) -> None:
         self._cache: dict[tuple, Any] = {}
 
-    def get(self, cls: str, rgba: np.ndarray | tuple[float, ...], **details: float) -> Any:
+    def get(self, cls: str, rgba: np.ndarray | tuple[float, ...], *, linear: bool = False, **details: float) -> Any:
         """The material of class ``cls`` in colour ``rgba``; ``details`` are recipe options (wood: ``rings``,
-        growth rings per metre of a board's straight grain)."""
+        growth rings per metre of a board's straight grain). A colour is a display (sRGB) value, decoded to the
+        linear reflectance Blender shades with, unless ``linear``: then it is that reflectance already."""
         import bpy
 
         if cls not in RECIPES:
@@ -196,12 +240,12 @@ class MaterialLibrary:
 
             raise ConfigError(unknown_name("material class", cls, tuple(RECIPES)))
         rgb = tuple(round(float(c), 3) for c in np.asarray(rgba, dtype=float)[:3])
-        key = (cls, rgb, tuple(sorted(details.items())))
+        key = (cls, rgb, linear, tuple(sorted(details.items())))
         if key not in self._cache:
             mat = bpy.data.materials.new(f"muble_{cls}_{len(self._cache)}")
             bsdf = _principled(mat)
-            RECIPES[cls](mat, bsdf, _srgb_to_linear(np.asarray(rgb)), mat.node_tree.nodes, mat.node_tree.links,
-                         **details)
+            reflectance = rgb if linear else _srgb_to_linear(np.asarray(rgb))
+            RECIPES[cls](mat, bsdf, reflectance, mat.node_tree.nodes, mat.node_tree.links, **details)
             self._cache[key] = mat
         return self._cache[key]
 

@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 log = logging.getLogger(__name__)
 
-TABLE_RINGS = 90.0  # growth rings per metre across the table's grain
+TABLE_RINGS = 120.0  # growth rings per metre across the table's grain
 SHARP_EDGE_ANGLE = np.radians(35.0)  # edges sharper than this stay crisp under smooth shading
 BACKGROUND_DEPTH = 1e9
 # Pass names in the EXR: Blender 5 writes the long names, older releases the short ones.
@@ -123,7 +123,8 @@ class BlenderRenderer(Renderer):
                     rgba = (*cfg.table_rgb, 1.0)
                 if cls == "wood":  # a desk's boards: straight grain along the table, rings about 1 cm apart
                     details["rings"] = TABLE_RINGS
-            obj.material_slots[0].material = self._materials.get(cls, rgba, **details)
+            linear = label >= 0 and cfg.object_colours == "linear"
+            obj.material_slots[0].material = self._materials.get(cls, rgba, linear=linear, **details)
             obj.pass_index = pass_index(label)
             # The world's floor and walls are backdrop: they cast no shadows, so lamps placed outside the
             # room (the scene files' lamps are) still light the table and robot directly.

@@ -9,7 +9,7 @@ import numpy as np
 
 from muble.core.errors import ConfigError, RenderError, unknown_name
 
-from .config import DENOISER_QUALITIES, DEVICES, ENGINES, BlenderRendererConfig
+from .config import BACKDROPS, COLOUR_SPACES, DENOISER_QUALITIES, DEVICES, ENGINES, BlenderRendererConfig
 
 log = logging.getLogger(__name__)
 
@@ -30,6 +30,10 @@ def check_config(cfg: BlenderRendererConfig) -> None:
         raise ConfigError(unknown_name("render engine", cfg.engine, ENGINES))
     if cfg.device not in DEVICES:
         raise ConfigError(unknown_name("render device", cfg.device, DEVICES))
+    if cfg.object_colours not in COLOUR_SPACES:
+        raise ConfigError(unknown_name("object colour space", cfg.object_colours, COLOUR_SPACES))
+    if cfg.backdrop not in BACKDROPS:
+        raise ConfigError(unknown_name("backdrop", cfg.backdrop, BACKDROPS))
     if cfg.denoiser_quality not in DENOISER_QUALITIES:
         raise ConfigError(unknown_name("denoiser quality", cfg.denoiser_quality, DENOISER_QUALITIES))
     if cfg.width < 1 or cfg.height < 1 or cfg.samples < 1:
@@ -124,17 +128,79 @@ def set_passes(view_layer: Any, depth: bool, segmentation: bool, normals: bool) 
     view_layer.use_pass_normal = normals
 
 
+# The original MuBlE frames show their studio's backdrop (a lit, curved sweep behind the table) as a light warm grey
+# that brightens towards the horizon: seen from the scene file's camera, its linear luminance is about
+# 0.4286 + 0.0674 x + 0.0504 y - 0.2154 z for a view direction (x, y, z) (least squares over the backdrop pixels of
+# the five reference frames, RMS 0.03), in the tint below. Camera, glossy and transmission rays see it; diffuse
+# light keeps coming from the uniform sky.
+STUDIO_LUMINANCE = (0.4286, (0.0674, 0.0504, -0.2154))  # (constant, per view-direction component), linear
+STUDIO_TINT = (1.027, 0.997, 0.951)  # linear RGB over luminance: slightly warm
+
+
 def build_world(cfg: BlenderRendererConfig) -> Any:
-    """A uniform sky colour: soft ambient light and the background where no geom is drawn."""
+    """The world: a uniform sky colour (soft ambient light) and, with ``backdrop: studio``, the original's studio
+    backdrop behind the stage where a camera ray hits nothing; with ``backdrop: sky`` the camera sees the sky."""
     import bpy
 
     world = bpy.data.worlds.new("muble_world")
     if world.node_tree is None:  # worlds made by Python have no node tree before 5.0
         world.use_nodes = True
-    background = next(n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
-    background.inputs["Color"].default_value = (*cfg.background_rgb, 1.0)
-    background.inputs["Strength"].default_value = cfg.background_strength
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    sky = next(n for n in nodes if n.bl_idname == "ShaderNodeBackground")
+    sky.inputs["Color"].default_value = (*cfg.background_rgb, 1.0)
+    sky.inputs["Strength"].default_value = cfg.background_strength
+    if cfg.backdrop == "studio":
+        _studio_backdrop(nodes, links, sky)
     return world
+
+
+def _studio_backdrop(nodes: Any, links: Any, sky: Any) -> None:
+    output = next(n for n in nodes if n.bl_idname == "ShaderNodeOutputWorld")
+    direction = nodes.new("ShaderNodeTexCoord").outputs["Generated"]  # a world's: the ray's direction
+    slope = nodes.new("ShaderNodeVectorMath")
+    slope.operation = "DOT_PRODUCT"
+    slope.inputs[1].default_value = STUDIO_LUMINANCE[1]
+    links.new(direction, slope.inputs[0])
+    level = nodes.new("ShaderNodeMath")
+    level.operation = "ADD"
+    level.use_clamp = True
+    level.inputs[1].default_value = STUDIO_LUMINANCE[0]
+    links.new(slope.outputs["Value"], level.inputs[0])
+    tint = nodes.new("ShaderNodeMix")
+    tint.data_type = "RGBA"
+    tint.blend_type = "MULTIPLY"
+    tint.inputs["Factor"].default_value = 1.0
+    tint.inputs["A"].default_value = (*STUDIO_TINT, 1.0)
+    links.new(level.outputs["Value"], tint.inputs["B"])
+    backdrop = nodes.new("ShaderNodeBackground")
+    backdrop.inputs["Strength"].default_value = 1.0
+    links.new(tint.outputs["Result"], backdrop.inputs["Color"])
+    # Seen directly, reflected or through glass: the backdrop; diffuse light still comes from the sky.
+    path = nodes.new("ShaderNodeLightPath")
+    seen = nodes.new("ShaderNodeMath")
+    seen.operation = "MAXIMUM"
+    # A reflection sees the sweep only in front (towards -x, where it stands); behind the camera the studio is
+    # open, so a mirror-like thermos reflects the dim sky there, not a second backdrop.
+    ahead = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(direction, ahead.inputs["Vector"])
+    forward = nodes.new("ShaderNodeMapRange")
+    forward.inputs["From Min"].default_value, forward.inputs["From Max"].default_value = 0.0, -0.25
+    links.new(ahead.outputs["X"], forward.inputs["Value"])
+    reflected = nodes.new("ShaderNodeMath")
+    reflected.operation = "MULTIPLY"
+    links.new(path.outputs["Is Glossy Ray"], reflected.inputs[0])
+    links.new(forward.outputs["Result"], reflected.inputs[1])
+    links.new(path.outputs["Is Camera Ray"], seen.inputs[0])
+    links.new(reflected.outputs["Value"], seen.inputs[1])
+    seen_through = nodes.new("ShaderNodeMath")
+    seen_through.operation = "MAXIMUM"
+    links.new(seen.outputs["Value"], seen_through.inputs[0])
+    links.new(path.outputs["Is Transmission Ray"], seen_through.inputs[1])
+    mix = nodes.new("ShaderNodeMixShader")
+    links.new(seen_through.outputs["Value"], mix.inputs["Fac"])
+    links.new(sky.outputs["Background"], mix.inputs[1])
+    links.new(backdrop.outputs["Background"], mix.inputs[2])
+    links.new(mix.outputs["Shader"], output.inputs["Surface"])
 
 
 # SHOP-VRB2 scene files carry the original's three lamps in ``lamp_params`` (name -> position); the role is read
