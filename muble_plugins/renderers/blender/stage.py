@@ -206,6 +206,9 @@ def _studio_backdrop(nodes: Any, links: Any, sky: Any) -> None:
 # SHOP-VRB2 scene files carry the original's three lamps in ``lamp_params`` (name -> position); the role is read
 # from the name. Power is the irradiance at the aim point (W per square metre of distance), size in metres.
 LAMP_ROLES = {"key": (4.0, 0.8), "fill": (1.5, 1.2), "back": (2.5, 0.6)}
+# The lamps' colours in the original's Blender files (the studio lamps its material and shape files carry, under
+# the same names): a warm key, a cool fill, a white back light.
+LAMP_COLOURS = {"key": (1.0, 0.932, 0.817), "fill": (0.762, 0.818, 1.0), "back": (1.0, 1.0, 1.0)}
 
 
 def _lamp_role(name: str) -> str | None:
@@ -213,13 +216,15 @@ def _lamp_role(name: str) -> str | None:
     return next((role for role in LAMP_ROLES if role in lowered), None)
 
 
-def _area_light(collection: Any, name: str, location: Any, target: Any, power: float, size: float) -> Any:
+def _area_light(collection: Any, name: str, location: Any, target: Any, power: float, size: float,
+                colour: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> Any:
     import bpy
     from mathutils import Vector
 
     data = bpy.data.lights.new(f"muble_{name}", type="AREA")
     data.shape = "DISK"
     data.size = size
+    data.color = colour
     # Power scales with distance squared so the irradiance at the target does not depend on the distance.
     data.energy = power * (Vector(location) - Vector(target)).length ** 2
     light = bpy.data.objects.new(f"muble_{name}", data)
@@ -238,10 +243,11 @@ def build_scene_lamps(collection: Any, lamps: dict[str, Any], target: np.ndarray
     for name, position in sorted(lamps.items()):
         if not isinstance(position, (list, tuple)) or len(position) != 3:
             continue
-        power, size = LAMP_ROLES[_lamp_role(name) or "fill"]
+        role = _lamp_role(name) or "fill"
+        power, size = LAMP_ROLES[role]
         factor = float((energy or {}).get(name, 1.0))
         lights.append(_area_light(collection, str(name).lower(), np.asarray(position, dtype=float), target,
-                                  power * cfg.light_energy * factor, size))
+                                  power * cfg.light_energy * factor, size, LAMP_COLOURS[role]))
     return lights
 
 
