@@ -48,15 +48,26 @@ def split_seed(seed: int, split: str) -> int:
 
 
 def cached_components(config: dict[str, Any], renderer: bool = True, task: bool = True) -> dict[str, Any]:
-    """The configured plugins, built once per worker process (and config): workers run many indices."""
+    """The configured plugins, built once per worker process (and config): workers run many indices. The renderer
+    is kept open from index to index (``KeptRenderer``)."""
     key = json.dumps([config, renderer, task], sort_keys=True, default=str)
     if key not in _components_cache:
         from omegaconf import OmegaConf
 
         from muble.episode.components import build_components
 
+        from muble.episode.components import KeptRenderer
+
+        for components in _components_cache.values():
+            if components.get("renderer") is not None:
+                components["renderer"].inner.close()
         _components_cache.clear()
-        _components_cache[key] = build_components(OmegaConf.create(config), renderer=renderer, task=task)
+        components = build_components(OmegaConf.create(config), renderer=renderer, task=task)
+        if components.get("renderer") is not None:
+            # Every index of this process runs on its calling thread, one at a time: the renderer (its GL
+            # context and uploaded meshes) serves them all instead of being made and closed per episode.
+            components["renderer"] = KeptRenderer(components["renderer"], close_at_exit=True)
+        _components_cache[key] = components
     return _components_cache[key]
 
 

@@ -83,3 +83,33 @@ def generated_env(cfg: DictConfig, components: dict[str, object], index: int):
         generator.close()
     return TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name),
                        OmegaConf.to_container(cfg.robot, resolve=True), {})
+
+
+class KeptRenderer:
+    """A renderer kept across episodes, as an episode runner sees it: the runner's ``close`` at the episode's end
+    leaves it open, so its next ``setup`` reuses what it holds (a GL context, uploaded meshes). Whoever keeps it
+    closes ``inner`` (``close_at_exit`` arranges that at interpreter exit). Only for episodes that run on one
+    thread, one at a time."""
+
+    def __init__(self, inner: Any, close_at_exit: bool = False) -> None:
+        self.inner = inner
+        self._close_at_exit = close_at_exit
+
+    def setup(self, scene: Any, model: Any) -> None:
+        self.inner.setup(scene, model)
+        if self._close_at_exit:
+            import atexit
+
+            # Registered after the first setup, so that it runs before any exit hook the renderer's own resources
+            # registered while being set up (atexit runs the last registered first).
+            atexit.register(self.inner.close)
+            self._close_at_exit = False
+
+    def render(self, data: Any, camera: str):
+        return self.inner.render(data, camera)
+
+    def close(self) -> None:
+        pass
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)

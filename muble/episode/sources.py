@@ -21,6 +21,7 @@ import numpy as np
 from muble.core.errors import ConfigError, SceneValidationError, unknown_name
 from muble.core.interfaces import Instruction, Task
 from muble.core.scene import SceneGraph
+from muble.episode.components import KeptRenderer
 from muble.episode.modes import track_instruction
 
 log = logging.getLogger(__name__)
@@ -112,7 +113,7 @@ class EpisodeFactory:
                 if self._kept_renderer is None:
                     self._kept_renderer = self.registry.create("renderer", self.renderer_options["name"],
                                                                self.renderer_options)
-                components["renderer"] = _KeptRenderer(self._kept_renderer)
+                components["renderer"] = KeptRenderer(self._kept_renderer)
         return episode_runner(self.cfg, components)
 
     def close_renderer(self) -> None:
@@ -202,22 +203,3 @@ class EpisodeFactory:
             self._generator.close()
             self._generator = None
 
-
-class _KeptRenderer:
-    """A renderer kept across episodes, as an episode runner sees it: the runner's ``close`` at the episode's end
-    leaves it open (``EpisodeFactory.close_renderer`` closes it)."""
-
-    def __init__(self, inner: Any) -> None:
-        self.inner = inner
-
-    def setup(self, scene: Any, model: Any) -> None:
-        self.inner.setup(scene, model)
-
-    def render(self, data: Any, camera: str):
-        return self.inner.render(data, camera)
-
-    def close(self) -> None:
-        pass
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.inner, name)
