@@ -8,7 +8,11 @@ from muble import PluginRecord, hookimpl
 @hookimpl
 def muble_register_primitives() -> list[PluginRecord]:
     from muble_plugins.primitives.gripper import CloseGripper, OpenGripper, Squeeze, Weigh
-    from muble_plugins.primitives.motion import Approach, Lift, Lower, Move, MoveVel
+    from muble_plugins.primitives.approach import Approach
+    from muble_plugins.primitives.lift import Lift
+    from muble_plugins.primitives.lower import Lower
+    from muble_plugins.primitives.move import Move
+    from muble_plugins.primitives.move_vel import MoveVel
 
     return [
         PluginRecord("move", Move, "move the hand above an object or a table part (left/right/front/back/centre)"),

@@ -217,7 +217,7 @@ def _catch_up(env, world, q_pre: np.ndarray, report: ctx.MotionReport) -> ctx.Mo
         if _lag(env, q_pre) <= PRE_GRASP_TRACKING:
             break
         world.allow_contact([])
-        report = ctx.execute(env, ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world), world)
+        report = ctx.execute(env, ctx.long_move_planner(env).plan(env.arm_q(), JointGoal(q_pre), world), world)
         env.hold(tol.SETTLE)
     return report
 
@@ -239,7 +239,7 @@ def plan_grasp(env, world, body: str, grasp: Pose, grip, ik_restarts: int | None
         goal, q_grasp = _backed_off_grasp(env, world, body, grasp, grip)
         q_pre, down = _pre_grasp(env, world, body, grasp, goal, q_grasp)
         world.allow_contact([])
-        to_pre = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_pre), world)
+        to_pre = ctx.long_move_planner(env).plan(env.arm_q(), JointGoal(q_pre), world)
         return to_pre, down
 
 
@@ -283,7 +283,7 @@ def _pre_grasp(env, world, body: str, grasp: Pose, goal: PoseGoal, q_grasp: np.n
             world.allow_contact([])
             q_pre = world.inverse_kinematics(pre, seeds=q_grasp[None])
             world.allow_contact([body])
-            down = ctx.planner(env, "straight_line").plan(q_pre, goal, world)
+            down = ctx.straight_line_planner(env).plan(q_pre, goal, world)
             if not _touches_lightly(world, down.q):
                 raise PlanningError("the descent would push the fingers through the target")
             return q_pre, down
@@ -360,7 +360,7 @@ def _rise_holding(env, world, body: str, q_grasp: np.ndarray) -> None:
     world.allow_contact(support)
     pose = world.ee_pose(q_grasp)
     goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, FEASIBLE_RISE], pose.quat), *tol.FREE)
-    ctx.planner(env, "straight_line").plan(q_grasp, goal, world)
+    ctx.straight_line_planner(env).plan(q_grasp, goal, world)
 
 
 def _fingers_open(env, command: float, grip) -> bool:

@@ -1,5 +1,5 @@
 """What the built-in primitives share on top of the environment API (``muble.core.environment.Environment``):
-the gripper's measured geometry, planners by name, and trajectory execution with contact counting.
+the gripper's measured geometry, the planners of long and straight moves, and trajectory execution with contact counting.
 
 The collision world is the environment's own (a model copy, re-synced before every plan), so planning never
 writes to the live simulation.
@@ -57,17 +57,28 @@ def pad_gap(env) -> float:
     return pad_faces(env.model, env.data, env.model.site(env.ee_site).id, left, right)[2]
 
 
-def planner(env: Environment, name: str) -> MotionPlanner:
-    """The environment's configured planner for long moves (``env.planner``) or a built-in one by name."""
-    configured = env.planner
-    if name == "ompl" and isinstance(configured, MotionPlanner):
-        return configured
+def long_move_planner(env: Environment) -> MotionPlanner:
+    """The planner for moves through free space: the run's (``env.planner``, the ``planner`` config group's
+    choice); for an environment built outside a run, the ``ompl`` planner with its configured options."""
+    if isinstance(env.planner, MotionPlanner):
+        return env.planner
+    return _built(env, "ompl")
+
+
+def straight_line_planner(env: Environment) -> MotionPlanner:
+    """The straight-line Cartesian planner of short moves (into a grasp, up, down), with the options of
+    ``muble_conf/planner/straight_line.yaml``."""
+    return _built(env, "straight_line")
+
+
+def _built(env: Environment, name: str) -> MotionPlanner:
     # Built once per environment: creating one validates its options, which costs more than a short plan.
     key = f"planner:{name}"
     if key not in env.cache:
         from muble import get_registry
+        from muble_conf import group_defaults
 
-        env.cache[key] = get_registry().create("planner", name)
+        env.cache[key] = get_registry().create("planner", name, group_defaults("planner", name))
     return env.cache[key]
 
 

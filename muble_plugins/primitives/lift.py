@@ -29,7 +29,7 @@ class Lift(PrimitiveAction):
         pose = env.ee_pose()
         goal = PoseGoal(Pose(pose.pos + [0.0, 0.0, height], pose.quat), *tol.FREE)
         try:
-            trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
+            trajectory = ctx.straight_line_planner(env).plan(env.arm_q(), goal, world)
         except PlanningError as e:
             logger.info("straight lift failed (%s); rising %.0f cm and planning the rest", e, FIRST_RISE * 100)
             report = lift_around(env, world, support, pose, goal, height)
@@ -75,15 +75,15 @@ def lift_around(env, world, support: set[int], pose: Pose, goal: PoseGoal, heigh
     way, sideways first where needed, touching only the support."""
     rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, min(height, FIRST_RISE)], pose.quat), *tol.FREE)
     try:
-        first = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
+        first = ctx.straight_line_planner(env).plan(env.arm_q(), rise, world)
     except PlanningError:
         q_goal = _raised(env, world, goal)
-        trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
+        trajectory = ctx.long_move_planner(env).plan(env.arm_q(), JointGoal(q_goal), world)
         return ctx.execute(env, trajectory, world, allowed=support)
     report = ctx.execute(env, first, world, allowed=support)
     world = env.collision_world()
     q_goal = _raised(env, world, goal)
-    trajectory = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_goal), world)
+    trajectory = ctx.long_move_planner(env).plan(env.arm_q(), JointGoal(q_goal), world)
     second = ctx.execute(env, trajectory, world)
     return ctx.MotionReport(report.duration + second.duration, second.final_error,
                             report.unintended_contacts | second.unintended_contacts)

@@ -153,7 +153,7 @@ def _plan(env, world, target, places, support_body, support_top, attempt=0):
             q_above, down = placement.plan_descent(env, world, place, above, support_body,
                                                    gripper_may_touch=not isinstance(target, (int, np.integer)))
             world.allow_contact([])
-            to_above = ctx.planner(env, "ompl").plan(env.arm_q(), JointGoal(q_above), world)
+            to_above = ctx.long_move_planner(env).plan(env.arm_q(), JointGoal(q_above), world)
             return to_above, down
         except PlanningError as e:
             logger.debug("no put-down at %s (turn %.0f deg, gap %.3f): %s", np.round(xy, 3).tolist(),
@@ -298,7 +298,7 @@ def _retreat(env, held_body: int, between: np.ndarray) -> ctx.MotionReport:
 def _straight(env, world, step, quat, held_body) -> ctx.MotionReport:
     goal = PoseGoal(Pose(env.ee_pose().pos + step, quat), *tol.FREE)
     try:
-        path = ctx.planner(env, "straight_line").plan(env.arm_q(), goal, world)
+        path = ctx.straight_line_planner(env).plan(env.arm_q(), goal, world)
     except PlanningError as e:
         logger.info("no straight move by %s after letting go (%s); the hand stays", np.round(step, 3), e)
         return ctx.MotionReport()

@@ -84,7 +84,7 @@ def first_planned(env, world, goals: list):
     for goal in goals:
         world.allow_contact([])
         try:
-            return ctx.planner(env, "ompl").plan(env.arm_q(), goal, world)
+            return ctx.long_move_planner(env).plan(env.arm_q(), goal, world)
         except PlanningError as e:
             reasons.append(e)
     raise reasons[0]

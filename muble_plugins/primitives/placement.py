@@ -180,7 +180,7 @@ def plan_descent(env, world, place: Pose, above: np.ndarray, support: int,
 
     Raises ``PlanningError`` with the first reason when the place is out of reach or every descent is blocked.
     """
-    line = ctx.planner(env, "straight_line")
+    line = ctx.straight_line_planner(env)
     above_goal = PoseGoal(Pose(np.asarray(above, dtype=float), place.quat), *tol.FREE)
     place_goal = PoseGoal(place, *tol.CONTACT)
     lim = world.joint_limits
@@ -254,7 +254,7 @@ def clear_start(env, world) -> ctx.MotionReport | None:
         world.allow_contact(touched)
         pose = env.ee_pose()
         rise = PoseGoal(Pose(pose.pos + [0.0, 0.0, RISE], pose.quat), *tol.FREE)
-        trajectory = ctx.planner(env, "straight_line").plan(env.arm_q(), rise, world)
+        trajectory = ctx.straight_line_planner(env).plan(env.arm_q(), rise, world)
         logger.info("starting in contact with %s: rising %.0f cm first", sorted(touched), RISE * 100)
         report = merge(report, ctx.execute(env, trajectory, world, allowed=touched))
         world = env.collision_world()
