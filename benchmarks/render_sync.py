@@ -17,7 +17,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from muble import SEG_ROBOT, SEG_TABLE  # noqa: E402
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
 from muble_plugins.renderers.blender.labels import geom_labels  # noqa: E402
-from muble_plugins.renderers.blender.testing import (  # noqa: E402
+from muble.testing.render_world import (  # noqa: E402
     build_world,
     mask_iou,
     mujoco_reference,
