@@ -134,7 +134,8 @@ def set_passes(view_layer: Any, depth: bool, segmentation: bool, normals: bool) 
 # the five reference frames, RMS 0.03), in the tint below. Camera, glossy and transmission rays see it; diffuse
 # light keeps coming from the uniform sky.
 STUDIO_LUMINANCE = (0.4286, (0.0674, 0.0504, -0.2154))  # (constant, per view-direction component), linear
-STUDIO_TINT = (1.027, 0.997, 0.951)  # linear RGB over luminance: slightly warm
+STUDIO_TINT = (1.027, 0.997, 0.951)
+WORLD_MAP_RESOLUTION = 64  # linear RGB over luminance: slightly warm
 
 
 def build_world(cfg: BlenderRendererConfig) -> Any:
@@ -151,6 +152,10 @@ def build_world(cfg: BlenderRendererConfig) -> Any:
     sky.inputs["Strength"].default_value = cfg.background_strength
     if cfg.backdrop == "studio":
         _studio_backdrop(nodes, links, sky)
+        # The backdrop varies smoothly and lights nothing diffusely (the sky does): a coarse importance map of the
+        # world is enough, where Cycles would otherwise build a 1024-wide one for any non-uniform world.
+        world.cycles.sampling_method = "MANUAL"
+        world.cycles.sample_map_resolution = WORLD_MAP_RESOLUTION
     return world
 
 
