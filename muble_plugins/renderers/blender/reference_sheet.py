@@ -21,7 +21,7 @@ def render_sheet(path: Path, width: int = 640, height: int = 480, samples: int =
     from muble.core.image_grid import contact_sheet
 
     from .renderer import BlenderRenderer
-    from .testing import build_world, material_rig, random_scene
+    from muble.testing.render_world import build_world, material_rig, random_scene
 
     images, captions = [], []
     renderer = BlenderRenderer(width=width, height=height, samples=samples)
