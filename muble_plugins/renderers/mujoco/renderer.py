@@ -144,7 +144,7 @@ class MujocoRenderer(Renderer):
             self._context_slots = mesh_slot_keys(model) if stage is not None else []
             return
         slots = mesh_slot_keys(model)
-        changed = [i for i, key in enumerate(slots) if i >= len(self._context_slots) or self._context_slots[i] != key]
+        changed = [i for i, key in enumerate(slots) if self._context_slots[i] != key]  # rangeMesh >= 2 * nmesh above
         if changed:
             with self._simplified.drawn_in(model) if self._simplified is not None else nullcontext():
                 for i in changed:
