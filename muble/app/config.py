@@ -32,6 +32,9 @@ class RobotConfig:
     control_freq: float = bounded(20.0, gt=0)  # Hz
     timestep: float = bounded(0.002, gt=0)  # s, MuJoCo physics step
     grasp: str = "weld"  # "weld" (attach on contact of all pads) or "friction"
+    # The table and robot placement to build on (muble.sim.world.STAGES: robosuite, original); None: the scene's
+    # own (its file's "stage" key, else robosuite). The original release's files were made on "original".
+    stage: str | None = None
 
 
 @dataclass

@@ -59,6 +59,12 @@ class SceneObject:
         return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
+# The original release's Blender import scale of its objects: 0.6 for its bigger variant, 0.45 for the smaller.
+# This project's scale factors are multiples of the medium size, never below 0.85, so a factor of 0.6 or less marks
+# an object of the original's files.
+LARGEST_ORIGINAL_SCALE = 0.6
+
+
 @dataclass
 class SceneGraph:
     """A tabletop scene: objects, camera, lamps, masks and spatial relationships."""
@@ -80,6 +86,13 @@ class SceneGraph:
             if obj.id == obj_id:
                 return obj
         raise KeyError(f"no object with id {obj_id}; ids in this scene: {[o.id for o in self.objects]}")
+
+    @property
+    def from_original_release(self) -> bool:
+        """Whether this is a scene of the original release's files: every object at the original's import scale
+        (``LARGEST_ORIGINAL_SCALE``)."""
+        return bool(self.objects) and all(o.scale_factor is not None and o.scale_factor <= LARGEST_ORIGINAL_SCALE
+                                          + 1e-9 for o in self.objects)
 
     @property
     def ids(self) -> list[int]:

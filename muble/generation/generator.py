@@ -70,6 +70,13 @@ class SceneGenerator:
                  reach_check: Callable[[SceneGraph, dict[int, ObjectModel]], str | None] | None = None):
         self.config = cfg = _config(config)
         self.seed = int(seed)
+        if cfg.stage:
+            from muble.core.table import TABLE_X, TABLE_Y
+            from muble.sim.world import stage_named
+
+            x, y = stage_named(cfg.stage, "stage (generator.stage)").top_ranges()
+            if list(cfg.table_x) == list(TABLE_X) and list(cfg.table_y) == list(TABLE_Y):
+                self.config = cfg = dataclasses.replace(cfg, table_x=list(x), table_y=list(y))
         self._check_config(cfg)
         if object_set is None:
             from muble.plugins.registry import get_registry
@@ -310,7 +317,8 @@ class SceneGenerator:
             relationships=ground_truth.relationships([o.position for o in objects], staging.directions),
             # Lamp energy factors (``lamp_jitter``) sit beside lamp_params, which maps lamp names to positions.
             extra={**({"lamp_energy": dict(staging.lamp_energy)} if staging.lamp_energy is not None else {}),
-                   "generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set}},
+                   "generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set},
+                   **({"stage": cfg.stage} if cfg.stage else {})},
         )
         if masks is not None:
             scene.table = {"mask": table_mask}

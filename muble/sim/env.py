@@ -103,8 +103,10 @@ class TabletopEnv:
         self.scene = copy.deepcopy(scene)  # the latest sync_scene_graph()
         self.object_models = dict(models)
         # visual=False: a model for physics and planning alone (``build_world``), which no renderer can draw.
-        self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"], visual)
-        self.names.init_qpos = home_configuration(self.model, self.names)
+        self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"], visual,
+                                              cfg["stage"])
+        if not self.names.start_pose_given:  # a stage's own rest pose is kept as its frames show it
+            self.names.init_qpos = home_configuration(self.model, self.names)
         self.data = mujoco.MjData(self.model)
         self.n_substeps = int(round(substeps))
         self.control_dt = self.n_substeps * self.model.opt.timestep
@@ -457,7 +459,7 @@ class TabletopEnv:
 
 # The robot settings used where none are given: the defaults of the ``robot`` config schema (muble.app.config).
 ROBOT_DEFAULTS: dict[str, Any] = {"name": "Panda", "gripper": None, "controller": "IK_JOINT_SERVO",
-                                  "control_freq": 20.0, "timestep": 0.002, "grasp": "weld"}
+                                  "control_freq": 20.0, "timestep": 0.002, "grasp": "weld", "stage": None}
 
 
 def _robot_settings(robot: Any, overrides: dict[str, Any]) -> dict[str, Any]:

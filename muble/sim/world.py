@@ -24,12 +24,74 @@ logger = logging.getLogger(__name__)
 
 ROBOTS = ("Panda", "Sawyer", "UR5e", "Kinova3", "IIWA")
 TABLE_HEIGHT = 0.8  # m, robosuite's table; the floor lies this far below the table top
-TABLE_SIZE = (0.9, 1.2, 0.05)  # m, full x/y/z size of the table
+TABLE_SIZE = (0.9, 1.2, 0.05)  # m, full x/y/z size of the robosuite stage's table
 FRONT_CAMERA = "front"
 WRIST_CAMERA = "wrist"
 
 
 TABLE_GEOM = "table_collision"  # robosuite's TableArena names its top's collision geom so
+
+
+@dataclass(frozen=True)
+class Stage:
+    """Where the table and the robot stand: the world a scene is built on, apart from its objects, camera and lamps.
+
+    ``table_size`` is the table's full x/y/z size; ``table_centre_x`` puts its centre on the robot's axis (``None``:
+    robosuite's placement for the robot, the table's near edge just in front of the robot's mount). ``mount``
+    keeps the robot's robosuite pedestal (``False``: the arm's base stands on the table top at the origin).
+    ``gripper`` is the stage's default gripper (``None``: the robot's own; ``robot.gripper`` overrides either) and
+    ``start_qpos`` the arm's rest configuration per robot (robots not named start at robosuite's)."""
+
+    name: str
+    table_size: tuple[float, float, float]
+    table_centre_x: float | None = None
+    mount: bool = True
+    gripper: str | None = None
+    start_qpos: dict[str, tuple[float, ...]] = field(default_factory=dict)
+
+    def top_ranges(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The table top's (x0, x1), (y0, y1) in the scene frame (robosuite's placement: as for the Panda)."""
+        if self.table_centre_x is None:
+            from muble.core.table import TABLE_X, TABLE_Y
+
+            return tuple(TABLE_X), tuple(TABLE_Y)
+        hx, hy = self.table_size[0] / 2.0, self.table_size[1] / 2.0
+        return (self.table_centre_x - hx, self.table_centre_x + hx), (-hy, hy)
+
+
+STAGES = {
+    # robosuite's table stage, on which every scene of protocol shopvrb2_v1 was generated: a 0.9 x 1.2 m table,
+    # the robot on its pedestal behind the near edge.
+    "robosuite": Stage("robosuite", TABLE_SIZE),
+    # The original MuBlE release's stage (michaal94/MuBlE environment/tabletop_env.py): a 1.36 x 0.8 m desk top
+    # 2.6 cm thick, the Panda standing on it without a mount, its base 0.23 m in from the back edge, a Robotiq 85
+    # gripper, and the arm bent over the table towards the camera at rest. Its scene files were made on it.
+    "original": Stage("original", (1.36, 0.8, 0.026), table_centre_x=1.36 / 2 - 0.23, mount=False,
+                      gripper="Robotiq85Gripper",
+                      start_qpos={"Panda": (0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi)}),
+}
+DEFAULT_STAGE = "robosuite"
+STAGE_KEY = "stage"  # the scene file's key naming its stage (absent: DEFAULT_STAGE)
+
+
+def stage_named(name: str, what: str = "stage") -> Stage:
+    """The stage called ``name``; an unknown name raises ``ConfigError`` listing the stages."""
+    if name not in STAGES:
+        raise ConfigError(unknown_name(what, str(name), STAGES))
+    return STAGES[name]
+
+
+def scene_stage(scene: SceneGraph, override: str | None = None) -> Stage:
+    """The stage ``scene`` is built on: ``override`` (``robot.stage``) when given, else its file's ``stage`` key,
+    else ``original`` for a scene of the original release's files (which name none; they were made on it), else
+    the default stage."""
+    if override:
+        return stage_named(override, "stage (robot.stage)")
+    name = scene.extra.get(STAGE_KEY) or ("original" if scene.from_original_release else DEFAULT_STAGE)
+    if name not in STAGES:
+        raise ConfigError(f"scene {scene.image_index}: {unknown_name('stage', str(name), STAGES)}; or give "
+                          "robot.stage= to build it on another")
+    return STAGES[name]
 
 
 def object_weld_name(obj_id: int) -> str:
@@ -58,6 +120,8 @@ class WorldNames:
     cameras: dict[str, str] = field(default_factory=dict)  # role -> MuJoCo camera name
     init_qpos: np.ndarray | None = None
     gripper_format: object = None  # the robosuite gripper model (its ``format_action`` maps -1..1)
+    stage: str = DEFAULT_STAGE  # the ``STAGES`` entry the world stands on
+    start_pose_given: bool = False  # init_qpos is the stage's own rest configuration, to keep as it is
 
 
 def _fmt(values) -> str:
@@ -82,12 +146,13 @@ def _camera_element(name: str, params: dict | None) -> ET.Element:
 
 def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = "Panda",
                 gripper: str | None = None, timestep: float = 0.002,
-                visual: bool = True) -> tuple[mujoco.MjModel, WorldNames]:
+                visual: bool = True, stage: str | None = None) -> tuple[mujoco.MjModel, WorldNames]:
     """Compile the tabletop world of ``scene``; ``models`` maps each scene object id to its built model.
 
     ``visual=False`` leaves out what only a renderer sees (MuJoCo's ``discardvisual``: geoms that collide with
     nothing and weigh nothing, their meshes, materials and textures): the physics, contacts, rays on collision
-    geoms and kinematics are the same, the model compiles in about half the time, and nothing can be drawn."""
+    geoms and kinematics are the same, the model compiles in about half the time, and nothing can be drawn.
+    ``stage`` names the ``STAGES`` entry to stand on (``None``: the scene's own, ``scene_stage``)."""
     if robot not in ROBOTS:
         raise ConfigError(unknown_name("robot", robot, ROBOTS))
     from robosuite.models import MujocoWorldBase
@@ -96,18 +161,24 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
     from robosuite.models.grippers import gripper_factory
     from robosuite.models.robots import create_robot
 
+    stage = scene_stage(scene, stage)
     robot_model = create_robot(robot, idn=0)
-    robot_model.add_base(base=robot_base_factory(robot_model.default_base, idn=0))
-    gripper_name = gripper or robot_model.default_gripper["right"]
+    robot_model.add_base(base=robot_base_factory(robot_model.default_base if stage.mount else "NullMount", idn=0))
+    gripper_name = gripper or stage.gripper or robot_model.default_gripper["right"]
     try:
         gripper_model = gripper_factory(gripper_name, idn="0_right")
     except Exception as e:  # robosuite raises a bare ValueError listing nothing
         raise ConfigError(f"robosuite has no gripper '{gripper_name}' ({e}); leave robot.gripper unset for the "
                           f"robot's default") from e
     robot_model.add_gripper(gripper_model, robot_model.eef_name["right"])
-    offset = np.asarray(robot_model.base_xpos_offset["table"](TABLE_SIZE[0]), dtype=float)
-    robot_model.set_base_xpos([0.0, 0.0, offset[2]])  # the table centre moves instead, to x = -offset
-    arena = TableArena(table_full_size=TABLE_SIZE, table_offset=(-offset[0], -offset[1], TABLE_HEIGHT))
+    if stage.table_centre_x is None:
+        offset = np.asarray(robot_model.base_xpos_offset["table"](stage.table_size[0]), dtype=float)
+        robot_model.set_base_xpos([0.0, 0.0, offset[2]])  # the table centre moves instead, to x = -offset
+        table_offset = (-offset[0], -offset[1], TABLE_HEIGHT)
+    else:
+        robot_model.set_base_xpos([0.0, 0.0, TABLE_HEIGHT if not stage.mount else 0.0])
+        table_offset = (stage.table_centre_x, 0.0, TABLE_HEIGHT)
+    arena = TableArena(table_full_size=stage.table_size, table_offset=table_offset)
 
     world = MujocoWorldBase()
     world.merge(arena)
@@ -127,8 +198,10 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
         left_pads=list(gripper_model.important_geoms["left_fingerpad"]),
         right_pads=list(gripper_model.important_geoms["right_fingerpad"]),
         robot_geom_prefixes=(robot_model.naming_prefix, gripper_model.naming_prefix, "mount0_"),
-        init_qpos=np.asarray(robot_model.init_qpos, dtype=float),
+        init_qpos=np.asarray(stage.start_qpos.get(robot, robot_model.init_qpos), dtype=float),
         gripper_format=gripper_model,
+        stage=stage.name,
+        start_pose_given=robot in stage.start_qpos,
     )
 
     world.worldbody.append(_camera_element(FRONT_CAMERA, scene.camera_params))

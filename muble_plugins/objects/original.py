@@ -26,7 +26,7 @@ from typing import Callable
 
 from muble.core.errors import SceneValidationError, unknown_name
 from muble.core.objects import ObjectSpec
-from muble.core.scene import SceneObject
+from muble.core.scene import LARGEST_ORIGINAL_SCALE, SceneObject
 
 from muble_plugins.objects.catalogue import COLOUR_RGBA, FRICTION, SIZE_SCALES, STIFFNESS_RANGE, Category
 
@@ -45,7 +45,6 @@ ORIGINAL_MODELS: dict[str, tuple[str, ...]] = {
 }
 # The original's Blender import scale for each size word (its "bigger" and "smaller" variants).
 ORIGINAL_SCALE = {"small": 0.45, "medium-sized": 0.6, "large": 0.6}
-LARGEST_ORIGINAL_SCALE = 0.6
 # The smallest multiple of the medium size an original object is fitted to (some original bounding boxes hold
 # only part of the object: a wine glass's stem).
 MIN_FITTED_SCALE = 0.5
