@@ -177,6 +177,27 @@ def support_gap(env, parties: _Parties, obj: int, distmax: float,
     return best, which
 
 
+def robot_clearance(env, clearance: float) -> dict[int, float]:
+    """Objects nearer than ``clearance`` (m) to the robot's collision geoms in the current state: id -> distance
+    (negative: interpenetrating). An episode starts with the arm at rest; an object there (under a hand that rests
+    low over the table, as on the original stage) is in the first move's way before the agent has done anything."""
+    parties = _Parties(env)
+    m, d = env.model, env.data
+    robot = [g for g in np.flatnonzero(parties.robot) if m.geom_contype[g] or m.geom_conaffinity[g]]
+    near: dict[int, float] = {}
+    for obj, geoms in parties.collision.items():
+        best = clearance
+        for g1 in geoms:
+            for g2 in robot:
+                reach = m.geom_rbound[g1] + m.geom_rbound[g2] + best
+                if np.sum((d.geom_xpos[g1] - d.geom_xpos[g2]) ** 2) > reach * reach:
+                    continue
+                best = min(best, mujoco.mj_geomDistance(m, d, int(g1), int(g2), best, None))
+        if best < clearance:
+            near[obj] = float(best)
+    return near
+
+
 def check_supported(env, parties: _Parties) -> None:
     """Raise ``InitialStateError`` for an object with no support (table or object) within ``SUPPORT_GAP``."""
     for obj in sorted(env.grasp.body_of):

@@ -42,3 +42,22 @@ def test_feasible_moves_nothing():
         assert env.gripper_command == before[2] and env.held_object is None
     finally:
         env.close()
+
+
+def test_an_object_under_the_hand_at_rest_is_refused_on_the_original_stage(object_set):
+    """The original stage's arm rests with its fingers 0.15 m over the table's middle: a tall object there would
+    be in the first move's way, so the layout is refused; the same place is fine on robosuite's stage."""
+    scene = copy.deepcopy(load_scene(SCENE))
+    tall = max(scene.objects, key=lambda o: o.bbox["z"])
+    tall.position = np.array([0.5, 0.0, tall.position[2]])
+    others = [o for o in scene.objects if o is not tall]
+    for k, o in enumerate(others):  # out of the way
+        o.position = np.array([0.35 + 0.15 * k, -0.3, o.position[2]])
+    scene.objects = [tall, *others]
+    check = ReachCheck(None, "approach")
+    assert tall.bbox["z"] > 0.2
+    assert check(scene, object_models(scene, object_set)) is None
+    scene.extra["stage"] = "original"
+    reason = check(scene, object_models(scene, object_set))
+    assert reason is not None and reason.startswith(f"object {tall.id} ({tall.name}) at (0.5, 0.0)")
+    assert "from the robot at rest, as built" in reason

@@ -104,3 +104,29 @@ def test_margin_wider_than_the_table_is_refused_at_once(object_set):
 def test_mistyped_option_names_the_valid_ones(object_set):
     with pytest.raises(ConfigError, match="min_visible_pixels"):
         SceneGenerator({"min_visible_pixel": 10}, object_set=object_set)
+
+
+def test_a_stage_is_written_into_the_scene_and_its_table_bounds_placement(object_set):
+    """generator.stage: each scene names its stage, the layout keeps to that stage's table (the original's is
+    0.8 m wide), and the reach check builds the robot on it."""
+    from muble.sim.env import TabletopEnv
+    from muble.sim.world import STAGES
+
+    g = SceneGenerator({**BUILTIN, "stage": "original"}, seed=5, object_set=object_set)
+    try:
+        (x0, x1), (y0, y1) = STAGES["original"].top_ranges()
+        assert list(g.config.table_x) == [x0, x1] and list(g.config.table_y) == [y0, y1] == [-0.4, 0.4]
+        scene = g.generate(0)
+    finally:
+        g.close()
+    assert scene.extra["stage"] == "original"
+    models = dict(enumerate(_models(object_set, scene)))
+    env = TabletopEnv(scene, models, visual=False)
+    assert env.names.stage == "original"
+    for obj in scene.objects:  # every object's footprint lies on the desk
+        half = max(obj.bbox["x"], obj.bbox["y"]) / 2
+        assert x0 < obj.position[0] - half and obj.position[0] + half < x1
+        assert y0 < obj.position[1] - half and obj.position[1] + half < y1
+
+    with pytest.raises(ConfigError, match="generator.stage.*'stadium'"):
+        SceneGenerator({**BUILTIN, "stage": "stadium"}, seed=5, object_set=object_set)
