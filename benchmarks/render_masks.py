@@ -6,7 +6,9 @@ Blender's segmentation is its object-index pass; masks need few samples, so Blen
 denoising. For every object (and the robot and table) that MuJoCo shows with at least ``MIN_PIXELS`` pixels, the
 IoU of the two masks is reported; the goal is IoU >= 0.9 for every object of every scene.
 
-    python benchmarks/render_masks.py [SCENES] [SCALE]     # defaults: 20 scenes, scale 1.0 (848x480)
+    python benchmarks/render_masks.py [SCENES] [SCALE] [OVERRIDE ...]   # defaults: 20 scenes, scale 1.0 (848x480)
+
+Hydra overrides after the counts compose the run (``robot.stage=original``: scenes generated on that stage).
 """
 from __future__ import annotations
 
@@ -59,7 +61,8 @@ def main() -> int:
     scale = float(sys.argv[2]) if len(sys.argv) > 2 else 1.0
     width, height = round(DEFAULT_WIDTH * scale), round(DEFAULT_HEIGHT * scale)
     start = time.perf_counter()
-    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
+    overrides = sys.argv[3:]
+    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", *overrides])
     components = build_components(cfg, renderer=False, task=False)
     robot = OmegaConf.to_container(cfg.robot, resolve=True)
     blender = BlenderRenderer(width=width, height=height, samples=1, denoise=False)
@@ -90,6 +93,7 @@ def main() -> int:
         "robot_min": round(min(s["robot"] for s in per_scene if "robot" in s), 4),
         "table_min": round(min(s["table"] for s in per_scene if "table" in s), 4),
         "worst(iou,scene,label)": sorted(worst)[:3], "blender": {"samples": 1, "denoise": False},
+        "overrides": overrides,
         "seconds": round(time.perf_counter() - start, 1),
     }))
     return 0 if objects and value >= GOAL else 1
