@@ -285,18 +285,23 @@ class CatalogueObjectSet(ObjectSet):
 
     def geometry(self, spec: ObjectSpec) -> Geometry:
         """The (cached) geometry of ``spec``'s model at its scale."""
-        cat = self._category(spec.category)
-        variant = cat.model(spec.model)
-        if variant is None:
-            raise ConfigError(unknown_name(f"'{spec.category}' model", spec.model,
-                                           [*cat.variants, *cat.imported_variants]))
+        make = self.shape(self._category(spec.category), spec)
         key = MeshCache.key(self.set_name, spec.model, spec.scale, spec.params)
         geometry = self.cache.load(key)
         if geometry is None:
-            geometry = variant[1](spec.scale)
+            geometry = make()
             self.cache.store(key, geometry)
             log.debug("generated %s at scale %.3f", spec.model, spec.scale)
         return geometry
+
+    def shape(self, category: Category, spec: ObjectSpec) -> Callable[[], Geometry]:
+        """What makes ``spec``'s geometry: its model's shape function at its scale. An object set whose specs can
+        ask for another build (``spec.params``) overrides this."""
+        variant = category.model(spec.model)
+        if variant is None:
+            raise ConfigError(unknown_name(f"'{spec.category}' model", spec.model,
+                                           [*category.variants, *category.imported_variants]))
+        return lambda: variant[1](spec.scale)
 
     def build(self, spec: ObjectSpec) -> ObjectModel:
         cat = self._category(spec.category)

@@ -10,6 +10,12 @@ The original release names 26 models (``ORIGINAL_MODELS``) and records a few thi
   original's objects are smaller than real ones (about 0.5-0.85 of this catalogue's at the same size word) and
   its scenes are laid out for them, so an object whose ``bbox`` records a smaller footprint is built at that
   footprint (``fitted_scale``), not below 0.5 of the medium size.
+- the object's geometry is the original model's, measured and rebuilt here
+  (``muble_plugins.objects.original_models``), at the file's import scale: ``spec.params`` names the original
+  model and its ``scale_factor`` (``original_fit``), so that the masks and contacts of a scene match the
+  original's. ``spec.model`` and ``spec.scale`` stay this catalogue's model and size multiple (the words of the
+  object). An original-scale object naming a model the original does not have is built with this catalogue's
+  model, fitted to its ``bbox`` as described above.
 - a model's shape word can differ from this catalogue's model of the same name (the original food_box2 is
   "cylindrical", chopping_board2 "cuboid"); the object is then built with the category's model that has the
   file's shape word, so the geometry matches what instructions say about it.
@@ -50,6 +56,9 @@ ORIGINAL_SCALE = {"small": 0.45, "medium-sized": 0.6, "large": 0.6}
 MIN_FITTED_SCALE = 0.5
 # A friction given in the scene object's extra fields wins over the material's.
 DEFAULT_FRICTION_KEY = "friction"
+# ``ObjectSpec.params`` keys of an object built with the original release's model at its import scale.
+ORIGINAL_MODEL_PARAM = "original_model"
+ORIGINAL_SCALE_PARAM = "original_scale"
 
 
 def is_original_scale(obj: SceneObject) -> bool:
@@ -78,6 +87,14 @@ def fitted_scale(obj: SceneObject, footprint_at_unit_scale: float) -> float:
         return nominal
     fit = max(bbox["x"], bbox["y"]) / footprint_at_unit_scale
     return min(nominal, max(fit, MIN_FITTED_SCALE))
+
+
+def original_fit(spec: ObjectSpec) -> tuple[str, float] | None:
+    """(original model, import scale) that ``spec`` is built with, ``None`` for this catalogue's own build."""
+    model = spec.params.get(ORIGINAL_MODEL_PARAM)
+    if model is None:
+        return None
+    return str(model), float(spec.params[ORIGINAL_SCALE_PARAM])
 
 
 def model_for(obj: SceneObject, category: Category) -> str:
@@ -128,6 +145,8 @@ def spec_from_scene_object(obj: SceneObject, catalogue: dict[str, Category], set
         weight_g=float(obj.weight_gt), stiffness=float(obj.stiffness), friction=float(friction),
         params=dict(obj.extra.get("params", {})),
     )
-    if original:
+    if original and obj.model in ORIGINAL_MODELS.get(obj.name, ()):
+        spec.params.update({ORIGINAL_MODEL_PARAM: obj.model, ORIGINAL_SCALE_PARAM: float(obj.scale_factor)})
+    elif original:
         spec.scale = round(fitted_scale(obj, footprint(dataclasses.replace(spec, scale=1.0))), 4)
     return spec

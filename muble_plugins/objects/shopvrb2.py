@@ -14,10 +14,13 @@ weights in the original SHOP-VRB2 files are lighter (60-490 g); MuBlE uses the r
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
 from muble_plugins.objects import geometry as g
+from muble import ConfigError
+from muble.core.errors import unknown_name
 from muble.core.objects import GraspFrame, ObjectSpec
 from muble.core.scene import SceneObject
 from muble_plugins.objects import original
@@ -389,3 +392,17 @@ class ShopVrb2Objects(CatalogueObjectSet):
         (original model names, scale factors and shape words mapped: ``muble_plugins.objects.original``)."""
         return original.spec_from_scene_object(obj, self.catalogue, self.set_name,
                                                lambda spec: float(max(built_geometry(self, spec).extents[:2])))
+
+    def shape(self, category: Category, spec: ObjectSpec) -> Callable[[], Geometry]:
+        """An object of the original release's files is built with that release's model, measured
+        (``muble_plugins.objects.original_models``); every other spec with its catalogue model."""
+        fit = original.original_fit(spec)
+        if fit is None:
+            return super().shape(category, spec)
+        # Imported here: original_models builds on this module's grasp helpers.
+        from muble_plugins.objects.original_models import ORIGINAL_GEOMETRY
+
+        model, scale_factor = fit
+        if model not in ORIGINAL_GEOMETRY:
+            raise ConfigError(unknown_name("original SHOP-VRB2 model", model, sorted(ORIGINAL_GEOMETRY)))
+        return lambda: ORIGINAL_GEOMETRY[model](scale_factor)

@@ -48,12 +48,16 @@ def test_original_scale_factors_are_converted(shopvrb2):
     assert spec(shopvrb2, original_object(size="large", scale_factor=1.15)).scale == pytest.approx(1.15)
 
 
-def test_an_original_object_is_fitted_to_its_recorded_footprint(shopvrb2):
-    full = spec(shopvrb2, original_object())
-    small = spec(shopvrb2, original_object(bbox={"x": 0.08, "y": 0.056, "z": 0.07}))
+def test_a_model_the_original_lacks_is_fitted_to_its_recorded_footprint(shopvrb2):
+    # The original's own models are built with their measured shape (test_objects_original_models); any other
+    # model at an original scale factor is this catalogue's, fitted to the recorded bbox.
+    can = dict(name="soda can", model="soda_can2", material="metal", colour="gray")
+    full = spec(shopvrb2, original_object(**can))
+    small = spec(shopvrb2, original_object(**can, bbox={"x": 0.05, "y": 0.05, "z": 0.12}))
     extent = max(shopvrb2.build(small).extents[:2])
-    assert small.scale < full.scale and extent == pytest.approx(0.08, rel=0.05)
-    tiny = spec(shopvrb2, original_object(bbox={"x": 0.01, "y": 0.01, "z": 0.07}))
+    assert small.scale < full.scale and extent == pytest.approx(0.05, rel=0.05)
+    assert not small.params
+    tiny = spec(shopvrb2, original_object(**can, bbox={"x": 0.01, "y": 0.01, "z": 0.07}))
     assert tiny.scale == pytest.approx(0.5)
 
 
