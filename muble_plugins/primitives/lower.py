@@ -219,6 +219,8 @@ def misplaced(env, held: int, held_body: int, target, support_body: int, others:
     if target is not None and support_body not in ctx.touching_bodies(env, {held_body}):
         where = f"object {target}" if isinstance(target, (int, np.integer)) else "the table"
         return f"object {held} did not stay on {where} after it was let go"
+    if _hanging(env, held_body):  # let go (no weld), yet held up by the fingers alone
+        return f"object {held} hangs in the open fingers after it was let go, resting on nothing"
     if tilt_at_release is not None:  # set down anywhere, it must still stand as it was let go
         quat = env.object_pose(held).quat
         if leaned_over(quat, tilt_at_release) is not None:
@@ -248,6 +250,13 @@ def _off_neighbours(env, held_body: int, width: float) -> None:
         logger.info("the opened fingers touch %s: closing back to the released object's width", sorted(touched))
         env.set_gripper(gap_command(env, width + 2 * RELEASE_CLEARANCE))
         env.hold(tol.SETTLE)
+
+
+def _hanging(env, body: int) -> bool:
+    """Whether ``body``, let go (no weld), touches the hand and nothing else: held up by the fingers alone."""
+    touching = ctx.touching_bodies(env, {body})
+    robot = _finger_bodies(env) | set(env.collision_world().robot_bodies)
+    return bool(touching) and not touching - robot
 
 
 def _finger_bodies(env) -> set[int]:
