@@ -71,7 +71,10 @@ def test_shape_words_pick_the_model_with_that_shape(shopvrb2):
     assert spec(shopvrb2, original_object(name="glass", model="glass5", shape="cuboid")).model == "glass5"
 
 
-def test_missing_stiffness_and_friction_come_from_the_material(shopvrb2, caplog):
+def test_missing_stiffness_and_friction_come_from_the_material(shopvrb2, caplog, monkeypatch):
+    import muble.sim.build
+
+    monkeypatch.setattr(muble.sim.build, "_defaults_logged", set())  # logged once per process: earlier tests may have
     scene = SceneGraph(objects=[original_object(0, material="metal", colour="gray"),
                                 original_object(1, material="plastic", position=np.array([0.5, 0.2, 0.0]))])
     with caplog.at_level(logging.WARNING):
