@@ -303,6 +303,13 @@ class CatalogueObjectSet(ObjectSet):
                                            [*category.variants, *category.imported_variants]))
         return lambda: variant[1](spec.scale)
 
+    def rgba(self, spec: ObjectSpec) -> tuple[float, ...]:
+        """The colour ``spec`` is drawn in (``COLOUR_RGBA`` of its colour word). An object set whose specs can ask
+        for another palette overrides this."""
+        if spec.colour not in COLOUR_RGBA:
+            raise ConfigError(unknown_name("colour", spec.colour, list(COLOUR_RGBA)))
+        return COLOUR_RGBA[spec.colour]
+
     def build(self, spec: ObjectSpec) -> ObjectModel:
         cat = self._category(spec.category)
         built = built_geometry(self, spec)  # meshes and unit-mass properties, cached in memory per model and scale
@@ -313,13 +320,12 @@ class CatalogueObjectSet(ObjectSet):
         if stiffness < spec.stiffness * 0.999:
             log.warning("%s: %.0f g is too light for %.0f N/m at a 2 ms step; using %.0f N/m",
                         spec.model, spec.weight_g, spec.stiffness, stiffness)
-        if spec.colour not in COLOUR_RGBA:
-            raise ConfigError(unknown_name("colour", spec.colour, list(COLOUR_RGBA)))
+        rgba = self.rgba(spec)
         return ObjectModel(
             spec=spec, visual=geometry.visual, collision_parts=geometry.collision_parts, mass=mass, com=com,
             inertia=inertia, friction=spec.friction, stiffness=stiffness,
             damping=realised_damping(spec.stiffness, self.damping_ratio, mass),
-            rgba=COLOUR_RGBA[spec.colour], material_class=MATERIAL_CLASS[spec.material],
+            rgba=rgba, material_class=MATERIAL_CLASS[spec.material],
             grasp_type=cat.grasp_type, grasp_frames=geometry.grasp_frames, pickupable=cat.pickupable,
             stackable=cat.stackable, stack_base=cat.stack_base,
             extents=built.extents.copy(), uv=built.uv,

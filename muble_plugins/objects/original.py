@@ -57,6 +57,13 @@ MIN_FITTED_SCALE = 0.5
 # A friction given in the scene object's extra fields wins over the material's.
 DEFAULT_FRICTION_KEY = "friction"
 # ``ObjectSpec.params`` keys of an object built with the original release's model at its import scale.
+# The original release's paint colours (its scene generator's properties file, 0-255 per channel), which its
+# Blender scenes took as linear reflectance; its white, black and grey objects keep their models' own finish, not
+# recorded here. An object of its files is drawn in these (``original_rgba``).
+ORIGINAL_PAINTS = {
+    "red": (173, 35, 35), "blue": (42, 75, 215), "green": (29, 105, 20), "brown": (129, 74, 25),
+    "purple": (129, 38, 192), "cyan": (41, 208, 208), "yellow": (255, 238, 51),
+}
 ORIGINAL_MODEL_PARAM = "original_model"
 ORIGINAL_SCALE_PARAM = "original_scale"
 
@@ -150,3 +157,11 @@ def spec_from_scene_object(obj: SceneObject, catalogue: dict[str, Category], set
     elif original:
         spec.scale = round(fitted_scale(obj, footprint(dataclasses.replace(spec, scale=1.0))), 4)
     return spec
+
+
+def original_rgba(spec: ObjectSpec) -> tuple[float, float, float, float] | None:
+    """The original release's colour of an object of its files (``ORIGINAL_PAINTS``), or ``None`` for any other
+    object and for the colours it does not record."""
+    if original_fit(spec) is None or spec.colour not in ORIGINAL_PAINTS:
+        return None
+    return (*(c / 255.0 for c in ORIGINAL_PAINTS[spec.colour]), 1.0)

@@ -393,6 +393,11 @@ class ShopVrb2Objects(CatalogueObjectSet):
         return original.spec_from_scene_object(obj, self.catalogue, self.set_name,
                                                lambda spec: float(max(built_geometry(self, spec).extents[:2])))
 
+    def rgba(self, spec: ObjectSpec) -> tuple[float, ...]:
+        """An object of the original release's files is drawn in that release's paint colours
+        (``original.ORIGINAL_PAINTS``); every other in the catalogue's."""
+        return original.original_rgba(spec) or super().rgba(spec)
+
     def shape(self, category: Category, spec: ObjectSpec) -> Callable[[], Geometry]:
         """An object of the original release's files is built with that release's model, measured
         (``muble_plugins.objects.original_models``); every other spec with its catalogue model."""

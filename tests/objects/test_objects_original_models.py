@@ -123,3 +123,16 @@ def test_masks_match_the_originals_demo_scenes(shopvrb2, reference_dir):
     assert ious[worst] >= MASK_IOU_FLOOR, f"{worst}: IoU {ious[worst]:.3f}"
     assert statistics.median(ious.values()) >= MASK_IOU_MEDIAN_FLOOR
     assert not math.isnan(sum(ious.values()))
+
+
+def test_original_objects_take_the_originals_paint_colours(shopvrb2):
+    """The original's generator painted with its own palette (green 29, 105, 20 of 255); this project's objects keep
+    the catalogue's colours, and colours the palette does not hold (white) keep theirs too."""
+    from muble_plugins.objects.catalogue import COLOUR_RGBA
+
+    green = shopvrb2.build(spec(shopvrb2, original_of("mug1", colour="green", scale_factor=0.6)))
+    assert green.rgba == pytest.approx((29 / 255, 105 / 255, 20 / 255, 1.0))
+    ours = shopvrb2.build(spec(shopvrb2, original_of("mug1", colour="green", scale_factor=1.0)))
+    assert ours.rgba == pytest.approx(COLOUR_RGBA["green"])
+    white = shopvrb2.build(spec(shopvrb2, original_of("bowl1", colour="white", scale_factor=0.6)))
+    assert white.rgba == pytest.approx(COLOUR_RGBA["white"])
