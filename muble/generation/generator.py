@@ -74,7 +74,7 @@ class SceneGenerator:
             from muble.core.table import TABLE_X, TABLE_Y
             from muble.sim.world import stage_named
 
-            x, y = stage_named(cfg.stage, "stage (generator.stage)").top_ranges()
+            x, y = stage_named(cfg.stage, "generator.stage, which follows robot.stage").top_ranges()
             if list(cfg.table_x) == list(TABLE_X) and list(cfg.table_y) == list(TABLE_Y):
                 self.config = cfg = dataclasses.replace(cfg, table_x=list(x), table_y=list(y))
         self._check_config(cfg)

@@ -74,10 +74,10 @@ DEFAULT_STAGE = "robosuite"
 STAGE_KEY = "stage"  # the scene file's key naming its stage (absent: DEFAULT_STAGE)
 
 
-def stage_named(name: str, what: str = "stage") -> Stage:
-    """The stage called ``name``; an unknown name raises ``ConfigError`` listing the stages."""
+def stage_named(name: str, where: str = "robot.stage") -> Stage:
+    """The stage called ``name`` (given by ``where``); an unknown name raises ``ConfigError`` listing the stages."""
     if name not in STAGES:
-        raise ConfigError(unknown_name(what, str(name), STAGES))
+        raise ConfigError(f"{unknown_name('stage', str(name), STAGES)} (from {where})")
     return STAGES[name]
 
 
@@ -86,7 +86,7 @@ def scene_stage(scene: SceneGraph, override: str | None = None) -> Stage:
     else ``original`` for a scene of the original release's files (which name none; they were made on it), else
     the default stage."""
     if override:
-        return stage_named(override, "stage (robot.stage)")
+        return stage_named(override)
     name = scene.extra.get(STAGE_KEY) or ("original" if scene.from_original_release else DEFAULT_STAGE)
     if name not in STAGES:
         raise ConfigError(f"scene {scene.image_index}: {unknown_name('stage', str(name), STAGES)}; or give "

@@ -128,5 +128,5 @@ def test_a_stage_is_written_into_the_scene_and_its_table_bounds_placement(object
         assert x0 < obj.position[0] - half and obj.position[0] + half < x1
         assert y0 < obj.position[1] - half and obj.position[1] + half < y1
 
-    with pytest.raises(ConfigError, match="generator.stage.*'stadium'"):
+    with pytest.raises(ConfigError, match=r"unknown stage 'stadium'.*\(from generator.stage"):
         SceneGenerator({**BUILTIN, "stage": "stadium"}, seed=5, object_set=object_set)
