@@ -37,6 +37,10 @@ def dataset_identity(config: dict[str, Any]) -> dict[str, Any]:
 
 
 ABSENT = object()  # what ``setting_differences`` gives for a key that one side lacks
+# Settings added after folders were made, with the value that does what those folders' runs did: a folder that
+# lacks the key matches a run with that value (``robot.stage`` null: each scene's own stage, robosuite's for
+# every generated scene before stages could be chosen).
+ADDED_LATER = {"robot.stage": None, "generator.stage": None}
 
 
 def setting_differences(stored: Any, current: Any, where: str = "") -> list[tuple[str, Any, Any]]:
@@ -47,6 +51,9 @@ def setting_differences(stored: Any, current: Any, where: str = "") -> list[tupl
         for key in sorted(set(stored) | set(current), key=str):
             sub = f"{where}.{key}" if where else str(key)
             if key not in stored or key not in current:
+                present = stored.get(key, ABSENT) if key in stored else current.get(key, ABSENT)
+                if sub in ADDED_LATER and present == ADDED_LATER[sub]:
+                    continue
                 out.append((sub, stored.get(key, ABSENT), current.get(key, ABSENT)))
             else:
                 out.extend(setting_differences(stored[key], current[key], sub))

@@ -63,6 +63,16 @@ def test_a_dataset_made_under_the_controller_s_old_name_resumes_under_the_new_on
         check_or_store_identity(tmp_path, {"seed": 0, "robot": {"name": "Panda", "controller": "OTHER"}, "dataset": {}})
 
 
+def test_a_dataset_made_before_stages_resumes_on_the_stage_it_stands_on(tmp_path):
+    made_before = {"seed": 0, "robot": {"name": "Panda"}, "generator": {"min_objects": 4}, "dataset": {}}
+    check_or_store_identity(tmp_path, made_before)
+    now = {"seed": 0, "robot": {"name": "Panda", "stage": None}, "generator": {"min_objects": 4, "stage": None},
+           "dataset": {}}
+    check_or_store_identity(tmp_path, now)  # null: each scene's own stage, as before stages could be chosen
+    with pytest.raises(ConfigError, match='robot.stage: not stored, requested "original"'):
+        check_or_store_identity(tmp_path, {**now, "robot": {"name": "Panda", "stage": "original"}})
+
+
 def test_a_live_owner_is_refused_and_a_stale_lock_taken_over(tmp_path):
     root = tmp_path / "ds"
     root.mkdir()
