@@ -51,7 +51,7 @@ def setting_differences(stored: Any, current: Any, where: str = "") -> list[tupl
         for key in sorted(set(stored) | set(current), key=str):
             sub = f"{where}.{key}" if where else str(key)
             if key not in stored or key not in current:
-                present = stored.get(key, ABSENT) if key in stored else current.get(key, ABSENT)
+                present = stored[key] if key in stored else current[key]
                 if sub in ADDED_LATER and present == ADDED_LATER[sub]:
                     continue
                 out.append((sub, stored.get(key, ABSENT), current.get(key, ABSENT)))

@@ -31,6 +31,19 @@ SETTLE = 0.5  # s of physics before the check, as before an episode (the fingers
 REST_CLEARANCE = 0.02
 
 
+def _too_near(env, scene: SceneGraph, when: str) -> str | None:
+    """Why the nearest object closer than ``REST_CLEARANCE`` to the robot at rest is in the way, or ``None``."""
+    from muble.sim.initial_state import robot_clearance
+
+    near = robot_clearance(env, REST_CLEARANCE)
+    if not near:
+        return None
+    obj = scene.object(min(near, key=near.get))
+    x, y = (round(float(v), 3) for v in obj.position[:2])
+    return (f"object {obj.id} ({obj.name}) at ({x}, {y}): {near[obj.id] * 1000:.0f} mm from the robot at rest, "
+            f"{when} (less than {REST_CLEARANCE * 1000:.0f} mm)")
+
+
 class ReachCheck:
     """``check(scene, models)`` -> ``None`` when every pickupable object can be grasped and put down again, else
     why not (the first object that cannot, with the primitive's reason).
@@ -50,7 +63,6 @@ class ReachCheck:
     def __call__(self, scene: SceneGraph, models: dict[int, ObjectModel]) -> str | None:
         from muble.plugins.registry import get_registry
         from muble.sim.env import TabletopEnv
-        from muble.sim.initial_state import robot_clearance
 
         registry = get_registry()
         # Physics and planning only: without what only a renderer sees the model compiles in half the time, and
@@ -58,16 +70,15 @@ class ReachCheck:
         env = TabletopEnv(scene, models, self.robot, {}, visual=False)
         env.cache.update(self._planners)
         try:
-            for when in ("as built", "settled"):  # an object pushed away while settling was in the way too
-                if when == "settled":
-                    env.open_gripper()
-                    env.hold(SETTLE)  # as an episode starts: the hand open, the objects settled
-                near = robot_clearance(env, REST_CLEARANCE)
-                if near:
-                    obj = scene.object(min(near, key=near.get))
-                    x, y = (round(float(v), 3) for v in obj.position[:2])
-                    return (f"object {obj.id} ({obj.name}) at ({x}, {y}): {near[obj.id] * 1000:.0f} mm from the "
-                            f"robot at rest, {when} (less than {REST_CLEARANCE * 1000:.0f} mm)")
+            # Before settling too: an object inside the hand is pushed away while settling, yet was in its way.
+            reason = _too_near(env, scene, "as built")
+            if reason:
+                return reason
+            env.open_gripper()
+            env.hold(SETTLE)  # as an episode starts: the hand open, the objects settled
+            reason = _too_near(env, scene, "settled")
+            if reason:
+                return reason
             for obj in scene.objects:
                 if not obj.pickupable:
                     continue

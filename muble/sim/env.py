@@ -22,7 +22,7 @@ from muble.sim.control import OSC_OUTPUT_MAX, ArmServos, OperationalSpace, gripp
 from muble.sim.faults import FaultDetector
 from muble.sim.grasp import GRASP_MODES, GraspModel
 from muble.sim.spaces import control_space
-from muble.sim.world import build_world
+from muble.sim.world import STAGES, build_world
 
 logger = logging.getLogger(__name__)
 
@@ -105,7 +105,7 @@ class TabletopEnv:
         # visual=False: a model for physics and planning alone (``build_world``), which no renderer can draw.
         self.model, self.names = build_world(scene, models, cfg["name"], cfg["gripper"], cfg["timestep"], visual,
                                               cfg["stage"])
-        if not self.names.start_pose_given:  # a stage's own rest pose is kept as its frames show it
+        if cfg["name"] not in STAGES[self.names.stage].start_qpos:  # a stage's own rest pose is kept as it is
             self.names.init_qpos = home_configuration(self.model, self.names)
         self.data = mujoco.MjData(self.model)
         self.n_substeps = int(round(substeps))

@@ -160,20 +160,28 @@ def support_gap(env, parties: _Parties, obj: int, distmax: float,
                 objects: bool = True) -> tuple[float, int | str | None]:
     """The smallest distance (m, up to ``distmax``) from the object's collision geoms to the table (and, with
     ``objects``, to any other object), and which of them is that close."""
-    m, d = env.model, env.data
-    best, which = distmax, None
     candidates = [parties.table]
     if objects:
         candidates += [g for i, geoms in parties.collision.items() if i != obj for g in geoms]
-    for g1 in parties.collision[obj]:
-        for g2 in candidates:
-            # Bounding spheres first: most pairs are far apart (the table's plane-like box is always checked).
+    # The table's plane-like box is always checked: its bounding sphere says nothing.
+    best, which = _closest(env, parties.collision[obj], candidates, distmax, unbounded=parties.table)
+    return best, None if which is None else parties.name(which)
+
+
+def _closest(env, geoms, others, distmax: float, unbounded: int = -1) -> tuple[float, int | None]:
+    """The smallest distance (m, up to ``distmax``) from any of ``geoms`` to any of ``others``, and which of
+    ``others`` is that close (``None``: none within ``distmax``). Bounding spheres skip pairs that are far apart,
+    except with the geom ``unbounded``."""
+    m, d = env.model, env.data
+    best, which = distmax, None
+    for g1 in geoms:
+        for g2 in others:
             reach = m.geom_rbound[g1] + m.geom_rbound[g2] + best
-            if g2 != parties.table and np.sum((d.geom_xpos[g1] - d.geom_xpos[g2]) ** 2) > reach * reach:
+            if g2 != unbounded and np.sum((d.geom_xpos[g1] - d.geom_xpos[g2]) ** 2) > reach * reach:
                 continue
             dist = mujoco.mj_geomDistance(m, d, int(g1), int(g2), best, None)
             if dist < best:
-                best, which = dist, parties.name(g2)
+                best, which = dist, int(g2)
     return best, which
 
 
@@ -182,20 +190,10 @@ def robot_clearance(env, clearance: float) -> dict[int, float]:
     (negative: interpenetrating). An episode starts with the arm at rest; an object there (under a hand that rests
     low over the table, as on the original stage) is in the first move's way before the agent has done anything."""
     parties = _Parties(env)
-    m, d = env.model, env.data
+    m = env.model
     robot = [g for g in np.flatnonzero(parties.robot) if m.geom_contype[g] or m.geom_conaffinity[g]]
-    near: dict[int, float] = {}
-    for obj, geoms in parties.collision.items():
-        best = clearance
-        for g1 in geoms:
-            for g2 in robot:
-                reach = m.geom_rbound[g1] + m.geom_rbound[g2] + best
-                if np.sum((d.geom_xpos[g1] - d.geom_xpos[g2]) ** 2) > reach * reach:
-                    continue
-                best = min(best, mujoco.mj_geomDistance(m, d, int(g1), int(g2), best, None))
-        if best < clearance:
-            near[obj] = float(best)
-    return near
+    distances = {obj: _closest(env, geoms, robot, clearance)[0] for obj, geoms in parties.collision.items()}
+    return {obj: float(dist) for obj, dist in distances.items() if dist < clearance}
 
 
 def check_supported(env, parties: _Parties) -> None:

@@ -18,6 +18,7 @@ from muble.core.camera import CameraParams
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
+from muble.core.table import TABLE_X, TABLE_Y
 from muble.sim.object_mjcf import object_mjcf
 
 logger = logging.getLogger(__name__)
@@ -52,8 +53,6 @@ class Stage:
     def top_ranges(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """The table top's (x0, x1), (y0, y1) in the scene frame (robosuite's placement: as for the Panda)."""
         if self.table_centre_x is None:
-            from muble.core.table import TABLE_X, TABLE_Y
-
             return tuple(TABLE_X), tuple(TABLE_Y)
         hx, hy = self.table_size[0] / 2.0, self.table_size[1] / 2.0
         return (self.table_centre_x - hx, self.table_centre_x + hx), (-hy, hy)
@@ -88,10 +87,8 @@ def scene_stage(scene: SceneGraph, override: str | None = None) -> Stage:
     if override:
         return stage_named(override)
     name = scene.extra.get(STAGE_KEY) or ("original" if scene.from_original_release else DEFAULT_STAGE)
-    if name not in STAGES:
-        raise ConfigError(f"scene {scene.image_index}: {unknown_name('stage', str(name), STAGES)}; or give "
-                          "robot.stage= to build it on another")
-    return STAGES[name]
+    return stage_named(name, f"scene {scene.image_index}'s '{STAGE_KEY}' key; or give robot.stage= to build it on "
+                             "another")
 
 
 def object_weld_name(obj_id: int) -> str:
@@ -121,7 +118,6 @@ class WorldNames:
     init_qpos: np.ndarray | None = None
     gripper_format: object = None  # the robosuite gripper model (its ``format_action`` maps -1..1)
     stage: str = DEFAULT_STAGE  # the ``STAGES`` entry the world stands on
-    start_pose_given: bool = False  # init_qpos is the stage's own rest configuration, to keep as it is
 
 
 def _fmt(values) -> str:
@@ -201,7 +197,6 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
         init_qpos=np.asarray(stage.start_qpos.get(robot, robot_model.init_qpos), dtype=float),
         gripper_format=gripper_model,
         stage=stage.name,
-        start_pose_given=robot in stage.start_qpos,
     )
 
     world.worldbody.append(_camera_element(FRONT_CAMERA, scene.camera_params))

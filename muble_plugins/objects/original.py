@@ -56,7 +56,6 @@ ORIGINAL_SCALE = {"small": 0.45, "medium-sized": 0.6, "large": 0.6}
 MIN_FITTED_SCALE = 0.5
 # A friction given in the scene object's extra fields wins over the material's.
 DEFAULT_FRICTION_KEY = "friction"
-# ``ObjectSpec.params`` keys of an object built with the original release's model at its import scale.
 # The original release's paint colours (its scene generator's properties file, 0-255 per channel), which its
 # Blender scenes took as linear reflectance; its white, black and grey objects keep their models' own finish, not
 # recorded here. An object of its files is drawn in these (``original_rgba``).
@@ -64,6 +63,7 @@ ORIGINAL_PAINTS = {
     "red": (173, 35, 35), "blue": (42, 75, 215), "green": (29, 105, 20), "brown": (129, 74, 25),
     "purple": (129, 38, 192), "cyan": (41, 208, 208), "yellow": (255, 238, 51),
 }
+# ``ObjectSpec.params`` keys of an object built with the original release's model at its import scale.
 ORIGINAL_MODEL_PARAM = "original_model"
 ORIGINAL_SCALE_PARAM = "original_scale"
 

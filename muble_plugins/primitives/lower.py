@@ -253,10 +253,9 @@ def _off_neighbours(env, held_body: int, width: float) -> None:
 
 
 def _hanging(env, body: int) -> bool:
-    """Whether ``body``, let go (no weld), touches the hand and nothing else: held up by the fingers alone."""
+    """Whether ``body``, let go (no weld), touches the robot and nothing else: held up by the fingers alone."""
     touching = ctx.touching_bodies(env, {body})
-    robot = _finger_bodies(env) | set(env.collision_world().robot_bodies)
-    return bool(touching) and not touching - robot
+    return bool(touching) and not touching - set(env.collision_world().robot_bodies)
 
 
 def _finger_bodies(env) -> set[int]:

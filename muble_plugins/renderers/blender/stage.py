@@ -134,8 +134,8 @@ def set_passes(view_layer: Any, depth: bool, segmentation: bool, normals: bool) 
 # the five reference frames, RMS 0.03), in the tint below. Camera, glossy and transmission rays see it; diffuse
 # light keeps coming from the uniform sky.
 STUDIO_LUMINANCE = (0.4286, (0.0674, 0.0504, -0.2154))  # (constant, per view-direction component), linear
-STUDIO_TINT = (1.027, 0.997, 0.951)
-WORLD_MAP_RESOLUTION = 64  # linear RGB over luminance: slightly warm
+STUDIO_TINT = (1.027, 0.997, 0.951)  # linear RGB over luminance: slightly warm
+WORLD_MAP_RESOLUTION = 64  # width of the world's importance map (Cycles' own choice is 1024 for any non-uniform one)
 
 
 def build_world(cfg: BlenderRendererConfig) -> Any:
