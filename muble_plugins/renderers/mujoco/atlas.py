@@ -94,45 +94,76 @@ class MeshAtlas:
 # objects) can share one context whose mesh slots are re-uploaded (``mjr_uploadMesh``) where their contents differ.
 
 
-def stage_key(model) -> bytes | None:
-    """A digest of everything a GL context takes from ``model`` but its meshes; None for models with height
-    fields, skins or flexes, whose GPU data this does not cover."""
+def stage_parts(model) -> list[np.ndarray] | None:
+    """Everything a GL context takes from ``model`` but its meshes, as arrays (views where they can be); None for
+    models with height fields, skins or flexes, whose GPU data this does not cover."""
     if model.nhfield or model.nskin or model.nflex:
         return None
-    h = hashlib.blake2b(digest_size=16)
     vis, q, mp, gl = model.vis, model.vis.quality, model.vis.map, model.vis.global_
     numbers = [q.shadowsize, q.offsamples, q.numslices, q.numstacks, q.numquads, mp.zfar, mp.znear, mp.shadowclip,
                mp.shadowscale, mp.fogstart, mp.fogend, gl.linewidth, gl.offwidth, gl.offheight, model.stat.extent,
                *vis.rgba.fog]
-    h.update(np.asarray(numbers, dtype=np.float64).tobytes())
-    for arr in (model.tex_type, model.tex_width, model.tex_height, model.tex_nchannel, model.tex_colorspace,
-                model.tex_data, model.mat_texid, model.mat_texuniform, model.mat_texrepeat):
-        h.update(np.ascontiguousarray(arr).tobytes())
     planes = np.flatnonzero(model.geom_type == 0)  # mjGEOM_PLANE
-    h.update(np.ascontiguousarray(model.geom_size[planes]).tobytes())
-    h.update(np.ascontiguousarray(model.geom_matid[planes]).tobytes())
-    return h.digest()
+    return [np.asarray(numbers, dtype=np.float64), model.tex_type, model.tex_width, model.tex_height,
+            model.tex_nchannel, model.tex_colorspace, model.tex_data, model.mat_texid, model.mat_texuniform,
+            model.mat_texrepeat, model.geom_size[planes], model.geom_matid[planes]]
 
 
-def mesh_slot_keys(model) -> list[bytes]:
-    """A content key per mesh of ``model`` covering everything ``mjr_uploadMesh`` draws from: vertices, faces,
-    normals, texture coordinates and the convex hull."""
-    keys = []
-    for i in range(model.nmesh):
-        v0, nv = model.mesh_vertadr[i], model.mesh_vertnum[i]
-        f0, nf = model.mesh_faceadr[i], model.mesh_facenum[i]
-        n0, nn = model.mesh_normaladr[i], model.mesh_normalnum[i]
-        t0, nt = model.mesh_texcoordadr[i], model.mesh_texcoordnum[i]
-        g0 = model.mesh_graphadr[i]
-        h = hashlib.blake2b(digest_size=16)
-        for part in (model.mesh_vert[v0:v0 + nv], model.mesh_face[f0:f0 + nf], model.mesh_normal[n0:n0 + nn],
-                     model.mesh_facenormal[f0:f0 + nf]):
-            h.update(np.ascontiguousarray(part).tobytes())
-        if t0 >= 0:
-            h.update(np.ascontiguousarray(model.mesh_texcoord[t0:t0 + nt]).tobytes())
-            h.update(np.ascontiguousarray(model.mesh_facetexcoord[f0:f0 + nf]).tobytes())
-        if g0 >= 0:
-            nvert, nface = int(model.mesh_graph[g0]), int(model.mesh_graph[g0 + 1])
-            h.update(np.ascontiguousarray(model.mesh_graph[g0:g0 + 2 + 3 * nvert + 6 * nface]).tobytes())
-        keys.append(h.digest())
-    return keys
+def mesh_slot_parts(model, i: int) -> list[np.ndarray]:
+    """Everything ``mjr_uploadMesh`` draws mesh ``i`` from (views into ``model``): vertices, faces, normals,
+    texture coordinates and the convex hull, after a header saying which of the last two it has."""
+    v0, nv = model.mesh_vertadr[i], model.mesh_vertnum[i]
+    f0, nf = model.mesh_faceadr[i], model.mesh_facenum[i]
+    n0, nn = model.mesh_normaladr[i], model.mesh_normalnum[i]
+    t0, nt = model.mesh_texcoordadr[i], model.mesh_texcoordnum[i]
+    g0 = model.mesh_graphadr[i]
+    parts = [np.array([t0 >= 0, g0 >= 0]), model.mesh_vert[v0:v0 + nv], model.mesh_face[f0:f0 + nf],
+             model.mesh_normal[n0:n0 + nn], model.mesh_facenormal[f0:f0 + nf]]
+    if t0 >= 0:
+        parts += [model.mesh_texcoord[t0:t0 + nt], model.mesh_facetexcoord[f0:f0 + nf]]
+    if g0 >= 0:
+        nvert, nface = int(model.mesh_graph[g0]), int(model.mesh_graph[g0 + 1])
+        parts.append(model.mesh_graph[g0:g0 + 2 + 3 * nvert + 6 * nface])
+    return parts
+
+
+def _same(parts: list[np.ndarray], kept: list[np.ndarray]) -> bool:
+    return len(parts) == len(kept) and all(
+        a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b) for a, b in zip(parts, kept))
+
+
+class ContextContents:
+    """What a GL context holds from the models it was made from or refilled with: copies of the stage's arrays
+    (``stage_parts``) and of each mesh slot's (``mesh_slot_parts``), compared with another model's by value.
+    Equal arrays are the match (exact, as a digest of their bytes was before, in a tenth of the time: comparing a
+    robosuite scene's ~27 MB of meshes and textures takes a few ms, hashing it ~65 ms every scene)."""
+
+    def __init__(self):
+        self._stage: list[np.ndarray] | None = None  # None: the context cannot be refilled
+        self._slots: list[list[np.ndarray]] = []
+
+    def reset(self, model=None) -> None:
+        """The context was made from ``model`` (None: from a model that is not to be refilled, or freed)."""
+        stage = None if model is None else stage_parts(model)
+        self._stage = None if stage is None else [np.array(a, copy=True) for a in stage]
+        self._slots = [] if self._stage is None else [
+            [np.array(a, copy=True) for a in mesh_slot_parts(model, i)] for i in range(model.nmesh)]
+
+    def same_stage(self, model) -> bool:
+        """Whether ``model`` agrees with the context on everything but its meshes."""
+        stage = stage_parts(model)
+        return stage is not None and self._stage is not None and _same(stage, self._stage)
+
+    def changed_slots(self, model) -> list[int]:
+        """The mesh slots whose contents ``model`` would change (slots past the kept ones count as changed)."""
+        return [i for i in range(model.nmesh)
+                if i >= len(self._slots) or not _same(mesh_slot_parts(model, i), self._slots[i])]
+
+    def refilled(self, model, slots: list[int]) -> None:
+        """``slots`` now hold ``model``'s meshes."""
+        for i in slots:
+            copies = [np.array(a, copy=True) for a in mesh_slot_parts(model, i)]
+            if i < len(self._slots):
+                self._slots[i] = copies
+            else:
+                self._slots.append(copies)

@@ -15,6 +15,7 @@ import atexit
 import logging
 import os
 import threading
+from contextlib import contextmanager
 
 from muble import RenderError
 
@@ -97,3 +98,30 @@ def free_spares() -> None:
                 spares.pop().free()
             except Exception:  # noqa: BLE001 - a context of a finished thread may already be gone
                 pass
+
+
+@contextmanager
+def draw_into(framebuffer: int, restore):
+    """Bind ``framebuffer`` (a GL framebuffer object of the current context) for drawing and reading in the block;
+    ``restore()`` binds the renderer's own buffer again after it (``mjr_restoreBuffer``), whatever happens."""
+    from OpenGL import GL
+
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
+    try:
+        yield
+    finally:
+        restore()
+
+
+def read_pixels(framebuffer: int, rgb, depth=None) -> None:
+    """Read ``framebuffer``'s colour (GL_RGB bytes, into ``rgb``, shape (h, w, 3)) and, if given, its depth (floats,
+    into ``depth``, shape (h, w)), rows bottom up, as ``mjr_readPixels`` reads a single-sample buffer."""
+    from OpenGL import GL
+
+    h, w = rgb.shape[:2]
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, framebuffer)  # mjr_render ends by binding its own buffer
+    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
+    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+    GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, rgb)
+    if depth is not None:
+        GL.glReadPixels(0, 0, w, h, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT, depth)

@@ -10,7 +10,7 @@ import numpy as np
 from muble import Frame, RenderError, Renderer, SceneGraph, bounded
 from muble.core.errors import unknown_name
 
-from muble_plugins.renderers.mujoco.atlas import MeshAtlas, atlas_compatible, mesh_slot_keys, stage_key
+from muble_plugins.renderers.mujoco.atlas import ContextContents, MeshAtlas, atlas_compatible
 from muble_plugins.renderers.mujoco.labels import geom_labels
 from muble_plugins.renderers.mujoco.simplify import SimplifiedMeshes
 
@@ -41,6 +41,10 @@ class MujocoRendererConfig:
     shadow_size: int | None = DEFAULT_SHADOW_SIZE
     # The floor's reflection (robosuite's floor reflects 1 %): drawing it draws the scene a second time.
     reflection: bool = True
+    # Where the segmentation/depth pass (drawn first) shows no pixel of a reflecting plane or box (robosuite's stage
+    # hides its floor behind the table), the RGB pass is drawn without the reflection: the same pixels for a third
+    # less. True draws it whether seen or not (as before; only geometry below the floor could show it unseen).
+    reflection_when_hidden: bool = False
     # Multisampling of the RGB pass (None: the model's ``visual/quality/offsamples``, robosuite's 4); 0 turns it off.
     multisamples: int | None = None
     # Visual meshes of at least a thousand triangles drawn simplified on a grid of this many metres (None: as
@@ -54,7 +58,7 @@ class MujocoRenderer(Renderer):
     def __init__(self, width: int = 848, height: int = 480, rgb: bool = True, depth: bool = True,
                  segmentation: bool = True, reuse_meshes: bool = True, geom_groups: list[int] | tuple = (1, 2),
                  shadows: bool = True, shadow_size: int | None = DEFAULT_SHADOW_SIZE, reflection: bool = True,
-                 multisamples: int | None = None, mesh_cell: float | None = None):
+                 multisamples: int | None = None, mesh_cell: float | None = None, reflection_when_hidden: bool = False):
         if width <= 0 or height <= 0:
             raise RenderError(f"image size must be positive, got {width}x{height}; set renderer.width/height")
         if not (rgb or depth or segmentation):
@@ -70,14 +74,14 @@ class MujocoRenderer(Renderer):
         self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes,
                                            [int(g) for g in geom_groups], bool(shadows),
                                            None if shadow_size is None else int(shadow_size), bool(reflection),
+                                           bool(reflection_when_hidden),
                                            None if multisamples is None else int(multisamples),
                                            None if mesh_cell is None else float(mesh_cell))
         self._simplified = None if mesh_cell is None else SimplifiedMeshes(float(mesh_cell))
         self._gl = None
         self._context = None  # MjrContext
         self._context_model = None  # the model the context was made from, or whose meshes it was refilled with
-        self._context_stage: bytes | None = None  # stage_key of that model (None: the context cannot be refilled)
-        self._context_slots: list[bytes | None] = []  # content key of each mesh slot of the context
+        self._contents = ContextContents()  # what the context holds from that model, to refill it with another's
         self._atlas = MeshAtlas()
         self._model = None
         self._scene = None  # MjvScene
@@ -132,31 +136,27 @@ class MujocoRenderer(Renderer):
 
     def _context_for(self, model) -> None:
         """A context for ``model``: the current one with the mesh slots whose contents differ re-uploaded, where
-        it was made for a model of the same stage (``stage_key``) with as many mesh slots; else a new one. The
+        it was made for a model of the same stage (``stage_parts``) with as many mesh slots; else a new one. The
         drawing is the same either way: only slots ``model`` uses are drawn, and each holds ``model``'s mesh."""
         import mujoco
 
-        stage = stage_key(model)
         context = self._context
-        if stage is None or context is None or stage != self._context_stage or context.rangeMesh < 2 * model.nmesh:
+        if context is None or context.rangeMesh < 2 * model.nmesh or not self._contents.same_stage(model):
             self._make_context(model)
-            self._context_stage = stage
-            self._context_slots = mesh_slot_keys(model) if stage is not None else []
+            self._contents.reset(model)
             return
-        slots = mesh_slot_keys(model)
-        changed = [i for i, key in enumerate(slots) if self._context_slots[i] != key]  # rangeMesh >= 2 * nmesh above
+        changed = self._contents.changed_slots(model)  # rangeMesh >= 2 * nmesh above
         if changed:
             with self._simplified.drawn_in(model) if self._simplified is not None else nullcontext():
                 for i in changed:
                     mujoco.mjr_uploadMesh(model, context, i)
-            self._context_slots = slots + self._context_slots[len(slots):]
+            self._contents.refilled(model, changed)
         self._context_model = model
 
     def _make_context(self, model) -> None:
         import mujoco
 
-        self._context_stage, self._context_slots = None, []
-
+        self._contents.reset()
         if self._context is not None:
             self._context.free()
         # The context sizes its shadow maps, multisampling and offscreen buffer from the model it is made from and
@@ -215,31 +215,79 @@ class MujocoRenderer(Renderer):
         w, h = self.config.width, self.config.height
         rect = mujoco.MjrRect(0, 0, w, h)
         self._update_scene(data, cam)
-        rgb = depth = seg = None
-        flags = self._scene.flags
-        if self.config.rgb:
-            mujoco.mjr_render(rect, self._scene, self._context)
-            rgb_buf = np.empty((h, w, 3), dtype=np.uint8)
-            mujoco.mjr_readPixels(rgb_buf, None, rect, self._context)
-            rgb = np.flipud(rgb_buf)
+        ids = z = None
         if self.config.segmentation or self.config.depth:
-            # Depth is read from the segmentation pass: without lighting and blending it is exact at the far end.
-            seg_flag, id_flag = mujoco.mjtRndFlag.mjRND_SEGMENT, mujoco.mjtRndFlag.mjRND_IDCOLOR
-            flags[seg_flag], flags[id_flag] = 1, 1
+            ids, z = self._id_pass(rect)
+        if self.config.rgb:
+            # A reflection shows only on its plane: where no pixel of one is seen, the pass without it is the same.
+            reflection = self.config.reflection and (
+                self.config.reflection_when_hidden or ids is None or self._reflector_seen(ids))
+            flag = mujoco.mjtRndFlag.mjRND_REFLECTION
+            self._scene.flags[flag] = int(reflection)
             try:
                 mujoco.mjr_render(rect, self._scene, self._context)
-                buf = np.empty((h, w, 3), dtype=np.uint8)
-                depth_buf = np.empty((h, w), dtype=np.float32) if self.config.depth else None
-                mujoco.mjr_readPixels(buf, depth_buf, rect, self._context)
             finally:
-                flags[seg_flag], flags[id_flag] = 0, 0
-            if self.config.segmentation:
-                seg = self._labels_of(np.flipud(buf))
-            if depth_buf is not None:
-                depth = self._metric_depth(np.flipud(depth_buf))
-        if rgb is None:
+                self._scene.flags[flag] = int(self.config.reflection)
+        # The id pass is turned into labels and metres while the rasteriser's threads finish the RGB pass.
+        seg = self._labels_of(np.flipud(ids)) if self.config.segmentation else None
+        depth = self._metric_depth(np.flipud(z)) if z is not None else None
+        if self.config.rgb:
+            rgb_buf = np.empty((h, w, 3), dtype=np.uint8)
+            mujoco.mjr_readPixels(rgb_buf, None, rect, self._context)
+            rgb = np.ascontiguousarray(np.flipud(rgb_buf))
+        else:
             rgb = np.zeros((h, w, 3), dtype=np.uint8)
-        return Frame(camera=camera, rgb=np.ascontiguousarray(rgb), depth=depth, segmentation=seg)
+        return Frame(camera=camera, rgb=rgb, depth=depth, segmentation=seg)
+
+    def _id_pass(self, rect) -> tuple[np.ndarray, np.ndarray | None]:
+        """The segmentation pass (each geom's segid + 1 as its colour, no lighting; rows bottom up) and, with depth
+        on, its depth buffer: without lighting and blending depth is exact at the far end.
+
+        Multisampling is off in this pass, so every sample of a pixel holds the same value; where the context has
+        a single-sample resolve buffer (``offFBO_r``, there with multisampling) the pass is drawn straight into it
+        and read back, saving the multisampled buffer's clearing and the resolve: the same values, read sooner."""
+        import mujoco
+
+        w, h = rect.width, rect.height
+        ids = np.empty((h, w, 3), dtype=np.uint8)
+        z = np.empty((h, w), dtype=np.float32) if self.config.depth else None
+        flags, context = self._scene.flags, self._context
+        seg_flag, id_flag = mujoco.mjtRndFlag.mjRND_SEGMENT, mujoco.mjtRndFlag.mjRND_IDCOLOR
+        flags[seg_flag], flags[id_flag] = 1, 1
+        try:
+            resolve = int(context.offFBO_r) if context.offSamples else 0
+            if resolve:
+                from muble_plugins.renderers.mujoco.gl import draw_into, read_pixels
+
+                with draw_into(resolve, lambda: mujoco.mjr_restoreBuffer(context)):
+                    mujoco.mjr_render(rect, self._scene, context)
+                    read_pixels(resolve, ids, z)
+            else:
+                mujoco.mjr_render(rect, self._scene, context)
+                mujoco.mjr_readPixels(ids, z, rect, context)
+        finally:
+            flags[seg_flag], flags[id_flag] = 0, 0
+        return ids, z
+
+    def _segids(self, image: np.ndarray) -> np.ndarray:
+        """Each pixel's scene geom index + 1 (0: nothing drawn) from an id pass image."""
+        if self._scene.ngeom < 255:  # every id fits the red channel, so green and blue are zero
+            return image[..., 0]
+        return image[..., 0].astype(np.int32) | (image[..., 1].astype(np.int32) << 8) | (
+            image[..., 2].astype(np.int32) << 16)
+
+    def _reflector_seen(self, image: np.ndarray) -> bool:
+        """Whether any geom MuJoCo may draw a reflection in (a plane or box with reflectance) shows in the id pass."""
+        import mujoco
+
+        kinds = (int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_BOX))
+        n = self._scene.ngeom
+        reflectors = [g.segid + 1 for g in (self._scene.geoms[i] for i in range(n))
+                      if g.reflectance > 0 and g.type in kinds and g.segid >= 0]
+        if not reflectors:
+            return False  # nothing reflects: MuJoCo's reflection pass draws nothing
+        seen = np.bincount(self._segids(image).ravel(), minlength=n + 1)
+        return bool(seen[reflectors].any())
 
     def _metric_depth(self, z: np.ndarray) -> np.ndarray:
         # MuJoCo draws with reversed z; undo its perspective projection in float64 (float32 loses centimetres).
@@ -261,13 +309,12 @@ class MujocoRenderer(Renderer):
             g = self._scene.geoms[i]
             if g.segid >= 0 and g.objtype == geom_type and 0 <= g.objid < len(self._labels):
                 lut[g.segid + 1] = self._labels[g.objid]
-        if n < 255:  # every id fits the red channel, so green and blue are zero: index with red alone
-            return lut[np.minimum(np.arange(256), n)][image[..., 0]]
-        segimage = image[..., 0].astype(np.int32) | (image[..., 1].astype(np.int32) << 8) | (
-            image[..., 2].astype(np.int32) << 16)
-        return lut[np.clip(segimage, 0, n)]
+        if n < 255:  # ids in the red channel: a lookup over all 256 values
+            return lut[np.minimum(np.arange(256), n)][self._segids(image)]
+        return lut[np.clip(self._segids(image), 0, n)]
 
     def close(self) -> None:
+        self._contents.reset()
         if self._context is not None:
             self._context.free()
             self._context = None
