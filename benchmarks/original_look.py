@@ -11,10 +11,12 @@ renderer at its defaults (or the overrides given). Against the file and its fram
 
 It prints one line per scene, a summary, and a JSON last line with the figures beside the goals of issue 35
 (object IoU >= 0.85 each and median >= 0.9; table >= 0.9; robot >= 0.8; mean SSIM >= 0.85; median CIEDE2000
-<= 6). ``--sheet`` writes a contact sheet, the original frame beside ours, one scene a row.
+<= 6). ``--sheet`` writes a contact sheet, the original frame beside ours, one scene a row; ``--save`` keeps
+our frames and segmentations for a closer look.
 
     python benchmarks/original_look.py [--reference DIR] [--scenes 0,1,2] [--scale S] [--samples N]
-                                       [--set KEY=VALUE ...] [--sheet PATH] [--object-set NAME]
+                                       [--set KEY=VALUE ...] [--sheet PATH] [--save DIR]
+                                       [--object-set NAME]
 
 ``--scale`` renders a fraction of the 848x480 frame (the file's masks and the original frame are resized to
 match) and ``--samples`` overrides the renderer's samples, for a quick run; the JSON says what was run.
@@ -163,6 +165,8 @@ def _parser() -> argparse.ArgumentParser:
                         help="renderer option, repeatable (as muble render --set)")
     parser.add_argument("--object-set", default="shopvrb2")
     parser.add_argument("--sheet", default="", help="write a contact sheet (original | ours) PNG or JPEG here")
+    parser.add_argument("--save", type=Path, default=None,
+                        help="write each scene's frame here as rendered (ours_N.png, segmentation ours_N_seg.npy)")
     return parser
 
 
@@ -198,6 +202,12 @@ def main(argv: list[str] | None = None) -> int:
         result = {"scene": scene.image_index, **compare(scene, original, rgb, segmentation),
                   "render_seconds": round(seconds, 1)}
         results.append(result)
+        if args.save is not None:
+            from PIL import Image
+
+            args.save.mkdir(parents=True, exist_ok=True)
+            Image.fromarray(rgb).save(args.save / f"ours_{scene.image_index}.png")
+            np.save(args.save / f"ours_{scene.image_index}_seg.npy", segmentation)
         ious = [o["iou"] for o in result["objects"]]
         deltas = [o["ciede2000"] for o in result["objects"] if o["ciede2000"] is not None]
         print(f"scene {scene.image_index}: objects IoU {' '.join(f'{v:.2f}' for v in ious)}  "

@@ -54,7 +54,7 @@ class BlenderRendererConfig:
     object_colours: str = "linear"
     table_material: str = "wood"
     # The original's light oak under its varnish and lamps: the mean colour of its desk in the reference frames.
-    table_rgb: list[float] | None = field(default_factory=lambda: [0.725, 0.58, 0.44])  # None: MuJoCo's colour
+    table_rgb: list[float] | None = field(default_factory=lambda: [0.715, 0.56, 0.365])  # None: MuJoCo's colour
     # What the camera sees where nothing is hit: the original's studio backdrop, a light grey brightening towards
     # the horizon (``studio``), or the sky colour (``sky``). Either way the sky lights the scene.
     backdrop: str = "studio"

@@ -58,9 +58,72 @@ def _bump(nodes: Any, links: Any, bsdf: Any, height: Any, strength: float, dista
     links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
 
 
+def _surface(nodes: Any, links: Any, bsdf: Any, shader: Any) -> None:
+    """Make ``shader`` the material's surface in place of its Principled BSDF."""
+    output = next(n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    links.new(shader, output.inputs["Surface"])
+    nodes.remove(bsdf)
+
+
+def _bsdf(nodes: Any, kind: str, colour: Any, roughness: float | None = None, **options: Any) -> Any:
+    """A Diffuse (``diffuse``), Glossy (``glossy``) or Sheen (``sheen``) BSDF; ``colour`` a linear RGB or a
+    colour socket to link. Options: ``distribution``, ``anisotropy``."""
+    node = nodes.new({"diffuse": "ShaderNodeBsdfDiffuse", "glossy": "ShaderNodeBsdfAnisotropic",
+                      "sheen": "ShaderNodeBsdfSheen"}[kind])
+    if "distribution" in options:
+        node.distribution = options["distribution"]
+    if "anisotropy" in options:
+        node.inputs["Anisotropy"].default_value = options["anisotropy"]
+    if roughness is not None:
+        node.inputs["Roughness"].default_value = roughness
+    if isinstance(colour, (tuple, list, np.ndarray)):
+        node.inputs["Color"].default_value = (*colour, 1)
+    else:
+        node.id_data.links.new(colour, node.inputs["Color"])
+    return node.outputs[0]
+
+
+def _mixed(nodes: Any, links: Any, factor: Any, first: Any, second: Any) -> Any:
+    """``first`` where ``factor`` is 0, ``second`` where it is 1: a number or a socket to link."""
+    mix = nodes.new("ShaderNodeMixShader")
+    if isinstance(factor, (int, float)):
+        mix.inputs["Fac"].default_value = factor
+    else:
+        links.new(factor, mix.inputs["Fac"])
+    links.new(first, mix.inputs[1])
+    links.new(second, mix.inputs[2])
+    return mix.outputs["Shader"]
+
+
+def _facing(nodes: Any, blend: float) -> Any:
+    weight = nodes.new("ShaderNodeLayerWeight")
+    weight.inputs["Blend"].default_value = blend
+    return weight.outputs["Fresnel"]
+
+
+# The material classes below are the original release's own (its Blender material and model files, MIT: the
+# shaders they mix, their colours, roughnesses and weights), so that the objects look as in its frames.
+
+
 def _plastic(mat, bsdf, rgb, nodes, links):
-    # A satin sheen: softer and weaker than a ceramic's glaze, so the two stay apart in the lighter object colours.
-    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.4, Specular_IOR_Level=0.35, IOR=1.46)
+    # A diffuse body under two clear glossy layers that take over towards grazing angles (layer-weight Fresnel
+    # of blend 0.3 and 0.5): the colour stays saturated where the surface faces the camera and greys at its rims.
+    # The body and the first layer are gently wavy (a faint bump of slow noise, 3 per metre).
+    diffuse = _bsdf(nodes, "diffuse", rgb)
+    glaze = _bsdf(nodes, "glossy", (0.745,) * 3, 0.1, distribution="GGX")
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    noise.inputs["Detail"].default_value = 1.0
+    links.new(_object_coords(nodes, links), noise.inputs["Vector"])
+    bump = nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = 0.05
+    bump.inputs["Distance"].default_value = 4.04
+    links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    for shader in (diffuse, glaze):
+        links.new(bump.outputs["Normal"], shader.node.inputs["Normal"])
+    body = _mixed(nodes, links, _facing(nodes, 0.3), diffuse, glaze)
+    _surface(nodes, links, bsdf, _mixed(nodes, links, _facing(nodes, 0.5), body,
+                                        _bsdf(nodes, "glossy", (0.631,) * 3, 0.1, distribution="BECKMANN")))
 
 
 def _painted(mat, bsdf, rgb, nodes, links):
@@ -68,32 +131,37 @@ def _painted(mat, bsdf, rgb, nodes, links):
 
 
 def _rubber(mat, bsdf, rgb, nodes, links):
-    # Matte, dark-ish, with a fine pebbled surface that breaks up the highlights.
-    _set(bsdf, Base_Color=(*(0.7 * np.asarray(rgb)), 1), Roughness=0.9, Specular_IOR_Level=0.15,
-         Sheen_Weight=0.3, Sheen_Roughness=0.6)
-    noise = nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 400.0
-    links.new(_object_coords(nodes, links), noise.inputs["Vector"])
-    _bump(nodes, links, bsdf, noise.outputs["Fac"], 0.25, 0.002)
+    # Matte: the colour darkened in large patches (times 0.5 + 0.5 d^2, d the distance to the nearest cell point
+    # of a Voronoi pattern of 0.35 cells per metre), a diffuse body with a velvet sheen towards the rims, and a
+    # broad glossy layer by the Fresnel of IOR 1.519.
+    cells = nodes.new("ShaderNodeTexVoronoi")
+    cells.inputs["Scale"].default_value = 0.35
+    links.new(_object_coords(nodes, links), cells.inputs["Vector"])
+    squared = nodes.new("ShaderNodeMath")
+    squared.operation = "MULTIPLY"
+    links.new(cells.outputs["Distance"], squared.inputs[0])
+    links.new(cells.outputs["Distance"], squared.inputs[1])
+    patch = nodes.new("ShaderNodeMix")
+    patch.data_type = "RGBA"
+    patch.blend_type = "MULTIPLY"
+    patch.inputs["Factor"].default_value = 0.5
+    patch.inputs["A"].default_value = (*rgb, 1)
+    links.new(squared.outputs["Value"], patch.inputs["B"])
+    colour = patch.outputs["Result"]
+    fresnel = nodes.new("ShaderNodeFresnel")
+    fresnel.inputs["IOR"].default_value = 1.519
+    body = _mixed(nodes, links, fresnel.outputs["Fac"], _bsdf(nodes, "diffuse", colour),
+                  _bsdf(nodes, "sheen", colour, 0.6))
+    _surface(nodes, links, bsdf, _mixed(nodes, links, fresnel.outputs["Fac"], body,
+                                        _bsdf(nodes, "glossy", colour, 0.592, distribution="BECKMANN")))
 
 
 def _metal(mat, bsdf, rgb, nodes, links):
-    # Coloured metal, as the original's: the paint colour itself is the reflectance (a red thermos stays red
-    # rather than turning pink under a whitened tint), glossy (roughness 0.1-0.2, as its two mixed glossy
-    # layers), with a light brushing: roughness streaks stretched along the object's z axis.
-    _set(bsdf, Base_Color=(*rgb, 1), Metallic=1.0, Anisotropic=0.6)
-    coords = _object_coords(nodes, links)
-    stretch = nodes.new("ShaderNodeMapping")
-    stretch.inputs["Scale"].default_value = (300.0, 300.0, 4.0)
-    links.new(coords, stretch.inputs["Vector"])
-    noise = nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 1.0
-    links.new(stretch.outputs["Vector"], noise.inputs["Vector"])
-    ramp = nodes.new("ShaderNodeMapRange")
-    ramp.inputs["To Min"].default_value = 0.1
-    ramp.inputs["To Max"].default_value = 0.2
-    links.new(noise.outputs["Fac"], ramp.inputs["Value"])
-    links.new(ramp.outputs["Result"], bsdf.inputs["Roughness"])
+    # Coloured metal: the paint colour itself is the reflectance (a red thermos stays red rather than turning
+    # pink under a whitened tint); 40 % a broad (roughness 0.447) and 60 % a sharp (0.1) glossy lobe, both
+    # slightly anisotropic.
+    _surface(nodes, links, bsdf, _mixed(nodes, links, 0.6, _bsdf(nodes, "glossy", rgb, 0.447, anisotropy=0.25),
+                                        _bsdf(nodes, "glossy", rgb, 0.1, anisotropy=0.25)))
 
 
 def _glass(mat, bsdf, rgb, nodes, links):
@@ -114,9 +182,9 @@ def _glass(mat, bsdf, rgb, nodes, links):
 
 
 def _ceramic(mat, bsdf, rgb, nodes, links):
-    # Glazed: a diffuse body under a sharp, strongly reflecting clear coat, with a touch of subsurface light.
-    _set(bsdf, Base_Color=(*rgb, 1), Roughness=0.4, Coat_Weight=1.0, Coat_Roughness=0.03, Coat_IOR=1.7,
-         Subsurface_Weight=0.1, Subsurface_Scale=0.01)
+    # Glazed: 88 % diffuse body, 12 % a light grey glossy lobe of roughness 0.5.
+    _surface(nodes, links, bsdf, _mixed(nodes, links, 0.12, _bsdf(nodes, "diffuse", rgb),
+                                        _bsdf(nodes, "glossy", (0.8,) * 3, 0.5, distribution="GGX")))
 
 
 def _wood(mat, bsdf, rgb, nodes, links, rings: float | None = None):
