@@ -282,10 +282,12 @@ class MujocoRenderer(Renderer):
 
         kinds = (int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_BOX))
         n = self._scene.ngeom
-        reflectors = [g.segid + 1 for g in (self._scene.geoms[i] for i in range(n))
-                      if g.reflectance > 0 and g.type in kinds and g.segid >= 0]
+        reflectors = [g.segid for g in (self._scene.geoms[i] for i in range(n)) if g.reflectance > 0 and g.type in kinds]
         if not reflectors:
             return False  # nothing reflects: MuJoCo's reflection pass draws nothing
+        if min(reflectors) < 0:
+            return True  # not in the id pass: it cannot be known unseen
+        reflectors = [segid + 1 for segid in reflectors]
         seen = np.bincount(self._segids(image).ravel(), minlength=n + 1)
         return bool(seen[reflectors].any())
 
