@@ -235,6 +235,13 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
     return model, names
 
 
+# N m the Robotiq 85's finger drive may exert: about 20 N on each pad (measured across a 77 mm glass), the real
+# gripper's lowest grip force and the Panda gripper's (20 N a finger). robosuite's servo has no limit and squeezes
+# with up to ~300 N a pad; the jaw law holds force = stiffness x depth (a glass is 17-90 kN/m), so the fingertips
+# sank into a glass's 3-6 mm wall and left it wedged on them: tipped over, or held up, as the fingers opened.
+ROBOTIQ_TORQUE = 1.0
+
+
 def _couple_linkage_fingers(world, names: WorldNames) -> None:
     """Make robosuite's Robotiq 85 a parallel gripper. As shipped, its four-bar fingers are held together by a
     weak tendon only; each inner finger rubs on its inner knuckle, is driven against the tendon's range, and the
@@ -250,14 +257,27 @@ def _couple_linkage_fingers(world, names: WorldNames) -> None:
         for joint, coef in ((f"{side}_inner_knuckle_joint", 1.0), (f"{side}_inner_finger_joint", -1.0)):
             ET.SubElement(world.equality, "joint", joint1=prefix + joint, joint2=prefix + driven,
                           polycoef=f"0 {coef} 0 0 0", solref="0.01 1")
-    # The finger links weigh 15-30 g: rotor inertia keeps the closed chain stable at 2 ms, and damping slows the
-    # jaws from a slam (~1 m/s, which throws a mug off the table) to a few tenths of a m/s, closing in ~0.4 s.
+    # The finger links weigh 15-30 g: rotor inertia keeps the closed chain stable at 2 ms. The drive is limited to
+    # ROBOTIQ_TORQUE and damped so that the jaws close in ~0.3 s at up to ~0.16 m/s each, about the real gripper's
+    # top speed (150 mm/s); undamped they slam (~1 m/s, which throws a mug off the table).
     joints = {prefix + j for j in ("finger_joint", "right_outer_knuckle_joint", "left_inner_knuckle_joint",
                                    "right_inner_knuckle_joint", "left_inner_finger_joint", "right_inner_finger_joint")}
     for joint in world.root.iter("joint"):
         if joint.get("name") in joints:
             joint.set("armature", "0.001")
-            joint.set("damping", "1.0")
+            joint.set("damping", "0.3")
+    for actuator in world.actuator.iter("position"):
+        if actuator.get("joint") in (prefix + "finger_joint", prefix + "right_outer_knuckle_joint"):
+            actuator.set("forcelimited", "true")
+            actuator.set("forcerange", f"{-ROBOTIQ_TORQUE:.9g} {ROBOTIQ_TORQUE:.9g}")
+    # The pad covers the fingertip's whole inner face, as the real gripper's does. As shipped it is 2 mm narrower and
+    # shorter than the fingertip box it sits on, and stands only 0.3 mm proud of it: on a concave face (inside a
+    # glass's rim) the fingertip's edges touch first, the pad never does, and the grasp never engages.
+    geoms = {g.get("name"): g for g in world.worldbody.iter("geom")}
+    for side in ("left", "right"):
+        pad, tip = geoms[f"{prefix}{side}_fingerpad_collision"], geoms[f"{prefix}{side}_fingertip_collision"]
+        pad_size, tip_size = (np.fromstring(g.get("size"), sep=" ") for g in (pad, tip))
+        pad.set("size", _fmt([tip_size[0], pad_size[1], tip_size[2]]))  # its thickness (y) kept
 
 
 def _sensor_body(world, sensor: str) -> str:
