@@ -50,12 +50,14 @@ def _object_coords(nodes: Any, links: Any) -> Any:
     return coords.outputs["Object"]
 
 
-def _bump(nodes: Any, links: Any, bsdf: Any, height: Any, strength: float, distance: float) -> None:
+def _bump(nodes: Any, links: Any, shaders: Any, height: Any, strength: float, distance: float) -> None:
+    """Bump ``height`` onto the normal of a shader node (or of each of a list of them)."""
     bump = nodes.new("ShaderNodeBump")
     bump.inputs["Strength"].default_value = strength
     bump.inputs["Distance"].default_value = distance
     links.new(height, bump.inputs["Height"])
-    links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    for shader in shaders if isinstance(shaders, list) else [shaders]:
+        links.new(bump.outputs["Normal"], shader.inputs["Normal"])
 
 
 def _surface(nodes: Any, links: Any, bsdf: Any, shader: Any) -> None:
@@ -115,12 +117,7 @@ def _plastic(mat, bsdf, rgb, nodes, links):
     noise.inputs["Scale"].default_value = 3.0
     noise.inputs["Detail"].default_value = 1.0
     links.new(_object_coords(nodes, links), noise.inputs["Vector"])
-    bump = nodes.new("ShaderNodeBump")
-    bump.inputs["Strength"].default_value = 0.05
-    bump.inputs["Distance"].default_value = 4.04
-    links.new(noise.outputs["Fac"], bump.inputs["Height"])
-    for shader in (diffuse, glaze):
-        links.new(bump.outputs["Normal"], shader.node.inputs["Normal"])
+    _bump(nodes, links, [diffuse.node, glaze.node], noise.outputs["Fac"], 0.05, 4.04)
     body = _mixed(nodes, links, _facing(nodes, 0.3), diffuse, glaze)
     _surface(nodes, links, bsdf, _mixed(nodes, links, _facing(nodes, 0.5), body,
                                         _bsdf(nodes, "glossy", (0.631,) * 3, 0.1, distribution="BECKMANN")))
