@@ -92,8 +92,6 @@ def material_rig(rgb: tuple[float, float, float] = (0.8, 0.25, 0.15), fovy: floa
                  ) -> tuple[SceneGraph, "mujoco.MjModel", "mujoco.MjData"]:
     """One sphere and one box per material class, same colour, in a row on a grey table, seen by camera
     ``materials``: the material classes side by side under the same light."""
-    import mujoco
-
     bodies, objects = [], []
     for i, material in enumerate(MATERIALS):
         x = (i - (len(MATERIALS) - 1) / 2) * 0.16
@@ -117,10 +115,39 @@ def material_rig(rgb: tuple[float, float, float] = (0.8, 0.25, 0.15), fovy: floa
         <camera name="materials" pos="0 -0.55 0.32" xyaxes="1 0 0 0 0.5 0.866" fovy="{fovy}"/>
       </worldbody>
     </mujoco>"""
+    return SceneGraph(objects=objects, split="materials"), *_compiled(xml)
+
+
+def glass_slab_rig() -> tuple[SceneGraph, "mujoco.MjModel", "mujoco.MjData"]:
+    """A glass slab resting on a grey table (its base in the table's top face), seen from above at an angle by
+    camera ``above``."""
+    xml = """
+    <mujoco>
+      <worldbody>
+        <body name="table">
+          <geom type="box" size="0.3 0.3 0.01" pos="0 0 -0.01" rgba="0.6 0.6 0.6 1" group="1"/>
+        </body>
+        <body name="obj0" pos="0 0 0.008">
+          <geom type="box" size="0.05 0.05 0.008" rgba="0.9 0.9 0.9 1" group="1"/>
+        </body>
+        <camera name="above" pos="0 -0.25 0.35" xyaxes="1 0 0 0 0.8 0.6" fovy="40"/>
+      </worldbody>
+    </mujoco>"""
+    slab = SceneObject(id=0, model="slab", name="slab", shape="cuboid", size="medium-sized", material="glass",
+                       colour="transparent", position=np.array([0.0, 0.0, 0.008]),
+                       orientation=np.array([1.0, 0, 0, 0]), weight_gt=100.0, stackable=False, stack_base=False,
+                       pickupable=True)
+    return SceneGraph(objects=[slab], split="glass"), *_compiled(xml)
+
+
+def _compiled(xml: str) -> tuple["mujoco.MjModel", "mujoco.MjData"]:
+    """The model of an MJCF string and its data at the initial state, forward kinematics done."""
+    import mujoco
+
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    return SceneGraph(objects=objects, split="materials"), model, data
+    return model, data
 
 
 def mujoco_reference(model: "mujoco.MjModel", data: "mujoco.MjData", camera: str, width: int, height: int,

@@ -7,7 +7,7 @@ import pytest
 from muble import ConfigError
 from muble_plugins.renderers.blender import BlenderRenderer
 from muble_plugins.renderers.blender.appearance import appearance, appearance_distance, luma
-from muble.testing.render_world import MATERIALS, build_world, material_rig, random_scene
+from muble.testing.render_world import MATERIALS, build_world, glass_slab_rig, material_rig, random_scene
 
 pytestmark = pytest.mark.blender
 
@@ -84,30 +84,9 @@ def test_a_glass_standing_on_the_table_shows_the_table_through_its_base():
     # A glass slab resting on the table has its base in the table's top face. Rays leaving the base there used to
     # be lost between the coplanar faces, so the glass stood in a dark pool; the table seen through it should be
     # about as bright as beside it (a clear glass passes most light).
-    import mujoco
-
-    from muble.core.scene import SceneGraph, SceneObject
     from muble.core.types import SEG_TABLE
 
-    xml = """
-    <mujoco>
-      <worldbody>
-        <body name="table">
-          <geom type="box" size="0.3 0.3 0.01" pos="0 0 -0.01" rgba="0.6 0.6 0.6 1" group="1"/>
-        </body>
-        <body name="obj0" pos="0 0 0.008">
-          <geom type="box" size="0.05 0.05 0.008" rgba="0.9 0.9 0.9 1" group="1"/>
-        </body>
-        <camera name="above" pos="0 -0.25 0.35" xyaxes="1 0 0 0 0.8 0.6" fovy="40"/>
-      </worldbody>
-    </mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    scene = SceneGraph(objects=[SceneObject(
-        id=0, model="slab", name="slab", shape="cuboid", size="medium-sized", material="glass", colour="transparent",
-        position=np.array([0.0, 0.0, 0.008]), orientation=np.array([1.0, 0, 0, 0]), weight_gt=100.0,
-        stackable=False, stack_base=False, pickupable=True)], split="glass")
+    scene, model, data = glass_slab_rig()
     renderer = BlenderRenderer(width=160, height=120, samples=8)
     try:
         renderer.setup(scene, model)
