@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import logging
 import time
 from dataclasses import asdict, dataclass, field
@@ -356,12 +357,31 @@ def _hold_out(keys: list[str], fraction: float, seed: int) -> set[str]:
     return {unique[i] for i in order[:count]}
 
 
+SCHEDULES = ("cosine", "constant")
+
+
+def learning_rate_schedule(torch: Any, optimiser: Any, kind: str, crops: int, batch_size: int, epochs: int):
+    """The recogniser's learning-rate schedule, stepped once per batch: ``cosine`` (a linear warm-up over the first
+    tenth of the steps, at most 200, then cosine decay to zero at the last step) or ``constant``."""
+    if kind not in SCHEDULES:
+        raise ConfigError(f"trainer.schedule must be one of {', '.join(SCHEDULES)}, got '{kind}'")
+    if kind == "constant":
+        return torch.optim.lr_scheduler.LambdaLR(optimiser, lambda step: 1.0)
+    # Batches of fewer than two crops are skipped (batch norm), so this may count one step more than are taken.
+    total = max(1, math.ceil(crops / batch_size) * epochs)
+    warmup = min(200, max(1, total // 10))
+    return torch.optim.lr_scheduler.LambdaLR(optimiser, lambda step: min(
+        (step + 1) / warmup, 0.5 * (1 + math.cos(math.pi * min(1.0, step / total)))))
+
+
 class RecogniserTrainer(Trainer):
     """``muble train trainer=recogniser train.data_root=DIR``: ResNet-18 on object crops of a generated dataset."""
 
     def __init__(self, **settings: Any) -> None:
         settings = {k: v for k, v in settings.items() if k != "name"}
         self.config = RecogniserTrainerConfig(**settings)
+        if self.config.schedule not in SCHEDULES:
+            raise ConfigError(f"trainer.schedule must be one of {', '.join(SCHEDULES)}, got '{self.config.schedule}'")
 
     def settings(self) -> dict[str, Any]:
         settings = asdict(self.config)
@@ -397,6 +417,7 @@ class RecogniserTrainer(Trainer):
 
         net = build_network({a: len(v) for a, v in vocabularies.items()})
         optimiser = torch.optim.Adam(net.parameters(), lr=cfg.learning_rate)
+        schedule = learning_rate_schedule(torch, optimiser, cfg.schedule, len(train), cfg.batch_size, cfg.epochs)
         path = run.out_dir / f"{KIND}.pt"
         ident = ck.identity(run, self.settings())
         # What the data root held: a resumed run over a dataset that has grown since would train on other crops.
@@ -404,7 +425,7 @@ class RecogniserTrainer(Trainer):
         start_epoch, history = 0, []
         previous = ck.resume_from(path, KIND, run, ident)
         if previous is not None:
-            start_epoch = ck.restore(previous, net, optimiser)
+            start_epoch = ck.restore(previous, net, optimiser, schedule)
             history = list(previous["extra"].get("history", []))
             log.info("recogniser: resuming after epoch %d of %d", start_epoch, cfg.epochs)
 
@@ -437,6 +458,7 @@ class RecogniserTrainer(Trainer):
                 optimiser.zero_grad()
                 loss.backward()
                 optimiser.step()
+                schedule.step()
                 total += float(loss.detach())
                 batches += 1
             train_seconds += time.perf_counter() - epoch_began
@@ -453,7 +475,8 @@ class RecogniserTrainer(Trainer):
                               "validation_scenes": val.scenes_read, "train_crops": len(train),
                               "validation_crops": len(val), "renderers": sorted(set(crops.renderer))}}
             ck.save(path, KIND, run, ident, epoch + 1,
-                    {"model": net.state_dict(), "optimiser": optimiser.state_dict(), "rng": ck.rng_states()}, extra)
+                    {"model": net.state_dict(), "optimiser": optimiser.state_dict(),
+                     "schedule": schedule.state_dict(), "rng": ck.rng_states()}, extra)
         last = history[-1] if history else {}
         figures: dict[str, Any] = {
             "data_seconds": data_seconds, "train_seconds": train_seconds, "scenes": len(keys),

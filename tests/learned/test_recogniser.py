@@ -12,6 +12,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from muble.core.errors import ConfigError  # noqa: E402
 from muble.core.training import TrainingRun  # noqa: E402
 from muble_plugins.learned import checkpoint as ckpt  # noqa: E402
 from muble_plugins.learned.recogniser import (  # noqa: E402
@@ -103,6 +104,53 @@ def test_same_seed_same_weights(dataset, tmp_path):
     _train(dataset, tmp_path / "b")
     a, b = (ckpt.load(tmp_path / k / "recogniser.pt", "recogniser")["state"]["model"] for k in "ab")
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_a_stopped_run_resumes_to_the_weights_of_an_unstopped_one(dataset, tmp_path, monkeypatch):
+    """Two epochs at once, and one epoch, stop, one more: the same weights (the learning-rate schedule, the
+    optimiser and the random streams all resume where they stopped)."""
+    _train(dataset, tmp_path / "whole", epochs=2)
+    real_save = ckpt.save
+
+    def save_then_stop(*args, **kwargs):
+        real_save(*args, **kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ckpt, "save", save_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        _train(dataset, tmp_path / "stopped", epochs=2)
+    monkeypatch.setattr(ckpt, "save", real_save)
+    stopped = ckpt.load(tmp_path / "stopped" / "recogniser.pt", "recogniser")
+    assert stopped["epoch"] == 1 and stopped["state"]["schedule"]["last_epoch"] > 0
+    _train(dataset, tmp_path / "stopped", epochs=2)
+    whole, resumed = (ckpt.load(tmp_path / k / "recogniser.pt", "recogniser")["state"] for k in ("whole", "stopped"))
+    assert all(torch.equal(whole["model"][k], resumed["model"][k]) for k in whole["model"])
+
+
+def test_cosine_schedule_warms_up_then_decays_to_zero_and_constant_keeps_the_rate():
+    from muble_plugins.learned.recogniser import learning_rate_schedule
+
+    rates = {}
+    for kind in ("cosine", "constant"):
+        optimiser = torch.optim.SGD([torch.nn.Parameter(torch.zeros(1))], lr=0.1)
+        schedule = learning_rate_schedule(torch, optimiser, kind, crops=100, batch_size=10, epochs=5)  # 50 steps
+        seen = []
+        for _ in range(50):
+            seen.append(optimiser.param_groups[0]["lr"])
+            optimiser.step()
+            schedule.step()
+        rates[kind] = seen + [optimiser.param_groups[0]["lr"]]
+    cosine = rates["cosine"]
+    assert cosine[0] < cosine[4] <= 0.1 + 1e-12  # warm-up over the first tenth
+    assert max(cosine) == pytest.approx(0.1, rel=0.02)
+    assert all(a >= b for a, b in zip(cosine[5:], cosine[6:]))  # then only down
+    assert cosine[-1] == pytest.approx(0.0, abs=1e-12)
+    assert rates["constant"] == [0.1] * 51
+
+
+def test_unknown_schedule_is_refused_before_any_data_is_read(tmp_path):
+    with pytest.raises(ConfigError, match="trainer.schedule must be one of cosine, constant"):
+        RecogniserTrainer(schedule="step")
 
 
 def test_bad_data_root_is_one_clear_error(tmp_path, capsys):
