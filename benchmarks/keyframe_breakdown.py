@@ -8,6 +8,10 @@ the RGB image change (a variant that changes pixels changes what ``muble generat
 the RGB pass without the floor's reflection where its segmentation pass shows no floor; "reflection drawn unseen"
 times it as it was drawn before (``reflection_when_hidden``), and "RGB, no floor reflection" without it always.
 
+Before the variants, each GL step of a keyframe is timed on its own, ended by ``glFinish`` (``passes``): the
+segmentation/depth pass, the RGB pass, its resolve and read-back, and the RGB pass on an 8x8 viewport (its
+per-vertex work, triangle set-up and shadow maps without the lit pixels), with and without shadows.
+
     python benchmarks/keyframe_breakdown.py [FRAMES]
 """
 from __future__ import annotations
@@ -76,6 +80,61 @@ def timed(env, frames: int, passes: str = "rgb", options: dict | None = None, fl
             renderer.close()
 
 
+def passes(env, frames: int) -> dict[str, float]:
+    """Seconds of each GL step of a keyframe, each ended by ``glFinish`` (llvmpipe rasterises in its own threads;
+    without it a step's time shows up in the next): the segmentation/depth pass with its read-back, the RGB pass,
+    its resolve and read-back, the RGB pass on an 8x8 viewport (what is left: per-vertex work, triangle set-up
+    and the shadow maps, which keep their size), and the RGB pass with shadows, on both viewports."""
+    import mujoco
+    from OpenGL import GL
+
+    from muble import get_registry
+
+    renderer = get_registry().create("renderer", "mujoco", {"reuse_meshes": False})
+    try:
+        renderer.setup(env.sync_scene_graph(), env.model)
+        renderer.render(env.data, "front")
+        w, h = renderer.config.width, renderer.config.height
+        rect, tiny = mujoco.MjrRect(0, 0, w, h), mujoco.MjrRect(0, 0, 8, 8)
+        scene, context = renderer._scene, renderer._context
+        renderer._update_scene(env.data, renderer._camera("front"))
+        scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0  # as drawn: robosuite's floor is hidden
+        rgb = np.empty((h, w, 3), dtype=np.uint8)
+        shadow = mujoco.mjtRndFlag.mjRND_SHADOW
+
+        def no_shadows(draw):
+            def step():
+                scene.flags[shadow] = 0
+                try:
+                    draw()
+                finally:
+                    scene.flags[shadow] = 1
+            return step
+
+        steps = {
+            "segmentation/depth pass and read-back": lambda: renderer._id_pass(rect),
+            "RGB pass (shadow maps, lit passes, 4x MSAA)": lambda: mujoco.mjr_render(rect, scene, context),
+            "RGB resolve and read-back": lambda: mujoco.mjr_readPixels(rgb, None, rect, context),
+            "RGB pass on an 8x8 viewport": lambda: mujoco.mjr_render(tiny, scene, context),
+            "RGB pass without shadows": no_shadows(lambda: mujoco.mjr_render(rect, scene, context)),
+            "RGB pass without shadows, 8x8 viewport": no_shadows(lambda: mujoco.mjr_render(tiny, scene, context)),
+        }
+        seconds = dict.fromkeys(steps, 0.0)
+        for k in range(frames + 1):  # the first round warms up
+            for name, step in (steps.items() if k % 2 else reversed(steps.items())):
+                if name == "RGB resolve and read-back":
+                    mujoco.mjr_render(rect, scene, context)
+                GL.glFinish()
+                start = time.perf_counter()
+                step()
+                GL.glFinish()
+                if k:
+                    seconds[name] += (time.perf_counter() - start) / frames
+        return {name: round(value, 4) for name, value in seconds.items()}
+    finally:
+        renderer.close()
+
+
 def main() -> int:
     frames = int(sys.argv[1]) if len(sys.argv) > 1 else 5
     env = scene_env()
@@ -89,11 +148,13 @@ def main() -> int:
         "RGB, no multisampling": dict(offsamples=0),
         "RGB, shadow maps 2048": dict(options={"shadow_size": 2048}),
         "RGB, shadow maps 1024": dict(options={"shadow_size": 1024}),
+        "RGB, shadow maps 512": dict(options={"shadow_size": 512}),
         "RGB, none of shadows, reflection, multisampling": dict(options={"shadows": False},
                                                                  flags_off=("mjRND_REFLECTION",), offsamples=0),
     }
     results, reference, written_rgb = {}, None, None
     try:
+        steps = passes(env, frames)
         for name, kwargs in variants.items():
             seconds, rgb = timed(env, frames, **kwargs)
             if name == "RGB pass":
@@ -113,8 +174,11 @@ def main() -> int:
     for name, row in results.items():
         changed = "" if row["changed_pixels"] is None else f"{row['changed_pixels']:.2%}"
         print(f"{name:50s} {row['seconds']:8.3f} {row['seconds'] / written:6.2f} {changed:>19s}")
+    print(f"\n{'GL step (glFinish after each)':50s} {'s/frame':>8s}")
+    for name, value in steps.items():
+        print(f"{name:50s} {value:8.3f}")
     print(json.dumps({"benchmark": "keyframe_breakdown", "metric": "seconds per MuJoCo render, by variant",
-                      "unit": "s", "frames": frames, "resolution": [848, 480], "variants": results,
+                      "unit": "s", "frames": frames, "resolution": [848, 480], "variants": results, "gl_steps": steps,
                       "cores": os.cpu_count(), "load_average_1min": round(os.getloadavg()[0], 2)}))
     return 0
 

@@ -13,7 +13,9 @@ machine hits both alike. Both paths must write the same bytes: the run fails oth
 
 Renderer overrides after the counts (``renderer.shadows=false``, ``renderer.shadow_size=2048``) add a third
 path, the same work with a renderer built with them, timed in the same run; its cost is printed as a ratio to
-the default's, with the share of RGB pixels it changes in the last keyframe of each episode (what it gives up).
+the default's, with what it gives up over every keyframe: the share of RGB pixels it changes (mean and largest),
+their mean absolute difference, the lowest SSIM against the default's keyframe, and whether depth and segmentation
+are the same.
 ``before`` in their place is the keyframe as written before 1024² shadow maps and PNG level 1 were the defaults
 (``renderer.shadow_size=null``, PNG level 6). ``previous`` is the renderer as it drew before the id pass went first
 (``PreviousRenderer``: the RGB pass with the floor's reflection whether seen or not, then the segmentation/depth
@@ -103,8 +105,8 @@ def previous_renderer_class():
 
 
 def episode(renderer, env, scene, keyframes: int, png_level: int | None = None, close: bool = True,
-            gif: bool = False) -> tuple[float, float, str, np.ndarray]:
-    """Wall and CPU seconds of one episode's keyframes, a digest of everything written and the last RGB; the
+            gif: bool = False) -> tuple[float, float, str, list]:
+    """Wall and CPU seconds of one episode's keyframes, a digest of everything written and the frames drawn; the
     renderer is closed at the end unless kept (``close=False``, as ``muble generate``'s workers keep theirs)."""
     import mujoco
 
@@ -118,7 +120,7 @@ def episode(renderer, env, scene, keyframes: int, png_level: int | None = None, 
     start, cpu = time.perf_counter(), time.process_time()
     renderer.setup(env.sync_scene_graph(), env.model)
     camera = env.names.cameras.get("front", "front")
-    frames = []
+    frames, drawn = [], []
     for k in range(keyframes):
         env.data.qpos[:7] = arm + 0.05 * k * np.sin(np.arange(7) + k)  # the arm moves between keyframes
         mujoco.mj_forward(env.model, env.data)
@@ -134,12 +136,13 @@ def episode(renderer, env, scene, keyframes: int, png_level: int | None = None, 
             apply_masks(masked, frame.segmentation)
             digest.update(json.dumps([o.mask.to_dict() for o in masked.objects]).encode())
         frames.append(frame.rgb)
+        drawn.append(frame)
     if gif:
         digest.update(gif_bytes(frames))
     if close:
         renderer.close()
     env.data.qpos[:7] = arm
-    return time.perf_counter() - start, time.process_time() - cpu, digest.hexdigest(), frames[-1]
+    return time.perf_counter() - start, time.process_time() - cpu, digest.hexdigest(), drawn
 
 
 def main() -> int:
@@ -148,6 +151,7 @@ def main() -> int:
     import muble_plugins.renderers.mujoco.gl as gl
     from muble.app.config import compose
     from muble.app.run import build_components, scene_generator
+    from muble.core.image_likeness import ssim
     from muble.sim.build import object_models
     from muble.sim.env import TabletopEnv
 
@@ -187,6 +191,7 @@ def main() -> int:
     kept = gl.MAX_SPARE
     totals = {"fresh": [0.0, 0.0], "kept": [0.0, 0.0], "variant": [0.0, 0.0]}
     mismatches, changed, variant_mismatches = 0, [], 0
+    likeness, masks_same = [], True  # per variant keyframe: (mean absolute difference, SSIM); depth and labels
     warm_env = TabletopEnv(scenes[0], object_models(scenes[0], components["object_set"], cfg.objects.name), robot, {})
     episode(renderer, warm_env, scenes[0], 1, close=False)  # imports and the first context, paid once by any process
     if variant is not None:
@@ -194,7 +199,7 @@ def main() -> int:
     warm_env.close()
     for i, scene in enumerate(scenes):
         env = TabletopEnv(scene, object_models(scene, components["object_set"], cfg.objects.name), robot, {})
-        digests, last = {}, {}
+        digests, frames = {}, {}
         modes = ("fresh", "kept", "variant") if variant is not None else ("fresh", "kept")
         for mode in (modes if i % 2 == 0 else modes[::-1]):
             gl.MAX_SPARE = 0 if mode == "fresh" else kept
@@ -203,7 +208,7 @@ def main() -> int:
                 drawing = fresh_renderer()
             else:
                 drawing = variant if mode == "variant" else renderer
-            wall, cpu, digests[mode], last[mode] = episode(drawing, env, scene, keyframes,
+            wall, cpu, digests[mode], frames[mode] = episode(drawing, env, scene, keyframes,
                                                            BEFORE_PNG_LEVEL if before and mode == "variant" else None,
                                                            close=mode == "fresh", gif=gif)
             totals[mode][0] += wall
@@ -211,8 +216,12 @@ def main() -> int:
         mismatches += digests["fresh"] != digests["kept"]
         if variant is not None:
             variant_mismatches += digests["variant"] != digests["kept"]
-            diff = np.abs(last["variant"].astype(np.int16) - last["kept"].astype(np.int16)).max(axis=2)
-            changed.append(float((diff > 0).mean()))
+            for ours, theirs in zip(frames["variant"], frames["kept"], strict=True):
+                diff = np.abs(ours.rgb.astype(np.int16) - theirs.rgb.astype(np.int16))
+                changed.append(float((diff.max(axis=2) > 0).mean()))
+                likeness.append((float(diff.mean()), ssim(ours.rgb, theirs.rgb)))
+                masks_same &= bool(np.array_equal(ours.segmentation, theirs.segmentation)
+                                   and np.array_equal(ours.depth, theirs.depth))
         env.close()
     gl.MAX_SPARE = kept
     renderer.close()
@@ -225,7 +234,11 @@ def main() -> int:
         variant_summary = {"overrides": overrides, "wall_s": per["variant"]["wall_s"],
                            "cpu_s": per["variant"]["cpu_s"],
                            "ratio_to_default": round(totals["variant"][0] / totals["kept"][0], 3),
-                           "rgb_pixels_changed": round(float(np.mean(changed)), 4),
+                           "rgb_pixels_changed": round(float(np.mean(changed)), 5),
+                           "rgb_pixels_changed_max": round(float(np.max(changed)), 5),
+                           "rgb_mean_abs_diff": round(float(np.mean([d for d, _ in likeness])), 4),
+                           "ssim_min": round(float(np.min([s for _, s in likeness])), 5),
+                           "depth_and_segmentation_identical": masks_same,
                            "identical_outputs": variant_mismatches == 0}
     ratio = totals["kept"][0] / totals["fresh"][0]
     for mode, label in (("fresh", "renderer and GL context per episode"), ("kept", "renderer kept (now)")):
@@ -233,7 +246,10 @@ def main() -> int:
     print(f"ratio now/before (wall): {ratio:.3f}; outputs identical: {mismatches == 0}")
     if variant_summary is not None:
         print(f"{' '.join(overrides):40s}: {variant_summary['wall_s']:.3f} s/keyframe wall, ratio to the default "
-              f"{variant_summary['ratio_to_default']:.3f}, RGB pixels changed {variant_summary['rgb_pixels_changed']:.2%}, "
+              f"{variant_summary['ratio_to_default']:.3f} (CPU {totals['variant'][1] / totals['kept'][1]:.3f}), RGB pixels "
+              f"changed {variant_summary['rgb_pixels_changed']:.3%} (at most {variant_summary['rgb_pixels_changed_max']:.3%}"
+              f" of a keyframe), mean abs. difference {variant_summary['rgb_mean_abs_diff']:.4f}, SSIM >= "
+              f"{variant_summary['ssim_min']:.5f}, depth and segmentation identical: {masks_same}, "
               f"outputs identical: {variant_mismatches == 0}")
         if previous:
             print(f"now/previous (wall): {totals['kept'][0] / totals['variant'][0]:.3f}")
