@@ -1,11 +1,12 @@
 """The scene generator's reach check: seconds per layout on the recorded candidate layouts of
 ``tests/generation/data/reach_decisions.json.gz`` (300 generated scenes, the rejected layouts included), against
-the check of an earlier revision (default: 59a4fc7, before it was made faster) timed on the same layouts in the
-same run, with both decisions compared to the recorded ones.
+the check of an earlier revision (default: ``BASELINE_REV``, the check before its last savings) on the same layouts
+in the same run, with both decisions compared to the recorded ones.
 
-    python benchmarks/reach_check.py [--layouts 40] [--baseline-rev 59a4fc7]
+    python benchmarks/reach_check.py [--layouts 40] [--baseline-rev REV]
 
-The baseline runs in a subprocess from ``git archive`` of that revision (this repository's own history).
+The baseline runs in a worker process from ``git archive`` of that revision (this repository's own history). The
+two checks take turns layout by layout, so that both are timed under the same load on a shared machine.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 ROOT = Path(__file__).resolve().parents[1]
 FIXTURE = ROOT / "tests" / "generation" / "data" / "reach_decisions.json.gz"
+BASELINE_REV = "9297636"  # the check before the IK loop, collision checks and planner were trimmed for it
 
 
 def spread(records: list[dict], count: int) -> list[dict]:
@@ -33,42 +35,72 @@ def spread(records: list[dict], count: int) -> list[dict]:
     return [records[int(k * step)] for k in range(count)]
 
 
-def time_check(count: int) -> dict:
-    """Time the importable ``ReachCheck`` on ``count`` fixture layouts (one more first, untimed: caches)."""
-    from muble import get_registry
-    from muble.core.scene_io import scene_from_dict
-    from muble.generation.reachability import ReachCheck
-    from muble.sim.build import object_models
+class Layouts:
+    """The importable ``ReachCheck`` over ``count`` fixture layouts, deciding one at a time (one more first,
+    untimed: caches)."""
 
-    with gzip.open(FIXTURE, "rt") as f:
-        records = spread(json.load(f)["layouts"], count)
-    objects = get_registry().create("object_set", "shopvrb2")
-    check = ReachCheck(None, "approach")
-    inputs = []
-    for record in records:
-        scene = scene_from_dict(record["scene"])
-        inputs.append((scene, object_models(scene, objects)))
-    check(*inputs[-1])
-    seconds, cpu, decisions = [], [], []
-    for scene, models in inputs:
+    def __init__(self, count: int):
+        from muble import get_registry
+        from muble.core.scene_io import scene_from_dict
+        from muble.generation.reachability import ReachCheck
+        from muble.sim.build import object_models
+
+        with gzip.open(FIXTURE, "rt") as f:
+            self.records = spread(json.load(f)["layouts"], count)
+        objects = get_registry().create("object_set", "shopvrb2")
+        self.check = ReachCheck(None, "approach")
+        self.inputs = []
+        for record in self.records:
+            scene = scene_from_dict(record["scene"])
+            self.inputs.append((scene, object_models(scene, objects)))
+        self.check(*self.inputs[-1])
+
+    def decide(self, k: int) -> dict:
+        """Layout ``k`` decided: seconds, CPU seconds, and whether the decision is the recorded one."""
         t, c = time.perf_counter(), time.process_time()
-        decisions.append(check(scene, models))
-        seconds.append(time.perf_counter() - t)
-        cpu.append(time.process_time() - c)
-    same = sum(d == r["decision"] for d, r in zip(decisions, records))
-    return {"s_per_layout": sum(seconds) / len(seconds), "cpu_s_per_layout": sum(cpu) / len(cpu),
-            "median_s": sorted(seconds)[len(seconds) // 2], "max_s": max(seconds), "layouts": len(records),
-            "decided_as_recorded": same}
+        decision = self.check(*self.inputs[k])
+        return {"s": time.perf_counter() - t, "cpu_s": time.process_time() - c,
+                "as_recorded": decision == self.records[k]["decision"]}
 
 
-def baseline(rev: str, count: int) -> dict:
-    with tempfile.TemporaryDirectory() as tree:
+def summary(runs: list[dict]) -> dict:
+    seconds, cpu = sorted(r["s"] for r in runs), sorted(r["cpu_s"] for r in runs)
+    return {"s_per_layout": sum(seconds) / len(runs), "cpu_s_per_layout": sum(cpu) / len(runs),
+            "median_s": seconds[len(runs) // 2], "median_cpu_s": cpu[len(runs) // 2], "max_s": seconds[-1],
+            "layouts": len(runs), "decided_as_recorded": sum(r["as_recorded"] for r in runs)}
+
+
+class Baseline:
+    """The check of revision ``rev`` in a worker process over the same layouts, deciding one when asked: timed
+    interleaved with this tree's check, so both see the same machine load (the machine is shared)."""
+
+    def __init__(self, rev: str, count: int):
+        self.tree = tempfile.TemporaryDirectory()
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev], check=True, capture_output=True).stdout
-        subprocess.run(["tar", "-x", "-C", tree], input=archive, check=True)
-        env = {**os.environ, "PYTHONPATH": tree}
-        out = subprocess.run([sys.executable, __file__, "--worker", "--layouts", str(count)], cwd=tree, env=env,
-                             check=True, capture_output=True, text=True, timeout=3600).stdout
-    return json.loads(out.strip().splitlines()[-1])
+        subprocess.run(["tar", "-x", "-C", self.tree.name], input=archive, check=True)
+        env = {**os.environ, "PYTHONPATH": self.tree.name}
+        self.worker = subprocess.Popen([sys.executable, __file__, "--worker", "--layouts", str(count)],
+                                       cwd=self.tree.name, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                       text=True)
+        self._reply()  # ready
+
+    def _reply(self) -> dict:
+        while True:
+            line = self.worker.stdout.readline()
+            if not line:
+                raise RuntimeError(f"the baseline worker ended (exit status {self.worker.wait(timeout=60)})")
+            if line.startswith("{"):
+                return json.loads(line)
+
+    def decide(self, k: int) -> dict:
+        self.worker.stdin.write(f"{k}\n")
+        self.worker.stdin.flush()
+        return self._reply()
+
+    def close(self) -> None:
+        self.worker.stdin.close()
+        self.worker.wait(timeout=60)
+        self.tree.cleanup()
 
 
 def _entry_points_of_this_tree() -> None:
@@ -85,24 +117,46 @@ def _entry_points_of_this_tree() -> None:
     manager._entry_points = lambda: [ep for ep in listed() if present(ep)]
 
 
+def worker(count: int) -> None:
+    """Decide the layouts whose indices arrive on stdin, one JSON line each on stdout."""
+    _entry_points_of_this_tree()
+    layouts = Layouts(count)
+    print(json.dumps({"ready": len(layouts.records)}), flush=True)
+    for line in sys.stdin:
+        print(json.dumps(layouts.decide(int(line))), flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--layouts", type=int, default=40, help="fixture layouts timed (all: 312)")
-    parser.add_argument("--baseline-rev", default="59a4fc7", help="revision whose check is the baseline")
+    parser.add_argument("--baseline-rev", default=BASELINE_REV, help="revision whose check is the baseline")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        _entry_points_of_this_tree()
-        print(json.dumps(time_check(args.layouts)))
+        worker(args.layouts)
         return
-    now = time_check(args.layouts)
-    before = baseline(args.baseline_rev, args.layouts)
+    before = Baseline(args.baseline_rev, args.layouts)
+    layouts = Layouts(args.layouts)
+    now_runs, before_runs = [], []
+    try:
+        for k in range(len(layouts.records)):  # each layout by both checks, which one first alternating
+            if k % 2:
+                before_runs.append(before.decide(k))
+                now_runs.append(layouts.decide(k))
+            else:
+                now_runs.append(layouts.decide(k))
+                before_runs.append(before.decide(k))
+    finally:
+        before.close()
+    now, base = summary(now_runs), summary(before_runs)
     print(json.dumps({
         "benchmark": "reach_check", "metric": "reach check, seconds per candidate layout", "unit": "s",
         "value": round(now["s_per_layout"], 3), "goal": 0.3,
-        "baseline_s": round(before["s_per_layout"], 3), "speedup": round(before["s_per_layout"] / now["s_per_layout"], 2),
-        "cpu_s": round(now["cpu_s_per_layout"], 3), "baseline_cpu_s": round(before["cpu_s_per_layout"], 3),
-        "now": now, "baseline": {**before, "rev": args.baseline_rev},
+        "baseline_s": round(base["s_per_layout"], 3), "speedup": round(base["s_per_layout"] / now["s_per_layout"], 2),
+        "median_s": round(now["median_s"], 3), "baseline_median_s": round(base["median_s"], 3),
+        "cpu_s": round(now["cpu_s_per_layout"], 3), "baseline_cpu_s": round(base["cpu_s_per_layout"], 3),
+        "median_cpu_s": round(now["median_cpu_s"], 3), "baseline_median_cpu_s": round(base["median_cpu_s"], 3),
+        "load_average": os.getloadavg()[0], "now": now, "baseline": {**base, "rev": args.baseline_rev},
     }))
 
 

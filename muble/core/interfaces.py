@@ -127,6 +127,11 @@ class MotionPlanner(ABC):
     @abstractmethod
     def plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory: ...
 
+    def check(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> None:
+        """Raise ``PlanningError`` exactly where ``plan`` would, for callers that ask only whether the move exists
+        (feasibility checks); a planner may skip what only shapes the trajectory. Default: ``plan``."""
+        self.plan(start_q, goal, world)
+
 
 class PrimitiveAction(ABC):
     """A named, parameterised action (``approach(target=3)``, ``move_vel(velocity, duration)``).

@@ -24,8 +24,14 @@ logger = logging.getLogger(__name__)
 
 _ROBOT_CLASS = 1  # contype bit of robot (and held object) geoms; conaffinity of everything is 1
 _WORLD_CLASS = 2  # contype bit of world geoms: world & world never collide in the check model
+# Bits 2-30 of contype/conaffinity: one per robot collision geom, for the robot-robot pairs that count
+# (``_detect_counted_self_pairs_only``).
+_FIRST_SELF_BIT, _SELF_BITS = 2, 29
 LIMIT_TOLERANCE = 0.003  # rad past a joint limit still accepted as valid
 RESTING_SLACK = 0.001  # m a contact tolerated by ``resting_at`` may deepen (contact distances vary that much)
+_NO_HITS = (np.zeros((0, 2), dtype=int), np.zeros(0))  # the hit geom pairs and distances of a valid check
+for _a in _NO_HITS:
+    _a.flags.writeable = False
 
 
 def _subtree_bodies(model: mujoco.MjModel, root: int) -> set[int]:
@@ -103,10 +109,13 @@ class MujocoCollisionWorld(CollisionWorld):
         # Per geom pair, the least distance a contact may have (inf: none tolerated); see ``resting_at``.
         self._tolerated = np.full((m.ngeom, m.ngeom), np.inf)
         self._tolerating = False
+        self._ignore_tables: dict[tuple, np.ndarray] = {}  # ``_update_ignore``'s tables by held body and allowances
         self.sync(data)
         self._self_ignore = self._self_collision_filter()
+        self._detect_counted_self_pairs_only()
         self._update_ignore()
         self.last_contacts: list[tuple[str, str]] = []
+        self._limits: np.ndarray | None = None  # the joint limits ``is_valid`` last worked its accepted range out of
 
     # ----------------------------------------------------------------- state
     def sync(self, data: mujoco.MjData) -> None:
@@ -126,11 +135,14 @@ class MujocoCollisionWorld(CollisionWorld):
         m = self.model
         robot = np.flatnonzero(self._robot_geoms)
         ignore = np.zeros((m.ngeom, m.ngeom), dtype=bool)
+        distances: dict[tuple[int, int], int] = {}  # per body pair: robot geoms share a few bodies
         for i in robot:
             for j in robot:
-                bi, bj = m.geom_bodyid[i], m.geom_bodyid[j]
+                bi, bj = int(m.geom_bodyid[i]), int(m.geom_bodyid[j])
+                if (bi, bj) not in distances:
+                    distances[bi, bj] = _tree_distance(m, bi, bj)
                 # Links two joints apart can touch at their shells without real interference; fingers too.
-                near = _tree_distance(m, bi, bj) <= 2
+                near = distances[bi, bj] <= 2
                 both_gripper = self._gripper_geoms[i] and self._gripper_geoms[j]
                 if near or both_gripper:
                     ignore[i, j] = True
@@ -140,6 +152,28 @@ class MujocoCollisionWorld(CollisionWorld):
             if self._robot_geoms[g1] and self._robot_geoms[g2]:
                 ignore[g1, g2] = ignore[g2, g1] = True
         return ignore
+
+    def _detect_counted_self_pairs_only(self) -> None:
+        """Keep MuJoCo from even detecting the robot-robot contacts that never count (``_self_ignore``: the
+        fingers against each other, neighbouring links): two thirds of a check's collision detection, spent on
+        contacts thrown away. Each robot geom gets a bit of its own in its ``contype`` and its counted partners'
+        bits in its ``conaffinity``; the world and held-object classes keep theirs, so every other pair is
+        detected as before, in the same order, with the same distances. Left as it is for a robot with more
+        collision geoms than bits."""
+        m = self.model
+        robot = np.flatnonzero(self._robot_geoms)
+        if len(robot) > _SELF_BITS:
+            return
+        bits = {int(g): 1 << (_FIRST_SELF_BIT + k) for k, g in enumerate(robot)}
+        for i in robot:
+            partners = 0
+            for j in robot:
+                if i != j and not self._self_ignore[i, j]:
+                    partners |= bits[int(j)]
+            # World geoms (contype _WORLD_CLASS, conaffinity 1) and a held object (contype _ROBOT_CLASS,
+            # conaffinity 1) meet the robot's _ROBOT_CLASS bit as before; robot geoms meet only through the bits.
+            m.geom_contype[i] = _ROBOT_CLASS | bits[int(i)]
+            m.geom_conaffinity[i] = _WORLD_CLASS | partners
 
     # ----------------------------------------------------------------- grasp handling
     def allow_contact(self, bodies: Iterable[str | int], held_only: bool = False) -> None:
@@ -215,23 +249,34 @@ class MujocoCollisionWorld(CollisionWorld):
         self.last_contacts = []
         n = d.ncon
         if n == 0:
-            self._hit_geoms, self._hit_dist = np.zeros((0, 2), dtype=int), np.zeros(0)
+            self._hit_geoms, self._hit_dist = _NO_HITS
             return True
-        geoms = d.contact.geom[:n]
-        dist = d.contact.dist[:n]
-        hits = ~self._ignore[geoms[:, 0], geoms[:, 1]] & (dist <= self.clearance)
-        if self._tolerating:
-            hits &= dist < self._tolerated[geoms[:, 0], geoms[:, 1]] - RESTING_SLACK
-        self._hit_geoms, self._hit_dist = geoms[hits].copy(), dist[hits].copy()
-        if not hits.any():
+        # Python over the few contacts found: numpy's per-call cost is most of a check's time on arrays this small.
+        contact = d.contact
+        pairs, dists = contact.geom[:n].tolist(), contact.dist[:n].tolist()
+        ignore, clearance = self._ignore, self.clearance
+        tolerated = self._tolerated if self._tolerating else None
+        hits = [k for k in range(n) if dists[k] <= clearance and not ignore[pairs[k][0], pairs[k][1]]
+                and (tolerated is None or dists[k] < tolerated[pairs[k][0], pairs[k][1]] - RESTING_SLACK)]
+        if not hits:
+            self._hit_geoms, self._hit_dist = _NO_HITS
             return True
-        self.last_contacts = [
-            (m.body(m.geom_bodyid[g1]).name, m.body(m.geom_bodyid[g2]).name) for g1, g2 in geoms[hits]
-        ]
+        self._hit_geoms = np.array([pairs[k] for k in hits], dtype=int)
+        self._hit_dist = np.array([dists[k] for k in hits])
+        names = m.geom_bodyid
+        self.last_contacts = [(m.body(names[pairs[k][0]]).name, m.body(names[pairs[k][1]]).name) for k in hits]
         return False
 
     def _update_ignore(self) -> None:
-        """The geom-pair table of contacts that never count, rebuilt when the held object or allowances change."""
+        """The geom-pair table of contacts that never count, rebuilt when the held object or allowances change
+        (each table kept: a planning query returns to the same few, and the table is never written)."""
+        key = (self._held_body, frozenset(self._allowed_bodies), self._allowed_held_only)
+        ignore = self._ignore_tables.get(key)
+        if ignore is None:
+            ignore = self._ignore_tables[key] = self._ignore_table()
+        self._ignore = ignore
+
+    def _ignore_table(self) -> np.ndarray:
         m = self.model
         robot = self._robot_geoms | self._held_geoms
         ignore = self._self_ignore.copy()
@@ -243,7 +288,8 @@ class MujocoCollisionWorld(CollisionWorld):
         own = self._held_geoms if self._allowed_held_only else self._gripper_geoms | self._held_geoms
         allowed_pairs = np.outer(own, allowed)
         ignore |= allowed_pairs | allowed_pairs.T
-        self._ignore = ignore
+        ignore.flags.writeable = False
+        return ignore
 
     @contextlib.contextmanager
     def resting_at(self, q: np.ndarray) -> Iterator[bool]:
@@ -288,8 +334,10 @@ class MujocoCollisionWorld(CollisionWorld):
 
     def is_valid(self, q: np.ndarray) -> bool:
         lim = self.kinematics.limits
+        if lim is not self._limits:  # the limits' accepted range, worked out again only when they are replaced
+            self._limits, self._low, self._high = lim, lim[:, 0] - LIMIT_TOLERANCE, lim[:, 1] + LIMIT_TOLERANCE
         # A measured configuration may sit a hair past a limit (servo overshoot): that is no reason to refuse it.
-        if np.any(q < lim[:, 0] - LIMIT_TOLERANCE) or np.any(q > lim[:, 1] + LIMIT_TOLERANCE):
+        if (q < self._low).any() or (q > self._high).any():
             return False
         return self._collide(np.asarray(q, dtype=float))
 
@@ -305,12 +353,12 @@ class MujocoCollisionWorld(CollisionWorld):
         res = self.kinematics.solve(goal.pose.pos, goal.pose.quat, seed,
                                     position_tolerance=goal.position_tolerance * 0.5,
                                     orientation_tolerance=goal.orientation_tolerance * 0.5)
-        where = np.round(goal.pose.pos, 3).tolist()
         if not res.within(goal.position_tolerance, goal.orientation_tolerance):
-            raise PlanningError(f"pose at {where} not reached from the previous configuration "
-                                f"({res.position_error * 1000:.1f} mm off): joint limit or singularity")
+            raise PlanningError(f"pose at {np.round(goal.pose.pos, 3).tolist()} not reached from the previous "
+                                f"configuration ({res.position_error * 1000:.1f} mm off): joint limit or singularity")
         if not self.is_valid(res.q):
-            raise PlanningError(f"pose at {where} is in collision {self.last_contacts[:3]}")
+            raise PlanningError(f"pose at {np.round(goal.pose.pos, 3).tolist()} is in collision "
+                                f"{self.last_contacts[:3]}")
         return res.q
 
     def inverse_kinematics(self, goal: PoseGoal, seeds: np.ndarray | None = None) -> np.ndarray:

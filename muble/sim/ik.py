@@ -5,6 +5,7 @@ move; everything else in ``data`` (gripper fingers, objects) stays where it is.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 from dataclasses import dataclass
@@ -16,33 +17,46 @@ logger = logging.getLogger(__name__)
 
 LIMIT_MARGIN = 0.01  # rad kept between an IK solution and each joint limit
 
+
 def _checked_solve():
-    """np.linalg.solve's own kernel, without its argument checks (a third of the IK loop's time), where this numpy
-    has it and it gives np.linalg.solve's numbers and errors on a probe; np.linalg.solve itself otherwise (the
-    kernel is numpy's private layout, which a numpy release may change)."""
+    """(solve, errors): np.linalg.solve's own kernel without its argument checks (a third of the IK loop's time)
+    and the error state under which it raises np.linalg.solve's ``LinAlgError``, entered once around a loop of
+    solves (entering it costs as much as a solve), where this numpy has the kernel and it gives np.linalg.solve's
+    numbers and errors on a probe; np.linalg.solve itself otherwise (the kernel is numpy's private layout, which a
+    numpy release may change)."""
     try:
         from numpy.linalg import _umath_linalg
         from numpy.linalg._linalg import _raise_linalgerror_singular
 
+        def errors():
+            return np.errstate(call=_raise_linalgerror_singular, invalid="call", over="ignore", divide="ignore",
+                               under="ignore")
+
         def fast(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-            with np.errstate(call=_raise_linalgerror_singular, invalid="call", over="ignore", divide="ignore",
-                             under="ignore"):
-                return _umath_linalg.solve1(a, b, signature="dd->d")
+            return _umath_linalg.solve1(a, b, signature="dd->d")
 
         a = np.array([[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]])
         b = np.array([1.0, -2.0, 0.5])
-        if not np.array_equal(fast(a, b), np.linalg.solve(a, b)):
-            return np.linalg.solve
-        try:
-            fast(np.zeros((3, 3)), b)
-        except np.linalg.LinAlgError:
-            return fast
-        return np.linalg.solve
+        with errors():
+            if not np.array_equal(fast(a, b), np.linalg.solve(a, b)):
+                return np.linalg.solve, contextlib.nullcontext
+            try:
+                fast(np.zeros((3, 3)), b)
+            except np.linalg.LinAlgError:
+                return fast, errors
+        return np.linalg.solve, contextlib.nullcontext
     except Exception:  # another numpy layout or signature
-        return np.linalg.solve
+        return np.linalg.solve, contextlib.nullcontext
 
 
-_solve = _checked_solve()
+_solve, _solve_errors = _checked_solve()
+
+
+def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """``index`` as a slice when its entries are consecutive (the same elements), else itself."""
+    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        return slice(int(index[0]), int(index[0]) + len(index))
+    return index
 
 
 def quat_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
@@ -93,13 +107,20 @@ class ArmKinematics:
         self.limits = ranges
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
+        # Slices where the joints' addresses are consecutive (every supported arm): the same elements as the
+        # address arrays, read and written without numpy's fancy indexing.
+        self._qpos_index = _as_slice(self.qpos_adr)
+        self._dof_index = _as_slice(self.dof_adr)
+        self._quat, self._conj, self._diff = np.empty(4), np.empty(4), np.empty(4)
+        self._bounds: tuple = (None,)  # (limits, lowest, highest) a solution may take within them
+        self._damped: dict[tuple[float, int], np.ndarray] = {}  # damping * identity, by (damping, rows)
 
     @property
     def dof(self) -> int:
         return len(self.joint_names)
 
     def set_q(self, q: np.ndarray) -> None:
-        self.data.qpos[self.qpos_adr] = q
+        self.data.qpos[self._qpos_index] = q
         mujoco.mj_kinematics(self.model, self.data)
 
     def site_pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,46 +153,62 @@ class ArmKinematics:
         """
         # Solutions keep LIMIT_MARGIN inside the limits: the servos overshoot a set-point on a limit slightly, and a
         # start configuration past a limit is invalid for the next plan.
-        lo = self.limits[:, 0] + np.minimum(LIMIT_MARGIN, 0.25 * (self.limits[:, 1] - self.limits[:, 0]))
-        hi = self.limits[:, 1] - np.minimum(LIMIT_MARGIN, 0.25 * (self.limits[:, 1] - self.limits[:, 0]))
+        if self._bounds[0] is not self.limits:  # worked out again only when the limits are replaced
+            margin = np.minimum(LIMIT_MARGIN, 0.25 * (self.limits[:, 1] - self.limits[:, 0]))
+            self._bounds = (self.limits, self.limits[:, 0] + margin, self.limits[:, 1] - margin)
+        lo, hi = self._bounds[1:]
         q = np.clip(np.asarray(seed, dtype=float).copy(), lo, hi)
         rows = 3 if target_quat is None else 6
         err = np.zeros(rows)
         err_w, jac_w = np.empty(rows), np.empty((rows, len(self.dof_adr)))
-        damped = damping * np.eye(rows)
+        damped = self._damped.get((damping, rows))
+        if damped is None:
+            damped = self._damped[damping, rows] = damping * np.eye(rows)
+            damped.flags.writeable = False
         pos_err = rot_err = np.inf
         it = 0
         # The loop runs thousands of times per scene in planning: buffers are reused and numpy's per-call wrappers
-        # avoided where the same operation gives the same numbers (norms as sqrt(x·x), as np.linalg.norm computes).
-        for it in range(1, max_iterations + 1):
-            self.set_q(q)
-            pos, quat = self._site_pose()
-            err[:3] = target_pos - pos
-            part = err[:3]
-            pos_err = math.sqrt(part.dot(part))
-            if target_quat is not None:
-                err[3:] = quat_error(target_quat, quat)
-                part = err[3:]
-                rot_err = math.sqrt(part.dot(part))
-            else:
-                rot_err = 0.0
-            if pos_err <= position_tolerance and rot_err <= orientation_tolerance:
-                break
-            mujoco.mj_comPos(self.model, self.data)  # mj_jacSite needs the com-based frames
-            mujoco.mj_jacSite(self.model, self.data, self._jacp, self._jacr, self.site_id)
-            # Weight rotation so 1 rad of error counts like 0.2 m: keeps position dominant near the goal.
-            if rows == 6:
-                jac_w[:3] = self._jacp[:, self.dof_adr]
-                jac_w[3:] = self._jacr[:, self.dof_adr]
-                jac_w[3:] *= 0.2
-                err_w[:] = err
-                err_w[3:] *= 0.2
-            else:  # as indexed (its memory order decides the rounding of the products below)
-                jac_w, err_w = self._jacp[:, self.dof_adr], err
-            jjt = jac_w @ jac_w.T + damped
-            dq = jac_w.T @ _solve(jjt, err_w)
-            step = np.abs(dq).max()
-            if step > max_step:
-                dq *= max_step / step
-            q = np.minimum(np.maximum(q + dq, lo), hi)  # np.clip's result, without its per-call overhead
+        # avoided where the same operation gives the same numbers (norms as sqrt(x·x), as np.linalg.norm computes;
+        # quat_error's steps on preallocated quaternions; the linear solve's error state set once per solve).
+        m, d, site = self.model, self.data, self.site_id
+        qpos, qpos_index, dof_index = d.qpos, self._qpos_index, self._dof_index
+        site_pos, site_mat = d.site_xpos[site], d.site_xmat[site]
+        jacp, jacr = self._jacp, self._jacr
+        quat, conj, diff = self._quat, self._conj, self._diff
+        pos_part, rot_part = err[:3], err[3:]
+        with _solve_errors():
+            for it in range(1, max_iterations + 1):
+                qpos[qpos_index] = q
+                mujoco.mj_kinematics(m, d)
+                np.subtract(target_pos, site_pos, out=pos_part)
+                pos_err = math.sqrt(pos_part.dot(pos_part))
+                if target_quat is not None:
+                    mujoco.mju_mat2Quat(quat, site_mat)
+                    mujoco.mju_negQuat(conj, quat)
+                    mujoco.mju_mulQuat(diff, target_quat, conj)
+                    if diff[0] < 0.0:  # the shorter way round
+                        np.negative(diff, out=diff)
+                    mujoco.mju_quat2Vel(rot_part, diff, 1.0)
+                    rot_err = math.sqrt(rot_part.dot(rot_part))
+                else:
+                    rot_err = 0.0
+                if pos_err <= position_tolerance and rot_err <= orientation_tolerance:
+                    break
+                mujoco.mj_comPos(m, d)  # mj_jacSite needs the com-based frames
+                mujoco.mj_jacSite(m, d, jacp, jacr, site)
+                # Weight rotation so 1 rad of error counts like 0.2 m: keeps position dominant near the goal.
+                if rows == 6:
+                    jac_w[:3] = jacp[:, dof_index]
+                    jac_w[3:] = jacr[:, dof_index]
+                    jac_w[3:] *= 0.2
+                    err_w[:] = err
+                    err_w[3:] *= 0.2
+                else:  # as indexed (its memory order decides the rounding of the products below)
+                    jac_w, err_w = jacp[:, self.dof_adr], err
+                jjt = jac_w @ jac_w.T + damped
+                dq = jac_w.T @ _solve(jjt, err_w)
+                step = np.abs(dq).max()
+                if step > max_step:
+                    dq *= max_step / step
+                q = np.minimum(np.maximum(q + dq, lo), hi)  # np.clip's result, without its per-call overhead
         return IKResult(q, pos_err, rot_err, it)

@@ -7,6 +7,7 @@ robosuite builds its arena with the floor at z = 0; everything it places is shif
 """
 from __future__ import annotations
 
+import copy
 import logging
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -151,13 +152,66 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
     ``stage`` names the ``STAGES`` entry to stand on (``None``: the scene's own, ``scene_stage``)."""
     if robot not in ROBOTS:
         raise ConfigError(unknown_name("robot", robot, ROBOTS))
+    stage = scene_stage(scene, stage)
+    world, names = _staged_robot(robot, gripper, stage)
+
+    world.worldbody.append(_camera_element(FRONT_CAMERA, scene.camera_params))
+    names.cameras = {FRONT_CAMERA: FRONT_CAMERA, WRIST_CAMERA: names.robot_geom_prefixes[0] + "eye_in_hand"}
+    energy = scene.extra.get("lamp_energy") or {}  # per lamp, relative to its default brightness
+    for lamp, pos in (scene.lamp_params or {}).items():
+        if isinstance(pos, (list, tuple)) and len(pos) == 3:
+            diffuse = 0.4 * float(energy.get(lamp, 1.0))
+            ET.SubElement(world.worldbody, "light", name=f"lamp_{lamp}", pos=_fmt(pos), dir=_fmt(-np.asarray(pos)),
+                          directional="false", castshadow="true", diffuse=_fmt([diffuse] * 3))
+
+    missing = [o.id for o in scene.objects if o.id not in models]
+    if missing:
+        raise ConfigError(f"no object model for scene object(s) {missing}; build one per scene object")
+    for obj in scene.objects:
+        fragment = object_mjcf(models[obj.id], obj.id, obj.position, obj.orientation)
+        for mesh in ET.fromstring(f"<asset>{fragment.asset_xml}</asset>"):
+            world.asset.append(mesh)
+        world.worldbody.append(ET.fromstring(fragment.body_xml))
+        names.objects[obj.id] = fragment.body_name
+
+    # MuJoCo cancels gravity on the robot's links (its bodies must be marked before compiling: the compiler
+    # counts them); held objects are not compensated, their weight is what the wrist sensor measures.
+    for body in world.worldbody.iter("body"):
+        if body.get("name", "").startswith(names.robot_geom_prefixes[:2]):
+            body.set("gravcomp", "1")
+
+    _couple_linkage_fingers(world, names)
+    if not visual:
+        world.root.find("compiler").set("discardvisual", "true")
+    model = _compile(world, names, timestep)
+    if type(names.gripper_format).__name__ == "Robotiq85Gripper":
+        for side in ("left", "right"):  # pinned to the finger in the real linkage, never touching it
+            g = model.geom(f"{names.robot_geom_prefixes[1]}{side}_inner_knuckle_collision").id
+            model.geom_contype[g] = model.geom_conaffinity[g] = 0
+    return model, names
+
+
+# The robot, its gripper and the stage's table as robosuite builds them (most of building a world before it is
+# compiled, and the same for every scene), by (robot, gripper, stage): each world gets a deep copy, which is what
+# building them again gives (a gripper model keeps its action state, so even that is never shared).
+_staged_robots: dict[tuple[str, str | None, str], tuple] = {}
+
+
+def _staged_robot(robot: str, gripper: str | None, stage: Stage):
+    """(robosuite world with the table and the robot on its stage, its ``WorldNames``), a fresh copy."""
+    key = (robot, gripper, stage.name)
+    if key not in _staged_robots:
+        _staged_robots[key] = _build_staged_robot(robot, gripper, stage)
+    return copy.deepcopy(_staged_robots[key])
+
+
+def _build_staged_robot(robot: str, gripper: str | None, stage: Stage):
     from robosuite.models import MujocoWorldBase
     from robosuite.models.arenas import TableArena
     from robosuite.models.bases import robot_base_factory
     from robosuite.models.grippers import gripper_factory
     from robosuite.models.robots import create_robot
 
-    stage = scene_stage(scene, stage)
     robot_model = create_robot(robot, idn=0)
     robot_model.add_base(base=robot_base_factory(robot_model.default_base if stage.mount else "NullMount", idn=0))
     gripper_name = gripper or stage.gripper or robot_model.default_gripper["right"]
@@ -198,41 +252,7 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
         gripper_format=gripper_model,
         stage=stage.name,
     )
-
-    world.worldbody.append(_camera_element(FRONT_CAMERA, scene.camera_params))
-    names.cameras = {FRONT_CAMERA: FRONT_CAMERA, WRIST_CAMERA: robot_model.naming_prefix + "eye_in_hand"}
-    energy = scene.extra.get("lamp_energy") or {}  # per lamp, relative to its default brightness
-    for lamp, pos in (scene.lamp_params or {}).items():
-        if isinstance(pos, (list, tuple)) and len(pos) == 3:
-            diffuse = 0.4 * float(energy.get(lamp, 1.0))
-            ET.SubElement(world.worldbody, "light", name=f"lamp_{lamp}", pos=_fmt(pos), dir=_fmt(-np.asarray(pos)),
-                          directional="false", castshadow="true", diffuse=_fmt([diffuse] * 3))
-
-    missing = [o.id for o in scene.objects if o.id not in models]
-    if missing:
-        raise ConfigError(f"no object model for scene object(s) {missing}; build one per scene object")
-    for obj in scene.objects:
-        fragment = object_mjcf(models[obj.id], obj.id, obj.position, obj.orientation)
-        for mesh in ET.fromstring(f"<asset>{fragment.asset_xml}</asset>"):
-            world.asset.append(mesh)
-        world.worldbody.append(ET.fromstring(fragment.body_xml))
-        names.objects[obj.id] = fragment.body_name
-
-    # MuJoCo cancels gravity on the robot's links (its bodies must be marked before compiling: the compiler
-    # counts them); held objects are not compensated, their weight is what the wrist sensor measures.
-    for body in world.worldbody.iter("body"):
-        if body.get("name", "").startswith(names.robot_geom_prefixes[:2]):
-            body.set("gravcomp", "1")
-
-    _couple_linkage_fingers(world, names)
-    if not visual:
-        world.root.find("compiler").set("discardvisual", "true")
-    model = _compile(world, names, timestep)
-    if type(names.gripper_format).__name__ == "Robotiq85Gripper":
-        for side in ("left", "right"):  # pinned to the finger in the real linkage, never touching it
-            g = model.geom(f"{names.robot_geom_prefixes[1]}{side}_inner_knuckle_collision").id
-            model.geom_contype[g] = model.geom_conaffinity[g] = 0
-    return model, names
+    return world, names
 
 
 # N m the Robotiq 85's finger drive may exert: about 20 N on each pad (measured across a 77 mm glass), the real

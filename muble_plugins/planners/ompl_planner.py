@@ -64,6 +64,18 @@ class OmplPlanner(MotionPlanner):
         return world.inverse_kinematics(goal, seeds=np.asarray(start_q, dtype=float)[None])
 
     def plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory:
+        path = self._path(start_q, goal, world, self.config.simplify)
+        names = tuple(world.joint_names)
+        return time_parameterise(path, self.config.max_velocity, self.config.max_acceleration,
+                                 self.config.sample_period, names)
+
+    def check(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> None:
+        """``plan``'s outcome without its last steps: simplifying a path found and timing it never fail (OMPL's
+        random generators are seeded again before every query, so no later query changes either)."""
+        self._path(start_q, goal, world, simplify=False)
+
+    def _path(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld,
+              simplify: bool) -> np.ndarray:
         start_q = np.asarray(start_q, dtype=float)
         # A held object may start against what it rests on or leans on (not the arm): the path may leave it.
         with world.resting_at(start_q) as valid:
@@ -71,9 +83,10 @@ class OmplPlanner(MotionPlanner):
                 contacts = world.last_contacts
                 raise PlanningError(f"start configuration is in collision {contacts[:3]}; move the arm clear "
                                     "first (e.g. a straight-line retreat) or allow the contact")
-            return self._plan(start_q, goal, world)
+            return self._plan(start_q, goal, world, simplify)
 
-    def _plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory:
+    def _plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld,
+              simplify: bool) -> np.ndarray:
         began = time.perf_counter()
         goal_q = self.resolve_goal(start_q, goal, world)
         self.last_used_sampling = False
@@ -81,14 +94,13 @@ class OmplPlanner(MotionPlanner):
             path = np.array([start_q, goal_q])
         else:
             self.last_used_sampling = True
-            path = self._sample_path(start_q, goal_q, world)
+            path = self._sample_path(start_q, goal_q, world, simplify)
         self.last_planning_time = time.perf_counter() - began
         logger.debug("planned %d waypoints in %.1f ms", len(path), self.last_planning_time * 1e3)
-        names = tuple(world.joint_names)
-        return time_parameterise(path, self.config.max_velocity, self.config.max_acceleration,
-                                 self.config.sample_period, names)
+        return path
 
-    def _sample_path(self, start_q: np.ndarray, goal_q: np.ndarray, world: CollisionWorld) -> np.ndarray:
+    def _sample_path(self, start_q: np.ndarray, goal_q: np.ndarray, world: CollisionWorld,
+                     simplify: bool) -> np.ndarray:
         import ompl.base as ob
         import ompl.geometric as og
         import ompl.util as ou
@@ -136,7 +148,7 @@ class OmplPlanner(MotionPlanner):
                 "obstacles: clear the way or raise planner.check_budget"
             )
         path = setup.getSolutionPath()
-        if self.config.simplify:
+        if simplify:
             # Vertex reduction then rope shortcutting: most of the gain of OMPL's full simplify() for a
             # fraction of the collision checks (each check is a Python call).
             simplifier = og.PathSimplifier(info)

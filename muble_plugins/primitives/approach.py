@@ -67,7 +67,7 @@ class Approach(PrimitiveAction):
                 for grasp in candidates[:FEASIBLE_CANDIDATES]:
                     tried += 1
                     try:
-                        _, down = plan_grasp(env, world, body, grasp, grip, FEASIBLE_IK_RESTARTS)
+                        _, down = plan_grasp(env, world, body, grasp, grip, FEASIBLE_IK_RESTARTS, move=False)
                         _rise_holding(env, world, body, down.q[-1])
                         return
                     except PlanningError as e:
@@ -232,15 +232,19 @@ PAD_OVERLAP = 0.004  # m the pads' middle stays inside the object when a grasp i
 PRE_GRASP_HIGH = 0.18  # m above a top-down grasp for the second pre-grasp tried: the arm clear of tall neighbours
 
 
-def plan_grasp(env, world, body: str, grasp: Pose, grip, ik_restarts: int | None = None):
+def plan_grasp(env, world, body: str, grasp: Pose, grip, ik_restarts: int | None = None, move: bool = True):
     """The move to the pre-grasp pose (backed off along the approach) and the straight line in
-    (``ik_restarts``: at most this many random restarts for the grasp and pre-grasp poses)."""
+    (``ik_restarts``: at most this many random restarts for the grasp and pre-grasp poses). ``move=False``: the
+    move is only checked (``MotionPlanner.check``, the same outcome) and ``None`` stands in its place."""
     with _fewer_ik_restarts(world, ik_restarts):
         goal, q_grasp = _backed_off_grasp(env, world, body, grasp, grip)
         q_pre, down = _pre_grasp(env, world, body, grasp, goal, q_grasp)
         world.allow_contact([])
-        to_pre = ctx.long_move_planner(env).plan(env.arm_q(), JointGoal(q_pre), world)
-        return to_pre, down
+        planner = ctx.long_move_planner(env)
+        if not move:
+            planner.check(env.arm_q(), JointGoal(q_pre), world)
+            return None, down
+        return planner.plan(env.arm_q(), JointGoal(q_pre), world), down
 
 
 @contextlib.contextmanager
