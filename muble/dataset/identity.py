@@ -39,7 +39,7 @@ def dataset_identity(config: dict[str, Any]) -> dict[str, Any]:
 ABSENT = object()  # what ``setting_differences`` gives for a key that one side lacks
 # Settings added after folders were made, with the value that does what those folders' runs did: a folder that
 # lacks the key matches a run with that value (``robot.stage`` null: each scene's own stage, robosuite's for
-# every generated scene before stages could be chosen).
+# every generated scene before stages could be chosen; ``generator.stage`` null: robosuite's, see ``_renamed``).
 ADDED_LATER = {"robot.stage": None, "generator.stage": None}
 
 
@@ -52,7 +52,8 @@ def setting_differences(stored: Any, current: Any, where: str = "") -> list[tupl
             sub = f"{where}.{key}" if where else str(key)
             if key not in stored or key not in current:
                 present = stored[key] if key in stored else current[key]
-                if sub in ADDED_LATER and present == ADDED_LATER[sub]:
+                added = ADDED_LATER.get(sub, ABSENT)
+                if added is not ABSENT and _renamed(sub, present) == _renamed(sub, added):
                     continue
                 out.append((sub, stored.get(key, ABSENT), current.get(key, ABSENT)))
             else:
@@ -63,11 +64,17 @@ def setting_differences(stored: Any, current: Any, where: str = "") -> list[tupl
 
 def _renamed(key: str, value: Any) -> Any:
     """A setting's value under its current name: a folder made before a value was renamed (the step controller's
-    old name ``OSC_POSE``) still matches a run that uses the new name."""
+    old name ``OSC_POSE``, the generator's null stage) still matches a run that uses the new name."""
     if key == "robot.controller" and isinstance(value, str):
         from muble.sim.env import CONTROLLER_ALIASES
 
         return CONTROLLER_ALIASES.get(value, value)
+    if key == "generator.stage" and value is None:
+        # A generator without a stage made robosuite's scenes (files naming none), as generator.stage=robosuite
+        # (the default, and the protocol's) does: a folder made before still resumes.
+        from muble.sim.world import UNNAMED_STAGE
+
+        return UNNAMED_STAGE
     return value
 
 

@@ -40,9 +40,10 @@ class GeneratorConfig:
     count_probabilities: list[float] = field(default_factory=lambda: [0.473, 0.527])
     reach_x: list[float] = field(default_factory=lambda: [0.28, 0.72])
     reach_y: list[float] = field(default_factory=lambda: [-0.36, 0.12])
-    # The stage the scenes stand on (muble.sim.world.STAGES), written into each scene file as its "stage" key;
-    # None writes no key: the default stage, robosuite's, on which protocol shopvrb2_v1 was generated.
-    # table_x and table_y left at their defaults follow the stage's table.
+    # The stage the scenes stand on (muble.sim.world.STAGES); robot.stage, when set, takes its place. Each scene
+    # file names it as its "stage" key, except robosuite's, which a file without the key stands on (None: that
+    # one too), so protocol shopvrb2_v1's files keep their bytes (the protocol pins robosuite's). table_x and
+    # table_y left at their defaults follow the stage's table.
     stage: str | None = None
     table_x: list[float] = field(default_factory=lambda: list(TABLE_X))
     table_y: list[float] = field(default_factory=lambda: list(TABLE_Y))

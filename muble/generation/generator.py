@@ -26,6 +26,7 @@ from muble.generation.placement import Placement, TableLayout, shared_collision_
 from muble.generation.staging import (CAMERA_STREAM, LAMP_STREAM, LAMPS, jitter_stream, jittered_camera,
                                       jittered_lamps)
 from muble.generation.view import shared_view
+from muble.sim.world import STAGE_KEY, UNNAMED_STAGE
 
 log = logging.getLogger(__name__)
 
@@ -70,11 +71,16 @@ class SceneGenerator:
                  reach_check: Callable[[SceneGraph, dict[int, ObjectModel]], str | None] | None = None):
         self.config = cfg = _config(config)
         self.seed = int(seed)
-        if cfg.stage:
+        # The robot's stage, when the run names one, is the stage everything is built on, the reach check's
+        # robot included, so the scenes stand on it too.
+        stage = (cfg.robot or {}).get("stage") or cfg.stage
+        if stage:
             from muble.core.table import TABLE_X, TABLE_Y
             from muble.sim.world import stage_named
 
-            x, y = stage_named(cfg.stage, "generator.stage, which follows robot.stage").top_ranges()
+            where = "robot.stage" if (cfg.robot or {}).get("stage") else "generator.stage"
+            x, y = stage_named(stage, where).top_ranges()
+            self.config = cfg = dataclasses.replace(cfg, stage=stage)
             if list(cfg.table_x) == list(TABLE_X) and list(cfg.table_y) == list(TABLE_Y):
                 self.config = cfg = dataclasses.replace(cfg, table_x=list(x), table_y=list(y))
         self._check_config(cfg)
@@ -318,7 +324,9 @@ class SceneGenerator:
             # Lamp energy factors (``lamp_jitter``) sit beside lamp_params, which maps lamp names to positions.
             extra={**({"lamp_energy": dict(staging.lamp_energy)} if staging.lamp_energy is not None else {}),
                    "generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set},
-                   **({"stage": cfg.stage} if cfg.stage else {})},
+                   # A file without the key stands on UNNAMED_STAGE (robosuite's): scenes made on it keep the
+                   # bytes they had before stages could be chosen (protocol shopvrb2_v1's data hashes).
+                   **({STAGE_KEY: cfg.stage} if cfg.stage and cfg.stage != UNNAMED_STAGE else {})},
         )
         if masks is not None:
             scene.table = {"mask": table_mask}

@@ -70,8 +70,11 @@ STAGES = {
                       gripper="Robotiq85Gripper",
                       start_qpos={"Panda": (0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi)}),
 }
-DEFAULT_STAGE = "robosuite"
-STAGE_KEY = "stage"  # the scene file's key naming its stage (absent: DEFAULT_STAGE)
+# The stage of a scene file that names none: robosuite's, on which every scene was generated before stages could be
+# chosen, protocol shopvrb2_v1's included. The generator writes the key for any other stage only, so a file made on
+# robosuite's keeps its old bytes whatever stage the generator defaults to (muble_conf/generator/shopvrb2.yaml).
+UNNAMED_STAGE = "robosuite"
+STAGE_KEY = "stage"  # the scene file's key naming its stage (absent: UNNAMED_STAGE)
 
 
 def stage_named(name: str, where: str = "robot.stage") -> Stage:
@@ -84,10 +87,10 @@ def stage_named(name: str, where: str = "robot.stage") -> Stage:
 def scene_stage(scene: SceneGraph, override: str | None = None) -> Stage:
     """The stage ``scene`` is built on: ``override`` (``robot.stage``) when given, else its file's ``stage`` key,
     else ``original`` for a scene of the original release's files (which name none; they were made on it), else
-    the default stage."""
+    ``UNNAMED_STAGE``."""
     if override:
         return stage_named(override)
-    name = scene.extra.get(STAGE_KEY) or ("original" if scene.from_original_release else DEFAULT_STAGE)
+    name = scene.extra.get(STAGE_KEY) or ("original" if scene.from_original_release else UNNAMED_STAGE)
     return stage_named(name, f"scene {scene.image_index}'s '{STAGE_KEY}' key; or give robot.stage= to build it on "
                              "another")
 
@@ -118,7 +121,7 @@ class WorldNames:
     cameras: dict[str, str] = field(default_factory=dict)  # role -> MuJoCo camera name
     init_qpos: np.ndarray | None = None
     gripper_format: object = None  # the robosuite gripper model (its ``format_action`` maps -1..1)
-    stage: str = DEFAULT_STAGE  # the ``STAGES`` entry the world stands on
+    stage: str = UNNAMED_STAGE  # the ``STAGES`` entry the world stands on
 
 
 def _fmt(values) -> str:

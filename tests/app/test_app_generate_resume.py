@@ -71,6 +71,17 @@ def test_a_dataset_made_before_stages_resumes_on_the_stage_it_stands_on(tmp_path
     check_or_store_identity(tmp_path, now)  # null: each scene's own stage, as before stages could be chosen
     with pytest.raises(ConfigError, match='robot.stage: not stored, requested "original"'):
         check_or_store_identity(tmp_path, {**now, "robot": {"name": "Panda", "stage": "original"}})
+    # Its scenes stand on robosuite's stage, which generator.stage=robosuite names now (the protocol's setting);
+    # the generator's default, the original's, would mix another stage into it.
+    check_or_store_identity(tmp_path, {**now, "generator": {"min_objects": 4, "stage": "robosuite"}})
+    with pytest.raises(ConfigError, match='generator.stage: not stored, requested "original"'):
+        check_or_store_identity(tmp_path, {**now, "generator": {"min_objects": 4, "stage": "original"}})
+    stored_null = tmp_path / "stored_null"
+    stored_null.mkdir()
+    check_or_store_identity(stored_null, now)
+    check_or_store_identity(stored_null, {**now, "generator": {"min_objects": 4, "stage": "robosuite"}})
+    with pytest.raises(ConfigError, match='generator.stage: stored null, requested "original"'):
+        check_or_store_identity(stored_null, {**now, "generator": {"min_objects": 4, "stage": "original"}})
 
 
 def test_a_live_owner_is_refused_and_a_stale_lock_taken_over(tmp_path):
