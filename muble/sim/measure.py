@@ -43,17 +43,46 @@ def weigh(env, settle: float = WEIGH_SETTLE, window: float = WEIGH_WINDOW) -> fl
     return grams
 
 
-SQUEEZE_FORCES = (5.0, 10.0, 15.0)  # N per finger: the actuators' force limit at each level
+SQUEEZE_FORCES = (5.0, 10.0, 15.0)  # N per pad: the actuators' force limit at each level, through the linkage
 SQUEEZE_SETTLE = 0.5  # s at each force level before reading
 SQUEEZE_WINDOW = 0.1  # s over which jaw force and finger position are averaged
+# Still settling, the pads move, and the object's contact damping adds to (closing) or takes from (opening) the
+# jaw force; a level read so is off the object's force-depth line. The Robotiq 85's damped linkage relaxes for
+# ~2 s from the grasp's ~20 N to the first level (read after 0.5 s: +4 to +8 % on the five-object scene, after
+# 2 s: +1 to +2.6 %), so each level is read again, a window later, until the jaw force drifts by less than
+# SQUEEZE_DRIFT of the level over a window, or SQUEEZE_SETTLE_MAX has passed. The Panda drifts by up to 2.3 % of
+# the first level after 0.5 s: 1 % makes it wait too, and its errors shrink (five-object scene: -1.7..+2.7 % to
+# -0.2..+1.6 %).
+SQUEEZE_DRIFT = 0.01
+SQUEEZE_SETTLE_MAX = 3.0  # s
 
 
-def jaw_forces(env, obj_id: int) -> np.ndarray:
-    """Force (N) with which ``obj_id`` pushes back on each jaw (left, right), along each finger's closing axis:
-    the contact forces between the object and every geom of that finger, as a force sensor in the finger reads."""
+def pad_centres(env) -> np.ndarray:
+    """World positions (2, 3) of the left and right pad centres: the mean position of each side's pad geoms."""
+    side, xpos = env.grasp.pad_side, env.data.geom_xpos
+    return np.array([xpos[side == s].mean(axis=0) for s in (1, 2)])
+
+
+def closing_axes(env) -> np.ndarray:
+    """Unit vectors (2, 3) in which the left and right pads close: from each side's pad centre towards the other's.
+    Any two-sided gripper has pads; its finger joints may slide (Panda) or turn (Robotiq 85's linkage), so no
+    joint axis says which way a pad moves."""
+    centres = pad_centres(env)
+    gap = centres[1] - centres[0]
+    length = float(np.linalg.norm(gap))
+    if length <= 0:
+        raise PhysicsError("the two pads' centres coincide: no closing direction to squeeze along")
+    return np.array([gap, -gap]) / length
+
+
+def jaw_forces(env, obj_id: int, axes: np.ndarray | None = None) -> np.ndarray:
+    """Force (N) with which ``obj_id`` pushes back on each jaw (left, right), along each side's closing axis
+    (default: ``closing_axes`` now): the contact forces between the object and every geom of that finger, as a
+    force sensor in the finger reads."""
     import mujoco
 
     model, data = env.model, env.data
+    axes = closing_axes(env) if axes is None else axes
     sides = env.grasp.jaws.jaw_side
     geom_object = env.grasp.geom_object
     out = np.zeros(2)
@@ -66,34 +95,139 @@ def jaw_forces(env, obj_id: int) -> np.ndarray:
                 mujoco.mj_contactForce(model, data, i, wrench)
                 # contact frame row 0 is the normal, pointing from geom1 to geom2; force on geom2 is +normal
                 force = sign * wrench[0] * c.frame[:3]
-                out[side - 1] += float(force @ _closing_axis(env, side - 1))
+                out[side - 1] += float(force @ axes[side - 1])
     return -out
 
 
-def _closing_axis(env, k: int) -> np.ndarray:
-    """World direction in which finger ``k`` moves when the gripper closes."""
+def _hand_frame(env) -> tuple[np.ndarray, np.ndarray]:
+    """Position and rotation matrix of the hand body, the fingers' common base (what their encoders measure from)."""
+    hand = env.grasp.hand_body
+    return env.data.xpos[hand], env.data.xmat[hand].reshape(3, 3)
+
+
+def _pad_bodies(env) -> np.ndarray:
+    """Body of each side's (first) pad geom: the link whose motion the pad follows."""
+    return np.array([env.model.geom_bodyid[np.flatnonzero(env.grasp.pad_side == s)[0]] for s in (1, 2)])
+
+
+def pressure_points(env, obj_id: int) -> np.ndarray:
+    """Where (world, (2, 3)) ``obj_id`` presses on each jaw: the contact points on that finger's geoms, weighted
+    by their normal force; a side without contact gives its pad centre."""
+    import mujoco
+
     model, data = env.model, env.data
-    jnt = model.joint(env.names.gripper_joints[k]).id
-    axis = data.xaxis[jnt]
-    sign = np.sign(env.gripper_closed_ctrl[k] - env.gripper_open_ctrl[k]) or 1.0
-    return sign * axis
+    sides, geom_object = env.grasp.jaws.jaw_side, env.grasp.geom_object
+    weighted, total = np.zeros((2, 3)), np.zeros(2)
+    wrench = np.zeros(6)
+    for i in range(data.ncon):
+        c = data.contact[i]
+        for finger, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
+            side = sides[finger]
+            if side and geom_object[other] == obj_id:
+                mujoco.mj_contactForce(model, data, i, wrench)
+                weighted[side - 1] += abs(wrench[0]) * c.pos
+                total[side - 1] += abs(wrench[0])
+    out = pad_centres(env)
+    pressed = total > 0
+    out[pressed] = weighted[pressed] / total[pressed, None]
+    return out
 
 
-def finger_closure(env) -> np.ndarray:
-    """Travel (m) of each finger joint in its closing direction, from the joints' encoders."""
-    q = env.data.qpos[env.gripper_qpos_adr]
+def _on_pad_bodies(env, points: np.ndarray) -> np.ndarray:
+    """World points (2, 3), one per side, in the frame of that side's pad body."""
+    bodies = _pad_bodies(env)
+    xpos, xmat = env.data.xpos[bodies], env.data.xmat[bodies].reshape(2, 3, 3)
+    return np.einsum("kij,ki->kj", xmat, points - xpos)
+
+
+def finger_closure(env, hand_axes: np.ndarray | None = None, pad_points: np.ndarray | None = None) -> np.ndarray:
+    """Position (m) of a point on each side's pad along that side's closing axis, both in the hand's frame
+    (default axes: ``closing_axes`` now). Only its changes mean anything: how far each pad has closed on the
+    hand, as the fingers' encoders would say, whatever the arm does meanwhile. ``pad_points`` (2, 3) are points
+    fixed on each side's pad body, in its frame (default: the pad centres now): where the object presses, so that
+    a pad that tilts under the load (a linkage's compliance) is read where it sinks in. Recomputes the kinematics
+    first: after a physics step the body poses are those at its start, the joint positions those at its end."""
+    import mujoco
+
+    model, data = env.model, env.data
+    mujoco.mj_kinematics(model, data)
+    pos, rot = _hand_frame(env)
+    hand_axes = closing_axes(env) @ rot if hand_axes is None else hand_axes
+    if pad_points is None:
+        points = pad_centres(env)
+    else:
+        bodies = _pad_bodies(env)
+        points = data.xpos[bodies] + np.einsum("kij,kj->ki", data.xmat[bodies].reshape(2, 3, 3), pad_points)
+    return np.einsum("ij,ij->i", (points - pos) @ rot, hand_axes)
+
+
+def _dense(model, data, values, rownnz, rowadr, colind, nrow: int) -> np.ndarray:
+    import mujoco
+
+    out = np.zeros((nrow, model.nv))
+    if nrow:
+        mujoco.mju_sparse2dense(out, values, rownnz[:nrow], rowadr[:nrow], colind)
+    return out
+
+
+def pad_transmission(env) -> float:
+    """Metres the pads close (mean of the two sides, along ``closing_axes``) per unit of finger actuator travel,
+    both actuators driven alike: by virtual work, an actuator force f presses each pad with f divided by this.
+    1 for the Panda's slide fingers; a linkage (Robotiq 85) has a lever, so its drive's N m are not pad newtons.
+    The fingers' free motion is what the equality constraints on their joints (a four-bar's coupling) allow."""
+    import mujoco
+
+    model, data = env.model, env.data
+    dofs = np.array([model.jnt_dofadr[model.joint(j).id] for j in env.names.gripper_joints])
+    nefc = data.nefc
+    if mujoco.mj_isSparse(model):
+        efc = _dense(model, data, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr, data.efc_J_colind, nefc)
+    else:
+        efc = data.efc_J[:nefc * model.nv].reshape(nefc, model.nv)
+    coupling = efc[data.efc_type[:nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY][:, dofs]
+    coupling = coupling[np.any(coupling != 0, axis=1)]
+    # free finger motions: the null space of the coupling constraints
+    if len(coupling):
+        _, sv, vt = np.linalg.svd(coupling)
+        rank = int(np.sum(sv > 1e-9 * sv.max()))
+        free = vt[rank:].T
+    else:
+        free = np.eye(len(dofs))
+    moment = _dense(model, data, data.actuator_moment, data.moment_rownnz, data.moment_rowadr, data.moment_colind,
+                    model.nu)[env.gripper_actuator_ids][:, dofs]
     sign = np.sign(env.gripper_closed_ctrl - env.gripper_open_ctrl)
     sign[sign == 0] = 1.0
-    return q * sign
+    coeffs = np.linalg.lstsq(moment @ free, sign, rcond=None)[0]
+    velocity = np.zeros(model.nv)
+    velocity[dofs] = free @ coeffs  # every actuator closing at unit speed
+    axes = closing_axes(env)
+    jacp = np.zeros((3, model.nv))
+    closing = 0.0
+    for side in (1, 2):
+        pads = np.flatnonzero(env.grasp.pad_side == side)
+        for g in pads:
+            mujoco.mj_jac(model, data, jacp, None, data.geom_xpos[g], model.geom_bodyid[g])
+            closing += float(jacp @ velocity @ axes[side - 1]) / len(pads)
+    return 0.5 * closing
+
+
+def _drift(force: np.ndarray) -> float:
+    """How much ``force``, sampled every control step over one window, changes over a whole window."""
+    if len(force) < 2:
+        return 0.0
+    return float(abs(force[-1] - force[0]) * len(force) / (len(force) - 1))
 
 
 def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float = SQUEEZE_SETTLE,
             window: float = SQUEEZE_WINDOW) -> float:
     """Stiffness (N/m) of the object between the fingers (default: the one in the hand).
 
-    At each force level the finger actuators are limited to that force and commanded closed; after ``settle`` s
-    the jaw forces and the finger positions are averaged over ``window`` s. The stiffness is the least-squares
-    slope of the mean jaw force against the mean finger travel: force per metre a jaw penetrates the object.
+    At each force level the finger actuators are limited to the force that presses each pad with that many newtons
+    (``pad_transmission``) and commanded closed; after ``settle`` s, and until the jaw force stops drifting
+    (``SQUEEZE_DRIFT``), the jaw forces and the pads' positions are averaged over ``window`` s. Both are read from
+    the pads, which every two-sided gripper has, along each side's closing axis (``closing_axes``): where the object
+    presses on each pad (``pressure_points``), in the hand's frame. The stiffness is the least-squares slope of
+    the mean jaw force against the mean pad travel: force per metre a jaw penetrates the object.
     The arm holds its pose throughout; the object stays welded to the hand if it was grasped (``grasp="weld"``),
     which keeps the two jaws' loads symmetric about it.
     """
@@ -111,23 +245,40 @@ def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float
     # position error, sets the squeezing force: on a narrow part (a thin glass, a handle, a stem) the fingers stop
     # a few millimetres short of closed, where the servo alone pushes with only a few newtons at every level.
     push = env.gripper_closed_ctrl + (env.gripper_closed_ctrl - env.gripper_open_ctrl)
-    samples = []
+    # closing axes as grasped, fixed in the hand, so that each pad's travel is a projection on one line
+    hand_axes = closing_axes(env) @ _hand_frame(env)[1]
+    pad_points = _on_pad_bodies(env, pressure_points(env, obj_id))  # where it presses, as grasped
+    transmission = pad_transmission(env)
+    if not transmission > 0:
+        raise PhysicsError(f"the finger actuators do not close the pads (transmission {transmission:g} m/unit)")
+    samples, window_samples = [], []
+
+    def read(_k):
+        axes = hand_axes @ _hand_frame(env)[1].T  # the hand's pose when these contacts were found
+        window_samples.append(np.concatenate([jaw_forces(env, obj_id, axes),
+                                              finger_closure(env, hand_axes, pad_points)]))
+
     try:
         env.model.actuator_ctrllimited[ids] = 0
         for level in forces:
-            env.model.actuator_forcerange[ids] = (-level, level)
+            env.model.actuator_forcerange[ids] = (-level * transmission, level * transmission)
             env.model.actuator_forcelimited[ids] = 1
             env.close_gripper()
             env.data.ctrl[ids] = push
             env.hold(settle)
-            window_samples = []
-
-            def read(_k):
-                window_samples.append(np.concatenate([jaw_forces(env, obj_id), finger_closure(env)]))
-
-            env.advance(window, on_control=read)
+            waited = settle
+            while True:
+                window_samples.clear()
+                env.advance(window, on_control=read)
+                waited += window
+                drift = _drift(np.array(window_samples)[:, :2].mean(axis=1))
+                if drift <= SQUEEZE_DRIFT * level or waited >= SQUEEZE_SETTLE_MAX - 1e-9:
+                    break
             force_l, force_r, travel_l, travel_r = np.mean(window_samples, axis=0)
             samples.append((0.5 * (force_l + force_r), 0.5 * (travel_l + travel_r), min(force_l, force_r)))
+            logger.debug("squeeze level %.3g after %.1f s: jaw forces %.3f %.3f N (drift %.3f N a window), pad "
+                         "positions %.4f %.4f mm", level, waited, force_l, force_r, drift,
+                         travel_l * 1000, travel_r * 1000)
     finally:
         env.model.actuator_forcerange[ids] = saved
         env.model.actuator_forcelimited[ids] = saved_limited

@@ -55,16 +55,34 @@ def test_sim_squeeze_needs_an_object_between_the_fingers(squeezed):
         squeeze(env, obj_id=0, forces=(5.0, 10.0), settle=0.1)
 
 
+@pytest.mark.parametrize("gripper", [None, "Robotiq85Gripper"])
 @pytest.mark.parametrize("stiffness", [15_000.0, 80_000.0])
-def test_sim_squeeze_reads_narrow_parts_too(stiffness):
-    """A 6 mm rod (a stem, a handle): the fingers stop ~3.3 mm short of closed, where the
-    finger servos' own pull is below the squeeze's force levels; the levels must still be reached."""
+def test_sim_squeeze_reads_narrow_parts_too(stiffness, gripper):
+    """A 6 mm rod (a stem, a handle): the Panda's fingers stop ~3.3 mm short of closed, where the
+    finger servos' own pull is below the squeeze's force levels; the levels must still be reached. The Robotiq 85
+    touches it near the fingertips, away from the pad centre, where its linkage's give tilts the pad."""
     from muble.testing import simple_object_model, simple_scene
 
     model = simple_object_model("cylinder", (0.006, 0.006, 0.10), 120.0, stiffness)
     scene = simple_scene([(0.5, 0.0)], [model])
-    env = TabletopEnv(scene, {0: model})
+    env = TabletopEnv(scene, {0: model}, **({"gripper": gripper} if gripper else {}))
     pick(env, 0, 0.10)
     assert env.held_object == 0
     estimate = squeeze(env)
     assert abs(estimate / model.stiffness - 1.0) < 0.05, (model.stiffness, estimate)
+
+
+def test_sim_squeeze_with_the_robotiq_85_linkage(scene_models):
+    """The Robotiq 85 closes by six hinged linkage joints, not two slides: squeeze reads its pads, not its joints,
+    and presses with pad newtons, not the drive's N m. Softest box and stiffest cylinder of the scene."""
+    scene, models = scene_models
+    env = TabletopEnv(scene, models, gripper="Robotiq85Gripper")
+    assert type(env.names.gripper_format).__name__ == "Robotiq85Gripper"
+    out = {}
+    for obj in (2, 3):
+        env.reset()
+        pick(env, obj, models[obj].extents[2])
+        assert env.held_object == obj
+        out[obj] = squeeze(env)
+        assert abs(out[obj] / models[obj].stiffness - 1.0) < 0.05, (obj, models[obj].stiffness, out[obj])
+    assert models[2].stiffness < models[3].stiffness and out[2] < out[3]
