@@ -68,18 +68,12 @@ def test_same_seed_same_weights_other_seed_others(tmp_path):
     assert not all(a[k].shape == c[k].shape and torch.equal(a[k], c[k]) for k in a)
 
 
-def test_a_stopped_run_resumes_to_the_same_weights(tmp_path, monkeypatch):
+def test_a_stopped_run_resumes_to_the_same_weights(tmp_path, stop_at_next_checkpoint):
     _train(tmp_path / "whole")
-    real_save = ckpt.save
-
-    def save_then_stop(*args, **kwargs):
-        real_save(*args, **kwargs)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(ckpt, "save", save_then_stop)
+    go_on = stop_at_next_checkpoint()
     with pytest.raises(KeyboardInterrupt):
         _train(tmp_path / "stopped")
-    monkeypatch.setattr(ckpt, "save", real_save)
+    go_on()
     assert ckpt.load(tmp_path / "stopped" / "parser.pt", "parser")["epoch"] == 1
     _train(tmp_path / "stopped")
     whole, resumed = _weights(tmp_path / "whole" / "parser.pt"), _weights(tmp_path / "stopped" / "parser.pt")

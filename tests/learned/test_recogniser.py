@@ -106,20 +106,14 @@ def test_same_seed_same_weights(dataset, tmp_path):
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
-def test_a_stopped_run_resumes_to_the_weights_of_an_unstopped_one(dataset, tmp_path, monkeypatch):
+def test_a_stopped_run_resumes_to_the_weights_of_an_unstopped_one(dataset, tmp_path, stop_at_next_checkpoint):
     """Two epochs at once, and one epoch, stop, one more: the same weights (the learning-rate schedule, the
     optimiser and the random streams all resume where they stopped)."""
     _train(dataset, tmp_path / "whole", epochs=2)
-    real_save = ckpt.save
-
-    def save_then_stop(*args, **kwargs):
-        real_save(*args, **kwargs)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(ckpt, "save", save_then_stop)
+    go_on = stop_at_next_checkpoint()
     with pytest.raises(KeyboardInterrupt):
         _train(dataset, tmp_path / "stopped", epochs=2)
-    monkeypatch.setattr(ckpt, "save", real_save)
+    go_on()
     stopped = ckpt.load(tmp_path / "stopped" / "recogniser.pt", "recogniser")
     assert stopped["epoch"] == 1 and stopped["state"]["schedule"]["last_epoch"] > 0
     _train(dataset, tmp_path / "stopped", epochs=2)
