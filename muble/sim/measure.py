@@ -75,28 +75,33 @@ def closing_axes(env) -> np.ndarray:
     return np.array([gap, -gap]) / length
 
 
-def jaw_forces(env, obj_id: int, axes: np.ndarray | None = None) -> np.ndarray:
-    """Force (N) with which ``obj_id`` pushes back on each jaw (left, right), along each side's closing axis
-    (default: ``closing_axes`` now): the contact forces between the object and every geom of that finger, as a
-    force sensor in the finger reads."""
+def _jaw_contacts(env, obj_id: int):
+    """Each contact between ``obj_id`` and a finger's geom: (side 0 left / 1 right, the contact, the normal force
+    with which the finger presses the object there, a world vector; the object pushes back with its opposite)."""
     import mujoco
 
     model, data = env.model, env.data
-    axes = closing_axes(env) if axes is None else axes
-    sides = env.grasp.jaws.jaw_side
-    geom_object = env.grasp.geom_object
-    out = np.zeros(2)
+    sides, geom_object = env.grasp.jaws.jaw_side, env.grasp.geom_object
     wrench = np.zeros(6)
     for i in range(data.ncon):
         c = data.contact[i]
-        for finger, other, sign in ((c.geom1, c.geom2, -1.0), (c.geom2, c.geom1, 1.0)):
+        for finger, other, sign in ((c.geom1, c.geom2, 1.0), (c.geom2, c.geom1, -1.0)):
             side = sides[finger]
             if side and geom_object[other] == obj_id:
                 mujoco.mj_contactForce(model, data, i, wrench)
                 # contact frame row 0 is the normal, pointing from geom1 to geom2; force on geom2 is +normal
-                force = sign * wrench[0] * c.frame[:3]
-                out[side - 1] += float(force @ axes[side - 1])
-    return -out
+                yield side - 1, c, sign * wrench[0] * c.frame[:3]
+
+
+def jaw_forces(env, obj_id: int, axes: np.ndarray | None = None) -> np.ndarray:
+    """Force (N) with which ``obj_id`` pushes back on each jaw (left, right), against each side's closing axis
+    (default: ``closing_axes`` now): the contact forces between the object and every geom of that finger, as a
+    force sensor in the finger reads."""
+    axes = closing_axes(env) if axes is None else axes
+    out = np.zeros(2)
+    for k, _, force in _jaw_contacts(env, obj_id):
+        out[k] += float(force @ axes[k])
+    return out
 
 
 def _hand_frame(env) -> tuple[np.ndarray, np.ndarray]:
@@ -113,20 +118,10 @@ def _pad_bodies(env) -> np.ndarray:
 def pressure_points(env, obj_id: int) -> np.ndarray:
     """Where (world, (2, 3)) ``obj_id`` presses on each jaw: the contact points on that finger's geoms, weighted
     by their normal force; a side without contact gives its pad centre."""
-    import mujoco
-
-    model, data = env.model, env.data
-    sides, geom_object = env.grasp.jaws.jaw_side, env.grasp.geom_object
     weighted, total = np.zeros((2, 3)), np.zeros(2)
-    wrench = np.zeros(6)
-    for i in range(data.ncon):
-        c = data.contact[i]
-        for finger, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
-            side = sides[finger]
-            if side and geom_object[other] == obj_id:
-                mujoco.mj_contactForce(model, data, i, wrench)
-                weighted[side - 1] += abs(wrench[0]) * c.pos
-                total[side - 1] += abs(wrench[0])
+    for k, contact, force in _jaw_contacts(env, obj_id):
+        weighted[k] += np.linalg.norm(force) * contact.pos
+        total[k] += np.linalg.norm(force)
     out = pad_centres(env)
     pressed = total > 0
     out[pressed] = weighted[pressed] / total[pressed, None]
