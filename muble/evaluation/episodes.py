@@ -31,10 +31,9 @@ EvalJob = IndexJob
 def build_components(config: dict[str, Any]) -> dict[str, Any]:
     """The configured plugins, once per process and config; no renderer unless ``evaluation.render``, and no task
     (each instruction names its own template)."""
-    from muble.episode.components import benchmark_settings
+    from muble.evaluation.resume import draws
 
-    images = benchmark_settings(config)[1] != "graph"  # masks and image modes show the agent the renderer's frames
-    return cached_components(config, renderer=bool(config["evaluation"]["render"]) or images, task=False)
+    return cached_components(config, renderer=draws(config), task=False)
 
 
 def _record(job: EvalJob) -> dict[str, Any]:

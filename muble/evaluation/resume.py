@@ -4,7 +4,9 @@ folder that already holds records of the same evaluation carries on from them.
 The folder keeps ``eval_run.json``: the settings that decide what an episode does (the agent, the dataset root
 and its manifest, the splits, robot, planner, sensors, episode limits, seed …). A run into a folder whose stored
 settings differ is refused, naming every difference; settings that only say how the work is executed or reported
-(executor, workers, ``evaluation.limit``, ``evaluation.plot``, where outputs go) may change between runs.
+(executor, workers, ``evaluation.limit``, ``evaluation.plot``, where outputs go) may change between runs, and
+so may the renderer's settings of an evaluation that draws nothing (``evaluation.render=false`` in the ``graph``
+mode, where no renderer is built).
 """
 from __future__ import annotations
 
@@ -40,12 +42,21 @@ _EXECUTION: dict[str, set[str] | None] = {
 }
 
 
+def draws(config: dict[str, Any]) -> bool:
+    """Whether an evaluation builds a renderer: to record frames (``evaluation.render``) or because its observation
+    mode shows the agent images (every mode but ``graph``)."""
+    from muble.episode.components import benchmark_settings
+
+    return bool(config["evaluation"]["render"]) or benchmark_settings(config)[1] != "graph"
+
+
 def run_settings(config: dict[str, Any], dataset_manifest_sha256: str | None) -> dict[str, Any]:
-    """The settings an evaluation's records depend on (the resolved config less execution-only keys)."""
+    """The settings an evaluation's records depend on (the resolved config less execution-only keys; less the
+    renderer's when nothing is drawn)."""
     settings: dict[str, Any] = {}
     for key, value in config.items():
         free = _EXECUTION.get(key, set())
-        if free is None:
+        if free is None or (key == "renderer" and not draws(config)):
             continue
         settings[key] = {k: v for k, v in value.items() if k not in free} if free else value
     settings["dataset_manifest_sha256"] = dataset_manifest_sha256
@@ -76,6 +87,8 @@ def claim_folder(out_dir: Path, settings: dict[str, Any], splits: list[str]) -> 
         except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as e:
             raise ConfigError(f"{path} is unreadable ({type(e).__name__}: {e}), so the records in {out_dir} cannot "
                               f"be resumed; {fresh}") from e
+        if "renderer" not in settings and isinstance(stored, dict):
+            stored = {k: v for k, v in stored.items() if k != "renderer"}  # kept by runs before it was left out
         # Round-trip through JSON so tuples and lists compare equal.
         diff = differences(stored, json.loads(json.dumps(settings)))
         if diff:

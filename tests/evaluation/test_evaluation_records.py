@@ -104,6 +104,25 @@ def test_folder_refuses_other_settings_and_names_them(tmp_path):
     assert "dataset_manifest_sha256: 'abc' -> 'def'" in message and "another folder" in message
 
 
+def test_renderer_settings_count_only_where_something_is_drawn(tmp_path):
+    config = json.loads(json.dumps(CONFIG)) | {"renderer": {"name": "mujoco", "shadow_size": 1024}}
+    # A graph-mode run that records no frames builds no renderer: its settings are not the run's.
+    assert "renderer" not in run_settings(config, "abc")
+    old = run_settings(config, "abc") | {"renderer": {"name": "mujoco"}}  # as runs before this stored them
+    (tmp_path / RUN_FILE).write_text(json.dumps({"settings": old}))
+    assert claim_folder(tmp_path, run_settings(config, "abc"), ["val"]) is True
+    # Drawing frames, or showing the agent images, makes them count.
+    for drawn in ({"evaluation": {**config["evaluation"], "render": True}},
+                  {"benchmark": {"track": "program", "mode": "masks"}}):
+        drawing = config | drawn
+        assert run_settings(drawing, "abc")["renderer"] == config["renderer"]
+        claim_folder(tmp_path / "new", run_settings(drawing, "abc"), ["val"])
+        changed = drawing | {"renderer": {"name": "mujoco", "shadow_size": 4096}}
+        with pytest.raises(ConfigError, match="renderer.shadow_size: 1024 -> 4096"):
+            claim_folder(tmp_path / "new", run_settings(changed, "abc"), ["val"])
+        (tmp_path / "new" / RUN_FILE).unlink()
+
+
 def test_folder_with_records_but_no_settings_is_refused(tmp_path):
     (tmp_path / "episodes_val.jsonl").write_text(json.dumps(_record(0)) + "\n")
     with pytest.raises(ConfigError, match="without eval_run.json"):
