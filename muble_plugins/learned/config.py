@@ -44,6 +44,8 @@ class ParserTrainerConfig:
     feedforward: int = bounded(256, ge=8)  # each layer's feed-forward width
     dropout: float = bounded(0.1, ge=0, lt=1)
     validation_scenes: int = bounded(200, ge=0)  # scenes of a seed stream disjoint from the training scenes'
+    # The registered object set whose words the scenes carry (e.g. "ycb" for the YCB scenes' names and colours).
+    object_set: str = "shopvrb2"
 
 
 @dataclass

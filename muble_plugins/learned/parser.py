@@ -1,8 +1,8 @@
 """The instruction parser: instruction text to the agent-side program, a small sequence-to-sequence Transformer.
 
 Data: (instruction, program) pairs generated for the run's seed. Each scene is laid out like the synthetic
-scenes (``muble_plugins.tasks.synthetic``) and its objects are drawn from the SHOP-VRB2 object set through the
-registry (the protocol's training pool when the run has one), so names, colours (``metallic`` included),
+scenes (``muble_plugins.tasks.synthetic``) and its objects are drawn from an object set through the registry
+(``trainer.object_set``: SHOP-VRB2's by default, the protocol's training pool when the run has one), so names, colours (``metallic`` included),
 materials, shapes and sizes are those of generated datasets. Every one of the ten SHOP-VRB2 template tasks then
 writes its instruction for the scene (``Task.generate``); the target is ``agent_program`` of its program: each
 step's type and words, nothing computed on the ground truth. Validation scenes come from a stream of their own,
@@ -114,16 +114,19 @@ def template_names() -> list[str]:
     return [t.template_id for t in sorted(TEMPLATES.values(), key=lambda t: t.index)]
 
 
-def object_set(protocol: dict | None = None):
-    """The SHOP-VRB2 object set as ``muble generate`` samples it: with a protocol, its training split's pool."""
+def object_set(protocol: dict | None = None, name: str = "shopvrb2"):
+    """The object set ``name`` as ``muble generate`` samples it: with a protocol, its training split's pool."""
     from muble.plugins.registry import get_registry
 
     params: dict[str, Any] = {"cache_dir": None}
+    if protocol and name != "shopvrb2":
+        raise ConfigError(f"trainer.object_set={name!r} with a protocol: a protocol's pools are SHOP-VRB2 objects; "
+                          f"train without protocol=... for the {name!r} set")
     if protocol:
         train = ((protocol.get("splits") or {}).get("train") or {}).get("objects") or {}
         for key, value in {**((protocol.get("common") or {}).get("objects") or {}), **train}.items():
             params[key] = value
-    return get_registry().create("object_set", "shopvrb2", params)
+    return get_registry().create("object_set", name, params)
 
 
 def sample_scene(objects, rng: np.random.Generator, index: int):
@@ -145,14 +148,15 @@ def sample_scene(objects, rng: np.random.Generator, index: int):
 
 
 def build_pairs(seed: int, stream: int, scenes: int, protocol: dict | None = None,
-                progress=lambda items, desc, total: items) -> list[tuple[str, list[dict]]]:
+                progress=lambda items, desc, total: items,
+                objects_name: str = "shopvrb2") -> list[tuple[str, list[dict]]]:
     """(instruction text, agent-side program) for every template that suits each of ``scenes`` scenes; scene
     ``i`` of ``stream`` is deterministic from ``(seed, stream, i)`` (streams give disjoint scenes)."""
     from muble.plugins.registry import get_registry
 
     registry = get_registry()
     tasks = [registry.create("task", name, {}) for name in template_names()]
-    objects = object_set(protocol)
+    objects = object_set(protocol, objects_name)
     pairs = []
     for i in progress(range(scenes), f"parser data ({'train' if stream == 0 else 'validation'})", scenes):
         scene = sample_scene(objects, np.random.default_rng([seed, stream, i]), i)
@@ -297,12 +301,14 @@ class ParserTrainer:
 
     def __init__(self, scenes: int = 2000, epochs: int = 4, batch_size: int = 64, learning_rate: float = 1e-3,
                  width: int = 128, heads: int = 4, layers: int = 2, validation_scenes: int = 200,
-                 feedforward: int = 256, dropout: float = 0.1):
+                 feedforward: int = 256, dropout: float = 0.1, object_set: str = "shopvrb2"):
         if width % heads:
             raise ConfigError(f"trainer.width={width} must be a multiple of trainer.heads={heads}")
         self.settings = {"scenes": scenes, "epochs": epochs, "batch_size": batch_size,
                          "learning_rate": learning_rate, "width": width, "heads": heads, "layers": layers,
                          "validation_scenes": validation_scenes, "feedforward": feedforward, "dropout": dropout}
+        if object_set != "shopvrb2":  # kept out otherwise, so checkpoints made before the setting still resume
+            self.settings["object_set"] = object_set
 
     def train(self, run) -> dict[str, Any]:
         torch = ckpt.torch_module()
@@ -317,8 +323,9 @@ class ParserTrainer:
             return ckpt.progress(items, run, desc, total)
 
         t0 = time.perf_counter()
-        train_pairs = build_pairs(run.seed, 0, s["scenes"], run.protocol, bar)
-        validation_pairs = build_pairs(run.seed, 1, s["validation_scenes"], run.protocol, bar)
+        objects_name = s.get("object_set", "shopvrb2")
+        train_pairs = build_pairs(run.seed, 0, s["scenes"], run.protocol, bar, objects_name)
+        validation_pairs = build_pairs(run.seed, 1, s["validation_scenes"], run.protocol, bar, objects_name)
         data_seconds = time.perf_counter() - t0
 
         source = Vocabulary(w for text, _ in train_pairs for w in tokenize(text))

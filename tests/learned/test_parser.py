@@ -108,3 +108,16 @@ def test_a_file_that_is_no_parser_checkpoint_is_a_config_error(tmp_path):
     broken = ckpt.save(tmp_path / "broken.pt", "parser", run, {}, 1, {"model": {}}, {"architecture": {}})
     with pytest.raises(ConfigError, match="cannot read"):
         InstructionParser.load(broken)
+
+
+def test_the_object_set_gives_the_words_of_its_scenes(tmp_path):
+    # The YCB scenes' instructions name YCB items, which SHOP-VRB2's parser data never has.
+    words = lambda pairs: {step.get("input_value") for _, program in pairs for step in program}  # noqa: E731
+    ycb = words(build_pairs(seed=0, stream=0, scenes=30, objects_name="ycb"))
+    shop = words(build_pairs(seed=0, stream=0, scenes=30))
+    assert {"cracker box", "mustard bottle"} <= ycb and not {"cracker box", "mustard bottle"} & shop
+    _train(tmp_path / "run", scenes=30, epochs=1, object_set="ycb")
+    parser = InstructionParser.load(tmp_path / "run" / "parser.pt")
+    assert "cracker" in parser.source.index and any("cracker box" in token for token in parser.target.index)
+    with pytest.raises(ConfigError, match="protocol"):
+        build_pairs(seed=0, stream=0, scenes=1, protocol={"splits": {}}, objects_name="ycb")
