@@ -42,17 +42,18 @@ def _subtree_bodies(model: mujoco.MjModel, root: int) -> set[int]:
     return bodies
 
 
-def _tree_distance(model: mujoco.MjModel, a: int, b: int) -> int:
-    def chain(x: int) -> list[int]:
-        out = [x]
-        while x != 0:
-            x = int(model.body_parentid[x])
-            out.append(x)
-        return out
+def _steps_up(model: mujoco.MjModel, body: int) -> dict[int, int]:
+    """Each body on ``body``'s chain to the world (itself included), with its number of steps up from it."""
+    steps, k = {body: 0}, 0
+    while body != 0:
+        body, k = int(model.body_parentid[body]), k + 1
+        steps[body] = k
+    return steps
 
-    ca, cb = chain(a), chain(b)
-    common = set(ca) & set(cb)
-    return min(ca.index(c) + cb.index(c) for c in common)
+
+def _chain_distance(a: dict[int, int], b: dict[int, int]) -> int:
+    """The tree distance of two bodies from their ``_steps_up``: the fewest steps through a common ancestor."""
+    return min(k + b[c] for c, k in a.items() if c in b)
 
 
 class MujocoCollisionWorld(CollisionWorld):
@@ -135,17 +136,14 @@ class MujocoCollisionWorld(CollisionWorld):
         m = self.model
         robot = np.flatnonzero(self._robot_geoms)
         ignore = np.zeros((m.ngeom, m.ngeom), dtype=bool)
-        distances: dict[tuple[int, int], int] = {}  # per body pair: robot geoms share a few bodies
-        for i in robot:
-            for j in robot:
-                bi, bj = int(m.geom_bodyid[i]), int(m.geom_bodyid[j])
-                if (bi, bj) not in distances:
-                    distances[bi, bj] = _tree_distance(m, bi, bj)
-                # Links two joints apart can touch at their shells without real interference; fingers too.
-                near = distances[bi, bj] <= 2
-                both_gripper = self._gripper_geoms[i] and self._gripper_geoms[j]
-                if near or both_gripper:
-                    ignore[i, j] = True
+        # Links two joints apart can touch at their shells without real interference; fingers too. The tree
+        # distances of the robot geoms' bodies, each body's chain to the world walked once.
+        bodies = [int(b) for b in m.geom_bodyid[robot]]
+        steps = {b: _steps_up(m, b) for b in set(bodies)}
+        near = np.array([[_chain_distance(steps[bi], steps[bj]) <= 2 for bj in bodies] for bi in bodies],
+                        dtype=bool).reshape(len(robot), len(robot))
+        gripper = self._gripper_geoms[robot]
+        ignore[np.ix_(robot, robot)] = near | np.outer(gripper, gripper)
         mujoco.mj_collision(m, self.data)
         for c in self.data.contact[: self.data.ncon]:
             g1, g2 = c.geom

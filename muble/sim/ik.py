@@ -114,6 +114,7 @@ class ArmKinematics:
         self._quat, self._conj, self._diff = np.empty(4), np.empty(4), np.empty(4)
         self._bounds: tuple = (None,)  # (limits, lowest, highest) a solution may take within them
         self._damped: dict[tuple[float, int], np.ndarray] = {}  # damping * identity, by (damping, rows)
+        self._buffers: dict[int, tuple] = {}  # ``solve``'s work arrays, by rows of the error (3 or 6)
 
     @property
     def dof(self) -> int:
@@ -159,8 +160,12 @@ class ArmKinematics:
         lo, hi = self._bounds[1:]
         q = np.clip(np.asarray(seed, dtype=float).copy(), lo, hi)
         rows = 3 if target_quat is None else 6
-        err = np.zeros(rows)
-        err_w, jac_w = np.empty(rows), np.empty((rows, len(self.dof_adr)))
+        buffers = self._buffers.get(rows)
+        if buffers is None:
+            dof = len(self.dof_adr)
+            buffers = self._buffers[rows] = (np.zeros(rows), np.empty(rows), np.empty((rows, dof)),
+                                             np.empty((rows, rows)), np.empty(dof))
+        err, err_w, jac_w, jjt, step_abs = buffers
         damped = self._damped.get((damping, rows))
         if damped is None:
             damped = self._damped[damping, rows] = damping * np.eye(rows)
@@ -169,13 +174,18 @@ class ArmKinematics:
         it = 0
         # The loop runs thousands of times per scene in planning: buffers are reused and numpy's per-call wrappers
         # avoided where the same operation gives the same numbers (norms as sqrt(x·x), as np.linalg.norm computes;
-        # quat_error's steps on preallocated quaternions; the linear solve's error state set once per solve).
+        # quat_error's steps on preallocated quaternions; the linear solve's error state set once per solve; the
+        # weighted rows multiplied straight into their buffer, x * 0.2 as before; the sum with the damping, the
+        # step's size and the clamped update written in place: the same elementwise operations in the same order).
         m, d, site = self.model, self.data, self.site_id
         qpos, qpos_index, dof_index = d.qpos, self._qpos_index, self._dof_index
         site_pos, site_mat = d.site_xpos[site], d.site_xmat[site]
         jacp, jacr = self._jacp, self._jacr
         quat, conj, diff = self._quat, self._conj, self._diff
-        pos_part, rot_part = err[:3], err[3:]
+        # The position error goes straight into the weighted error (its weight is 1); the rotation error is kept
+        # unweighted for its norm and weighted into ``err_w`` after.
+        pos_part, rot_part = (err_w[:3] if rows == 6 else err), err[3:]
+        rot_w, jac_pos, jac_rot = err_w[3:], jac_w[:3], jac_w[3:]
         with _solve_errors():
             for it in range(1, max_iterations + 1):
                 qpos[qpos_index] = q
@@ -198,17 +208,20 @@ class ArmKinematics:
                 mujoco.mj_jacSite(m, d, jacp, jacr, site)
                 # Weight rotation so 1 rad of error counts like 0.2 m: keeps position dominant near the goal.
                 if rows == 6:
-                    jac_w[:3] = jacp[:, dof_index]
-                    jac_w[3:] = jacr[:, dof_index]
-                    jac_w[3:] *= 0.2
-                    err_w[:] = err
-                    err_w[3:] *= 0.2
+                    jac_pos[:] = jacp[:, dof_index]
+                    np.multiply(jacr[:, dof_index], 0.2, out=jac_rot)
+                    np.multiply(rot_part, 0.2, out=rot_w)
+                    np.matmul(jac_w, jac_w.T, out=jjt)
+                    jjt += damped
+                    dq = jac_w.T @ _solve(jjt, err_w)
                 else:  # as indexed (its memory order decides the rounding of the products below)
-                    jac_w, err_w = jacp[:, self.dof_adr], err
-                jjt = jac_w @ jac_w.T + damped
-                dq = jac_w.T @ _solve(jjt, err_w)
-                step = np.abs(dq).max()
+                    jac3 = jacp[:, self.dof_adr]
+                    dq = jac3.T @ _solve(jac3 @ jac3.T + damped, err)
+                step = np.abs(dq, out=step_abs).max()
                 if step > max_step:
                     dq *= max_step / step
-                q = np.minimum(np.maximum(q + dq, lo), hi)  # np.clip's result, without its per-call overhead
+                # np.clip's result, without its per-call overhead or a new array per operation
+                np.add(q, dq, out=q)
+                np.maximum(q, lo, out=q)
+                np.minimum(q, hi, out=q)
         return IKResult(q, pos_err, rot_err, it)

@@ -217,26 +217,28 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
         rest_x = _quat_mat(rest_quat) @ (grip.closing if grip is not None else np.array([1.0, 0.0, 0.0]))
     tip = grip.tip_depth if grip is not None else 0.0
     drafts = []  # (rank without clearance, order made, grasp frame pose, width held, sweep)
-    for index, frame in enumerate(model.grasp_frames):
+    pose_rot = _quat_mat(object_pose.quat)  # the object's rotation, for every frame (``_compose``'s)
+    for index, (frame, (on_axis, swept)) in enumerate(zip(model.grasp_frames,
+                                                          _frame_sweeps(model, clearance is not None))):
         if not min_width <= frame.width <= max_width:
             continue
-        on_axis = float(np.hypot(frame.position[0], frame.position[1])) < 1e-3
-        sweeps = [(0.0, 1.0)]
-        if clearance is not None:
-            sweeps = _sweeps(frame, model.grasp_frames, on_axis, model.grasp_type)
-        for sweep, stretch in sweeps:
-            position, frame_quat = _swept(frame, sweep, stretch)
-            pos, quat = _compose(object_pose.pos, object_pose.quat, position, frame_quat)
+        for sweep, stretch, position, frame_quat in swept:
+            # ``_compose(object_pose.pos, object_pose.quat, position, frame_quat)``, the rotation worked out once
+            quat = np.empty(4)
+            mujoco.mju_mulQuat(quat, object_pose.quat, frame_quat)
+            pos = object_pose.pos + pose_rot @ position
             yaws = [0.0, np.pi]
             if model.grasp_type == "box" or (model.grasp_type == "cylinder" and on_axis):
                 yaws += [np.pi / 2, -np.pi / 2]
             for yaw in yaws:
                 q = _turned(quat, yaw)
-                approach, closing = _axis(q, 2), _axis(q, 0)
+                axes = _quat_mat(q)
+                approach, closing = axes[:, 2], axes[:, 0]
                 # The fingertips reach past the pads along the approach; they must stay off the table top.
                 p = pos.copy()
                 p[2] = max(p[2], table_top + TABLE_CLEARANCE + tip * max(0.0, -approach[2]))
-                tilt = float(np.arccos(np.clip(-approach[2], -1.0, 1.0)))
+                down = -approach[2]  # np.clip(down, -1.0, 1.0) without its per-call overhead (NaN kept too)
+                tilt = float(np.arccos(1.0 if down > 1.0 else -1.0 if down < -1.0 else down))
                 turn = float(np.arccos(min(1.0, abs(float(closing @ rest_x))))) if rest_x is not None else 0.0
                 score = tilt + 0.3 * turn + 0.002 * index + 0.001 * abs(sweep)
                 # Ties keep the order of generation (which is the order among those kept).
@@ -265,6 +267,35 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
         scored.append((score, rank, site))
     scored.sort(key=lambda item: item[:2])
     return [pose for *_, pose in scored[:limit]]
+
+
+# ``_frame_sweeps``'s rows by the object's grasp type and frames (their numbers): the same for every scene the
+# object is in.
+_frame_sweep_rows: dict[tuple, list] = {}
+
+
+def _frame_sweeps(model, swept: bool) -> list[tuple]:
+    """Per grasp frame of ``model``, in order: (on the object's axis, [(sweep angle, radial stretch,
+    position, orientation) of each copy of it (``_sweeps``, ``_swept``); the frame alone unless ``swept``]).
+    A function of the object's grasp type and frames alone, worked out once for each."""
+    key = (model.grasp_type, swept, tuple((np.asarray(f.position, dtype=float).tobytes(),
+                                           np.asarray(f.quat, dtype=float).tobytes(), float(f.width))
+                                          for f in model.grasp_frames))
+    rows = _frame_sweep_rows.get(key)
+    if rows is None:
+        rows = []
+        for frame in model.grasp_frames:
+            on_axis = float(np.hypot(frame.position[0], frame.position[1])) < 1e-3
+            sweeps = _sweeps(frame, model.grasp_frames, on_axis, model.grasp_type) if swept else [(0.0, 1.0)]
+            copies = []
+            for sweep, stretch in sweeps:
+                position, frame_quat = _swept(frame, sweep, stretch)
+                position, frame_quat = position.copy(), frame_quat.copy()  # not the frame's own arrays
+                position.flags.writeable = frame_quat.flags.writeable = False
+                copies.append((sweep, stretch, position, frame_quat))
+            rows.append((on_axis, copies))
+        _frame_sweep_rows[key] = rows
+    return rows
 
 
 def _sweeps(frame, frames, on_axis: bool, grasp_type: str) -> list[tuple[float, float]]:

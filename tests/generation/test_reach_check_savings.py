@@ -3,11 +3,15 @@ count, yet reports every check as before; the OMPL planner's ``check`` fails exa
 (``test_reach_decisions.py`` holds the check's decisions on 312 recorded layouts.)"""
 from __future__ import annotations
 
+import math
+
+import mujoco
 import numpy as np
 import pytest
 
-from muble import JointGoal, PlanningError, Pose, PoseGoal
+from muble import JointGoal, PlanningError, Pose, PoseGoal, get_registry
 from muble.sim.collision_world import MujocoCollisionWorld
+from muble.sim.ik import LIMIT_MARGIN, _solve, _solve_errors
 from muble.sim.tabletop import build_tabletop
 from muble_plugins.planners.ompl_planner import OmplPlanner
 
@@ -78,3 +82,183 @@ def test_ompl_check_fails_exactly_where_plan_fails(scene):
     for attempt in (starved.plan, starved.check):
         with pytest.raises(PlanningError, match="no collision-free path"):
             attempt(scene.home_q, JointGoal(behind_the_wall), world)
+
+
+def _tree_distance(model, a: int, b: int) -> int:
+    """Steps between two bodies through their nearest common ancestor, walking both chains for every pair (as the
+    collision world did)."""
+    def chain(x: int) -> list[int]:
+        out = [x]
+        while x != 0:
+            x = int(model.body_parentid[x])
+            out.append(x)
+        return out
+
+    ca, cb = chain(a), chain(b)
+    return min(ca.index(c) + cb.index(c) for c in set(ca) & set(cb))
+
+
+def test_the_self_collision_filter_is_the_pairwise_one(scene):
+    world = scene.collision_world()
+    m = world.model
+    robot = np.flatnonzero(world._robot_geoms)
+    # The collision classes the filter was first worked out under (before the robot pairs got bits of their own).
+    m.geom_contype[robot] = 1
+    m.geom_conaffinity[robot] = 1
+    expected = np.zeros((m.ngeom, m.ngeom), dtype=bool)
+    for i in robot:
+        for j in robot:
+            near = _tree_distance(m, int(m.geom_bodyid[i]), int(m.geom_bodyid[j])) <= 2
+            expected[i, j] = near or (world._gripper_geoms[i] and world._gripper_geoms[j])
+    mujoco.mj_collision(m, world.data)
+    for c in world.data.contact[: world.data.ncon]:
+        g1, g2 = c.geom
+        if world._robot_geoms[g1] and world._robot_geoms[g2]:
+            expected[g1, g2] = expected[g2, g1] = True
+    assert expected.sum() > len(robot)
+    assert np.array_equal(world._self_collision_filter(), expected)
+
+
+def _reference_solve(kin, target_pos, target_quat, seed, position_tolerance=1e-3, orientation_tolerance=1e-2,
+                     max_iterations=150, damping=1e-3, max_step=0.2):
+    """``ArmKinematics.solve``'s loop as it was before its work arrays were kept between solves and its steps
+    written in place (a new array for the damped product, the step's size and every clamped update)."""
+    margin = np.minimum(LIMIT_MARGIN, 0.25 * (kin.limits[:, 1] - kin.limits[:, 0]))
+    lo, hi = kin.limits[:, 0] + margin, kin.limits[:, 1] - margin
+    q = np.clip(np.asarray(seed, dtype=float).copy(), lo, hi)
+    rows = 3 if target_quat is None else 6
+    err = np.zeros(rows)
+    err_w, jac_w = np.empty(rows), np.empty((rows, len(kin.dof_adr)))
+    damped = damping * np.eye(rows)
+    jacp, jacr = np.zeros((3, kin.model.nv)), np.zeros((3, kin.model.nv))
+    quat, conj, diff = np.empty(4), np.empty(4), np.empty(4)
+    m, d, site = kin.model, kin.data, kin.site_id
+    pos_err = rot_err = np.inf
+    it = 0
+    with _solve_errors():
+        for it in range(1, max_iterations + 1):
+            d.qpos[kin.qpos_adr] = q
+            mujoco.mj_kinematics(m, d)
+            np.subtract(target_pos, d.site_xpos[site], out=err[:3])
+            pos_err = math.sqrt(err[:3].dot(err[:3]))
+            if target_quat is not None:
+                mujoco.mju_mat2Quat(quat, d.site_xmat[site])
+                mujoco.mju_negQuat(conj, quat)
+                mujoco.mju_mulQuat(diff, target_quat, conj)
+                if diff[0] < 0.0:
+                    np.negative(diff, out=diff)
+                mujoco.mju_quat2Vel(err[3:], diff, 1.0)
+                rot_err = math.sqrt(err[3:].dot(err[3:]))
+            else:
+                rot_err = 0.0
+            if pos_err <= position_tolerance and rot_err <= orientation_tolerance:
+                break
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_jacSite(m, d, jacp, jacr, site)
+            if rows == 6:
+                jac_w[:3] = jacp[:, kin.dof_adr]
+                jac_w[3:] = jacr[:, kin.dof_adr]
+                jac_w[3:] *= 0.2
+                err_w[:] = err
+                err_w[3:] *= 0.2
+            else:
+                jac_w, err_w = jacp[:, kin.dof_adr], err
+            jjt = jac_w @ jac_w.T + damped
+            dq = jac_w.T @ _solve(jjt, err_w)
+            step = np.abs(dq).max()
+            if step > max_step:
+                dq *= max_step / step
+            q = np.minimum(np.maximum(q + dq, lo), hi)
+    return q, pos_err, rot_err, it
+
+
+def test_inverse_kinematics_gives_the_reference_iterates_bit_for_bit(scene):
+    world = scene.collision_world()
+    kin = world.kinematics
+    down = world.ee_pose(scene.home_q).quat
+    lim = world.joint_limits
+    rng = np.random.default_rng(3)
+    converged = maxed = 0
+    for k in range(60):
+        target = np.array([-0.2, 0.0, 0.9]) + rng.uniform(-0.5, 0.5, 3)
+        seed = rng.uniform(lim[:, 0], lim[:, 1])
+        quat = None if k % 4 == 3 else down
+        options = {"position_tolerance": 0.002, "orientation_tolerance": 0.025} if k % 2 else {}
+        got = kin.solve(target, quat, seed, **options)
+        q, pos_err, rot_err, it = _reference_solve(kin, target, quat, seed, **options)
+        assert got.q.tobytes() == q.tobytes()
+        assert (got.position_error, got.orientation_error, got.iterations) == (pos_err, rot_err, it)
+        converged += it < 150
+        maxed += it == 150
+    assert converged > 10 and maxed > 5  # both ends of the loop were compared
+
+
+def test_grasp_candidates_rank_as_when_every_frame_was_swept_and_composed_per_scene():
+    from muble_plugins.primitives import grasping
+
+    objects = get_registry().create("object_set", "shopvrb2", {"cache_dir": None})
+    rng = np.random.default_rng(5)
+    compared = 0
+    for category in objects.categories():
+        model = objects.build(objects.sample(rng, category=category))
+        if not model.grasp_frames:
+            continue
+        quat = np.array([np.cos(0.3), 0.0, 0.0, np.sin(0.3)])
+        pose = Pose(rng.uniform(-0.3, 0.3, 3), quat)
+
+        def clearance(site: Pose) -> float:  # any function of the pose: the ranking's input
+            return float(abs(np.sin(40.0 * site.pos[0]) * 0.03 + site.pos[1] * 0.01))
+
+        for free in (None, clearance):
+            for limit in (None, 16):
+                got = grasping.grasp_candidates(pose, model, -0.05, max_width=0.075, rest_quat=quat,
+                                                clearance=free, limit=limit)
+                want = _reference_candidates(pose, model, -0.05, 0.075, quat, free, limit)
+                assert [(p.pos.tobytes(), p.quat.tobytes()) for p in got] == \
+                       [(p.pos.tobytes(), p.quat.tobytes()) for p in want]
+                compared += len(got)
+    assert compared > 500
+
+
+def _reference_candidates(object_pose, model, table_top, max_width, rest_quat, clearance, limit):
+    """``grasp_candidates`` without a gripper as it was before each object's swept frames were kept: every frame
+    swept and composed with the object's pose one by one."""
+    from muble_plugins.primitives.grasping import (CLEAR_ENOUGH, CROWDED, TABLE_CLEARANCE, TOUCHING, _axis,
+                                                   _compose, _quat_mat, _sweeps, _swept, _turned)
+
+    rest_x = _quat_mat(rest_quat) @ np.array([1.0, 0.0, 0.0])
+    drafts = []
+    for index, frame in enumerate(model.grasp_frames):
+        if not 0.0 <= frame.width <= max_width:
+            continue
+        on_axis = float(np.hypot(frame.position[0], frame.position[1])) < 1e-3
+        sweeps = [(0.0, 1.0)]
+        if clearance is not None:
+            sweeps = _sweeps(frame, model.grasp_frames, on_axis, model.grasp_type)
+        for sweep, stretch in sweeps:
+            position, frame_quat = _swept(frame, sweep, stretch)
+            pos, quat = _compose(object_pose.pos, object_pose.quat, position, frame_quat)
+            yaws = [0.0, np.pi]
+            if model.grasp_type == "box" or (model.grasp_type == "cylinder" and on_axis):
+                yaws += [np.pi / 2, -np.pi / 2]
+            for yaw in yaws:
+                q = _turned(quat, yaw)
+                approach, closing = _axis(q, 2), _axis(q, 0)
+                p = pos.copy()
+                p[2] = max(p[2], table_top + TABLE_CLEARANCE)
+                tilt = float(np.arccos(np.clip(-approach[2], -1.0, 1.0)))
+                turn = float(np.arccos(min(1.0, abs(float(closing @ rest_x)))))
+                score = tilt + 0.3 * turn + 0.002 * index + 0.001 * abs(sweep)
+                drafts.append((score, len(drafts), Pose(p, q), frame.width * stretch, sweep))
+    if clearance is None:
+        drafts.sort(key=lambda item: item[:2])
+        return [d[2] for d in drafts[:limit]]
+    scored = []
+    for score, rank, site, _, sweep in drafts:
+        free = clearance(site)
+        if sweep != 0.0 and free < TOUCHING:
+            continue
+        score += CROWDED if free < TOUCHING else max(0.0, CLEAR_ENOUGH - free) / CLEAR_ENOUGH
+        scored.append((score, rank, site))
+    scored.sort(key=lambda item: item[:2])
+    return [pose for *_, pose in scored[:limit]]
