@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import logging
+import threading
 from collections.abc import Iterable, Iterator
 
 import mujoco
@@ -40,6 +41,46 @@ def _subtree_bodies(model: mujoco.MjModel, root: int) -> set[int]:
         if model.body_parentid[b] in bodies:
             bodies.add(b)
     return bodies
+
+
+# ``solve_on_arm_alone``'s kinematics, per thread (its MjData is scratch), by (id of the model, arm joints, site),
+# each with its model (kept, so that its id stays its own).
+_arm_alone_cache = threading.local()
+
+
+def _same_robot(full: mujoco.MjModel, alone: mujoco.MjModel, root: int, site: int, joints) -> bool:
+    """Whether ``alone`` holds the robot of ``full`` whose tree starts at body ``root``, every number the
+    kinematics read the same (``MujocoCollisionWorld.solve_on_arm_alone``)."""
+    try:
+        alone_site = alone.site(full.site(site).name).id
+        if any(alone.joint(j).id != full.joint(j).id for j in joints):
+            return False
+    except KeyError:
+        return False
+    if root >= alone.nbody:
+        return False
+    bodies = np.flatnonzero(full.body_rootid == root)
+    if not np.array_equal(np.flatnonzero(alone.body_rootid == root), bodies) or full.body_rootid[root] != root:
+        return False
+    body_joints = np.flatnonzero(np.isin(full.jnt_bodyid, bodies))
+    dofs = np.flatnonzero(np.isin(full.dof_bodyid, bodies))
+    # The robot's joints and degrees of freedom are all of ``alone``'s, first in both.
+    if (not np.array_equal(body_joints, np.arange(alone.njnt)) or not np.array_equal(dofs, np.arange(alone.nv))
+            or alone.nq != (full.jnt_qposadr[alone.njnt] if alone.njnt < full.njnt else full.nq)):
+        return False
+    for prefix, rows, alone_rows in (("body_", bodies, bodies), ("jnt_", body_joints, body_joints),
+                                     ("dof_", dofs, dofs), ("site_", [site], [alone_site])):
+        count = {"body_": full.nbody, "jnt_": full.njnt, "dof_": full.nv, "site_": full.nsite}[prefix]
+        for name in dir(full):
+            if not name.startswith(prefix) or name.endswith("invweight0"):
+                continue
+            a = getattr(full, name)
+            if not isinstance(a, np.ndarray) or a.shape[:1] != (count,):
+                continue
+            b = getattr(alone, name)
+            if a[rows].tobytes() != b[alone_rows].tobytes():
+                return False
+    return True
 
 
 def _steps_up(model: mujoco.MjModel, body: int) -> dict[int, int]:
@@ -117,6 +158,64 @@ class MujocoCollisionWorld(CollisionWorld):
         self._update_ignore()
         self.last_contacts: list[tuple[str, str]] = []
         self._limits: np.ndarray | None = None  # the joint limits ``is_valid`` last worked its accepted range out of
+        self._robot_root = m.body(robot_root).id
+        self._arm_alone: ArmKinematics | None = None  # ``solve_on_arm_alone``'s kinematics, if any
+        self._arm_alone_model: mujoco.MjModel | None = None  # the model last offered to it
+        self._scratch: mujoco.MjData | None = None  # ``scratch_data``'s
+        self._scratch_user: object = None
+
+    def scratch_data(self, user: object) -> tuple[mujoco.MjData, bool]:
+        """(a second ``MjData`` of this world's model for a caller's own computations, made once: making one
+        costs milliseconds; whether ``user`` was the last to ask for it, so that it still holds what that user
+        left in it). A user that finds it taken sets again every field it reads."""
+        if self._scratch is None:
+            self._scratch = mujoco.MjData(self.model)
+        kept = self._scratch_user is user
+        self._scratch_user = user
+        return self._scratch, kept
+
+    # ----------------------------------------------------------------- inverse kinematics on the robot alone
+    def solve_on_arm_alone(self, model: mujoco.MjModel) -> bool:
+        """From now on, solve inverse kinematics on ``model``, a model of this robot without the objects (the
+        same world built with no objects on the table), when the robot in it is this world's bit for bit: the same
+        iterates, bit for bit, in less time, since MuJoCo's kinematics then skip every object's geoms and sites.
+        Whether it is used (``False``: this world's own model, as before; the robot differs in some number).
+
+        Every step of the solver reads only the robot's own tree: ``mj_kinematics`` places each body from its
+        parent's frame, ``mj_comPos`` builds the com-based frames of a body from its own tree (summed over that
+        tree's bodies in the same order) and ``mj_jacSite`` reads those. So the robot's bodies, joints, degrees of
+        freedom and end-effector site must carry the same numbers (all of them but ``*_invweight0``, which the
+        compiler works out for the constraint solver from the whole model), with the same ids, its tree holding
+        no other body, and its joints first in ``qpos`` in both: then every step computes the same numbers."""
+        if model is self._arm_alone_model:
+            return self._arm_alone is not None
+        self._arm_alone_model, self._arm_alone = model, None
+        if _same_robot(self.model, model, self._robot_root, self.kinematics.site_id, self.kinematics.joint_names):
+            key = (id(model), self.kinematics.joint_names, self.model.site(self.kinematics.site_id).name)
+            cache = _arm_alone_cache.__dict__.setdefault("kinematics", {})
+            kept = cache.get(key)
+            if kept is None:  # one per model (making its MjData costs a millisecond): ``_solve`` sets all it reads
+                kept = cache[key] = (model, ArmKinematics(model, mujoco.MjData(model), list(key[1]), key[2]))
+            kinematics = kept[1]
+            if (np.array_equal(kinematics.qpos_adr, self.kinematics.qpos_adr)
+                    and np.array_equal(kinematics.dof_adr, self.kinematics.dof_adr)):
+                self._arm_alone = kinematics
+        return self._arm_alone is not None
+
+    def _solve(self, target_pos: np.ndarray, target_quat: np.ndarray | None, seed: np.ndarray, **options):
+        """``self.kinematics.solve``, on the robot alone where ``solve_on_arm_alone`` set that up. This world's
+        state is then left as solving here leaves it: the arm at the last configuration tried (``arm_q``, the
+        default seed of the next solve, reads it) and the kinematics at it."""
+        alone = self._arm_alone
+        if alone is None:
+            return self.kinematics.solve(target_pos, target_quat, seed, **options)
+        n = alone.model.nq  # the robot's joints, first in both (``_same_robot``)
+        alone.data.qpos[:] = self.data.qpos[:n]  # the fingers as synced: the robot's centre of mass
+        alone.limits = self.kinematics.limits
+        result = alone.solve(target_pos, target_quat, seed, **options)
+        self.data.qpos[:n] = alone.data.qpos
+        mujoco.mj_kinematics(self.model, self.data)
+        return result
 
     # ----------------------------------------------------------------- state
     def sync(self, data: mujoco.MjData) -> None:
@@ -348,7 +447,7 @@ class MujocoCollisionWorld(CollisionWorld):
 
     def local_inverse_kinematics(self, goal: PoseGoal, seed: np.ndarray) -> np.ndarray:
         """The solution reached from ``seed`` alone (no restarts): continuous motion along a Cartesian path."""
-        res = self.kinematics.solve(goal.pose.pos, goal.pose.quat, seed,
+        res = self._solve(goal.pose.pos, goal.pose.quat, seed,
                                     position_tolerance=goal.position_tolerance * 0.5,
                                     orientation_tolerance=goal.orientation_tolerance * 0.5)
         if not res.within(goal.position_tolerance, goal.orientation_tolerance):
@@ -372,7 +471,7 @@ class MujocoCollisionWorld(CollisionWorld):
         reached_in_collision: list[tuple[str, str]] | None = None
         best_pos_err = np.inf
         for seed in [*ordered, *restarts]:
-            res = self.kinematics.solve(
+            res = self._solve(
                 goal.pose.pos, goal.pose.quat, seed,
                 position_tolerance=goal.position_tolerance * 0.5,
                 orientation_tolerance=goal.orientation_tolerance * 0.5,

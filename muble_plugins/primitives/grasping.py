@@ -353,8 +353,12 @@ def hand_clearance(world, target_body: int | str, ignore=(), reach: float = CLEA
     """
     m = world.model
     skip = {m.body(b).id if isinstance(b, str) else int(b) for b in (target_body, *ignore)}
-    d = mujoco.MjData(m)
+    # The world's scratch data (a new MjData costs milliseconds), in the state a new one would reach here: every
+    # pose read below is the kinematics' of this qpos (and of the mocap bodies, which nothing moves in it).
+    user = object()
+    d, _ = world.scratch_data(user)
     d.qpos[:] = world.data.qpos
+    qpos = d.qpos.copy()
     mujoco.mj_kinematics(m, d)
     site = world.kinematics.site_id
     site_rot, site_pos = d.site_xmat[site].reshape(3, 3).copy(), d.site_xpos[site].copy()
@@ -369,6 +373,9 @@ def hand_clearance(world, target_body: int | str, ignore=(), reach: float = CLEA
     hand_r = m.geom_rbound[hand]
 
     def clearance(pose: Pose) -> float:
+        if not world.scratch_data(user)[1]:  # used by another since: its poses again (the hand's are set below)
+            d.qpos[:] = qpos
+            mujoco.mj_kinematics(m, d)
         rot = _quat_mat(pose.quat)
         best = reach
         centres = pose.pos + rel_pos @ rot.T

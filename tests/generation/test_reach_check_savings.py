@@ -262,3 +262,94 @@ def _reference_candidates(object_pose, model, table_top, max_width, rest_quat, c
         scored.append((score, rank, site))
     scored.sort(key=lambda item: item[:2])
     return [pose for *_, pose in scored[:limit]]
+
+
+def test_inverse_kinematics_on_the_robot_alone_gives_the_same_iterates_and_leaves_the_same_state():
+    import copy
+    import gzip
+    import json
+    from pathlib import Path
+
+    from muble.core.scene import SceneGraph
+    from muble.core.scene_io import scene_from_dict
+    from muble.sim.build import object_models
+    from muble.sim.env import TabletopEnv
+
+    with gzip.open(Path(__file__).parent / "data" / "reach_decisions.json.gz", "rt") as f:
+        record = json.load(f)["layouts"][0]
+    scene = scene_from_dict(record["scene"])
+    env = TabletopEnv(scene, object_models(scene, get_registry().create("object_set", "shopvrb2")), None, {},
+                      visual=False)
+    alone = TabletopEnv(SceneGraph(), {}, {"stage": env.names.stage}, {}, visual=False)
+    assert alone.model.nbody < env.model.nbody and alone.model.ngeom < env.model.ngeom
+
+    def world() -> MujocoCollisionWorld:
+        return MujocoCollisionWorld(env.model, env.data, env.arm_joint_names, env.ee_site, "robot0_base",
+                                    env.names.hand_body, ik_restarts=4)
+
+    own, fast = world(), world()
+    assert fast.solve_on_arm_alone(alone.model)
+    different = copy.deepcopy(alone.model)
+    different.body_mass[different.body("robot0_link3").id] += 1e-9
+    assert not world().solve_on_arm_alone(different)
+
+    down = own.ee_pose(own.arm_q).quat
+    rng = np.random.default_rng(11)
+    outcomes = set()
+    for k in range(24):
+        goal = PoseGoal(Pose(np.array([0.45, -0.1, 0.95]) + rng.uniform(-0.35, 0.35, 3), down))
+        results = []
+        for w in (own, fast):
+            try:
+                results.append(("q", w.inverse_kinematics(goal).tobytes()))
+            except PlanningError as e:
+                results.append(("error", str(e)))
+            results.append(("state", w.data.qpos.tobytes(), w.data.geom_xpos.tobytes(), w.arm_q.tobytes()))
+            try:
+                results.append(("local", w.local_inverse_kinematics(goal, w.arm_q).tobytes()))
+            except PlanningError as e:
+                results.append(("local error", str(e)))
+        assert results[:3] == results[3:]
+        outcomes.add((results[0][0], results[2][0]))
+    assert len(outcomes) > 1  # solved and failed goals were both compared
+
+
+class _NewDataPerCaller:
+    """A collision world whose ``scratch_data`` is a new MjData for every caller, as ``hand_clearance`` made one
+    before it shared the world's."""
+
+    def __init__(self, world):
+        self.world, self.made = world, {}
+
+    def __getattr__(self, name):
+        return getattr(self.world, name)
+
+    def scratch_data(self, user):
+        if user not in self.made:
+            self.made[user] = mujoco.MjData(self.world.model)
+        return self.made[user], True
+
+
+def test_hand_clearance_measures_the_same_on_the_world_s_shared_scratch_data(scene):
+    from muble_plugins.primitives.grasping import hand_clearance
+
+    world = scene.collision_world()
+    world.sync(scene.data)
+    quat = world.ee_pose(scene.home_q).quat
+    wall, target = scene.box_bodies[0], scene.object_bodies[0]
+    first, first_ref = hand_clearance(world, wall), hand_clearance(_NewDataPerCaller(world), wall)
+    # The object moved: a second measure on the same scratch data, then the first asked again, which must still
+    # see the object where it was.
+    adr = scene.model.jnt_qposadr[scene.model.body(target).jntadr[0]]
+    world.data.qpos[adr:adr + 3] += [0.05, 0.02, 0.0]
+    second, second_ref = hand_clearance(world, wall), hand_clearance(_NewDataPerCaller(world), wall)
+    rng = np.random.default_rng(2)
+    values = []
+    for pos in np.array([-0.17, 0.16, 0.86]) + rng.uniform(-0.08, 0.08, size=(40, 3)):
+        for f, ref in ((first, first_ref), (second, second_ref), (first, first_ref)):
+            got = f(Pose(pos, quat))
+            assert got == ref(Pose(pos, quat))
+            values.append(got)
+    assert min(values) < 0.002 and max(values) == 0.02 and len(set(values)) > 20
+    assert any(first(Pose(p, quat)) != second(Pose(p, quat)) for p in np.array([-0.17, 0.16, 0.86])
+               + rng.uniform(-0.08, 0.08, size=(40, 3)))  # the two states differ where measured
