@@ -35,7 +35,7 @@ class GraspModel:
         # The jaw contact law (see muble.sim.jaw_contact): jaws feel each object as one spring of its stiffness.
         self.jaws = JawContacts(model, finger_geom_sides(model, {1: list(names.left_pads), 2: list(names.right_pads)},
                                                          list(names.gripper_joints)),
-                                self.geom_object, self.body_of)
+                                self.geom_object, self.body_of, self.pad_side)
         # geom -> 1 finger (jaw or pad), 2 object, 0 other: a contact between a finger and an object is the only
         # pair whose codes sum to 3, so one gather and one sum tell whether any finger touches any object.
         self._contact_code = np.zeros(model.ngeom, dtype=np.int8)

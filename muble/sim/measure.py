@@ -128,6 +128,23 @@ def pressure_points(env, obj_id: int) -> np.ndarray:
     return out
 
 
+def deepest_points(env, obj_id: int) -> np.ndarray:
+    """Where (world, (2, 3)) ``obj_id`` is pressed deepest into each jaw along its closing axis: the contact of
+    that finger's geoms with the largest depth / cos (cos: between its normal and the closing axis, at least
+    ``jaw_contact.SQUARE``), the penetration the jaw law presses with; a side without such a contact gives its pad
+    centre."""
+    from muble.sim.jaw_contact import SQUARE
+
+    axes = closing_axes(env)
+    out, depth = pad_centres(env), np.zeros(2)
+    for k, contact, force in _jaw_contacts(env, obj_id):
+        norm = np.linalg.norm(force)
+        cos = float(force @ axes[k]) / norm if norm > 0 else 1.0
+        if cos >= SQUARE and -contact.dist / cos > depth[k]:
+            depth[k], out[k] = -contact.dist / cos, contact.pos
+    return out
+
+
 def _on_pad_bodies(env, points: np.ndarray) -> np.ndarray:
     """World points (2, 3), one per side, in the frame of that side's pad body."""
     bodies = _pad_bodies(env)
@@ -154,6 +171,38 @@ def finger_closure(env, hand_axes: np.ndarray | None = None, pad_points: np.ndar
         bodies = _pad_bodies(env)
         points = data.xpos[bodies] + np.einsum("kij,kj->ki", data.xmat[bodies].reshape(2, 3, 3), pad_points)
     return np.einsum("ij,ij->i", (points - pos) @ rot, hand_axes)
+
+
+def _pad_poses(env) -> tuple[np.ndarray, np.ndarray]:
+    """Position (2, 3) and rotation (2, 3, 3) of each side's pad body in the hand's frame, as the fingers' encoders
+    would give them. Recomputes the kinematics first (see ``finger_closure``)."""
+    import mujoco
+
+    mujoco.mj_kinematics(env.model, env.data)
+    pos, rot = _hand_frame(env)
+    bodies = _pad_bodies(env)
+    return ((env.data.xpos[bodies] - pos) @ rot,
+            np.einsum("ji,kjl->kil", rot, env.data.xmat[bodies].reshape(2, 3, 3)))
+
+
+def jaw_travel(pad_pos: np.ndarray, pad_rot: np.ndarray, points: np.ndarray, hand_axes: np.ndarray) -> np.ndarray:
+    """How far (m) each side's pad has closed at each force level, read where the object presses it deepest.
+
+    ``pad_pos`` (L, 2, 3) and ``pad_rot`` (L, 2, 3, 3) are the pad bodies' poses in the hand's frame at each of L
+    levels, ``points`` (L, 2, 3) the deepest contact on each pad at that level, in the pad's frame, ``hand_axes``
+    (2, 3) the closing axes in the hand's frame. The jaw law presses with the object's stiffness times the
+    penetration of each jaw's deepest point; on a pad that tilts as it is loaded (a linkage's give) the points
+    of a pad close by different amounts, and which point is deepest can change from level to level. So the travel
+    from one level to the next is read at the point midway between the two levels' deepest points, and the
+    travels add up: (L, 2), the first level's at its own deepest point."""
+    def closure(level, pts):
+        return np.einsum("kj,kj->k", pad_pos[level] + np.einsum("kij,kj->ki", pad_rot[level], pts), hand_axes)
+
+    out = [closure(0, points[0])]
+    for j in range(1, len(points)):
+        mid = 0.5 * (points[j - 1] + points[j])
+        out.append(out[-1] + closure(j, mid) - closure(j - 1, mid))
+    return np.array(out)
 
 
 def _dense(model, data, values, rownnz, rowadr, colind, nrow: int) -> np.ndarray:
@@ -220,9 +269,10 @@ def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float
     At each force level the finger actuators are limited to the force that presses each pad with that many newtons
     (``pad_transmission``) and commanded closed; after ``settle`` s, and until the jaw force stops drifting
     (``SQUEEZE_DRIFT``), the jaw forces and the pads' positions are averaged over ``window`` s. Both are read from
-    the pads, which every two-sided gripper has, along each side's closing axis (``closing_axes``): where the object
-    presses on each pad (``pressure_points``), in the hand's frame. The stiffness is the least-squares slope of
-    the mean jaw force against the mean pad travel: force per metre a jaw penetrates the object.
+    the pads, which every two-sided gripper has, along each side's closing axis (``closing_axes``) in the hand's
+    frame: the travel where the object presses each pad deepest (``deepest_points``, ``jaw_travel``: a linkage's
+    pads tilt under load). The stiffness is the least-squares slope of the mean jaw force against the mean pad
+    travel: force per metre a jaw penetrates the object.
     The arm holds its pose throughout; the object stays welded to the hand if it was grasped (``grasp="weld"``),
     which keeps the two jaws' loads symmetric about it.
     """
@@ -242,16 +292,18 @@ def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float
     push = env.gripper_closed_ctrl + (env.gripper_closed_ctrl - env.gripper_open_ctrl)
     # closing axes as grasped, fixed in the hand, so that each pad's travel is a projection on one line
     hand_axes = closing_axes(env) @ _hand_frame(env)[1]
-    pad_points = _on_pad_bodies(env, pressure_points(env, obj_id))  # where it presses, as grasped
     transmission = pad_transmission(env)
     if not transmission > 0:
         raise PhysicsError(f"the finger actuators do not close the pads (transmission {transmission:g} m/unit)")
-    samples, window_samples = [], []
+    levels, poses, rotations, points = [], [], [], []
+    window_forces, window_pos, window_rot = [], [], []
 
     def read(_k):
         axes = hand_axes @ _hand_frame(env)[1].T  # the hand's pose when these contacts were found
-        window_samples.append(np.concatenate([jaw_forces(env, obj_id, axes),
-                                              finger_closure(env, hand_axes, pad_points)]))
+        window_forces.append(jaw_forces(env, obj_id, axes))
+        pos, rot = _pad_poses(env)
+        window_pos.append(pos)
+        window_rot.append(rot)
 
     try:
         env.model.actuator_ctrllimited[ids] = 0
@@ -263,22 +315,29 @@ def squeeze(env, obj_id: int | None = None, forces=SQUEEZE_FORCES, settle: float
             env.hold(settle)
             waited = settle
             while True:
-                window_samples.clear()
+                window_forces.clear()
+                window_pos.clear()
+                window_rot.clear()
                 env.advance(window, on_control=read)
                 waited += window
-                drift = _drift(np.array(window_samples)[:, :2].mean(axis=1))
+                drift = _drift(np.array(window_forces).mean(axis=1))
                 if drift <= SQUEEZE_DRIFT * level or waited >= SQUEEZE_SETTLE_MAX - 1e-9:
                     break
-            force_l, force_r, travel_l, travel_r = np.mean(window_samples, axis=0)
-            samples.append((0.5 * (force_l + force_r), 0.5 * (travel_l + travel_r), min(force_l, force_r)))
-            logger.debug("squeeze level %.3g after %.1f s: jaw forces %.3f %.3f N (drift %.3f N a window), pad "
-                         "positions %.4f %.4f mm", level, waited, force_l, force_r, drift,
-                         travel_l * 1000, travel_r * 1000)
+            force_l, force_r = np.mean(window_forces, axis=0)
+            levels.append((0.5 * (force_l + force_r), min(force_l, force_r)))
+            poses.append(np.mean(window_pos, axis=0))
+            rotations.append(np.mean(window_rot, axis=0))
+            points.append(_on_pad_bodies(env, deepest_points(env, obj_id)))  # after the window's last step
+            logger.debug("squeeze level %.3g after %.1f s: jaw forces %.3f %.3f N (drift %.3f N a window), "
+                         "deepest points on the pads %s mm", level, waited, force_l, force_r, drift,
+                         np.round(points[-1] * 1000, 2).tolist())
     finally:
         env.model.actuator_forcerange[ids] = saved
         env.model.actuator_forcelimited[ids] = saved_limited
         env.model.actuator_ctrllimited[ids] = saved_ctrl_limited
         env.close_gripper()
+    travels = jaw_travel(np.array(poses), np.array(rotations), np.array(points), hand_axes)
+    samples = [(f, t.mean(), w) for (f, w), t in zip(levels, travels)]
     force, travel, weakest = np.array(samples).T
     if np.any(weakest <= 0):
         raise PhysicsError(f"the jaws do not both press object {obj_id} while squeezing; grasp it first")

@@ -263,6 +263,13 @@ def _build_staged_robot(robot: str, gripper: str | None, stage: Stage):
 # with up to ~300 N a pad; the jaw law holds force = stiffness x depth (a glass is 17-90 kN/m), so the fingertips
 # sank into a glass's 3-6 mm wall and left it wedged on them: tipped over, or held up, as the fingers opened.
 ROBOTIQ_TORQUE = 1.0
+# s, time constant of the joint equalities that close the Robotiq 85's four-bar linkage (robosuite's tendon
+# replaced, see _couple_linkage_fingers). At 0.01 s the linkage gave so much that a pad tilted by ~1.3 mrad per 5 N
+# (30 um from one end of the pad to the other, as much as a 70-110 kN/m glass or mug yields to the same 5 N): the
+# point of the pad pressed deepest jumped from end to end between squeeze levels and stiff objects misread by up to
+# 5 %. 0.004 s (two physics steps) chattered with a cylinder pressed on a pad's lower edge (repeated squeezes of it
+# +1 to +8 %); 0.006 s holds both within 3.5 % (docs/environment.md, "Stiffness").
+LINKAGE_TIMECONST = 0.006
 
 
 def _couple_linkage_fingers(world, names: WorldNames) -> None:
@@ -279,7 +286,7 @@ def _couple_linkage_fingers(world, names: WorldNames) -> None:
     for driven, side in (("finger_joint", "left"), ("right_outer_knuckle_joint", "right")):
         for joint, coef in ((f"{side}_inner_knuckle_joint", 1.0), (f"{side}_inner_finger_joint", -1.0)):
             ET.SubElement(world.equality, "joint", joint1=prefix + joint, joint2=prefix + driven,
-                          polycoef=f"0 {coef} 0 0 0", solref="0.01 1")
+                          polycoef=f"0 {coef} 0 0 0", solref=f"{LINKAGE_TIMECONST:g} 1")
     # The finger links weigh 15-30 g: rotor inertia keeps the closed chain stable at 2 ms. The drive is limited to
     # ROBOTIQ_TORQUE and damped so that the jaws close in ~0.3 s at up to ~0.16 m/s each, about the real gripper's
     # top speed (150 mm/s); undamped they slam (~1 m/s, which throws a mug off the table).
