@@ -1,5 +1,7 @@
 """The reach check's savings change no outcome: the collision world detects only the robot-robot contacts that
-count, yet reports every check as before; the OMPL planner's ``check`` fails exactly where ``plan`` fails.
+count, yet reports every check as before; the OMPL planner's ``check`` fails exactly where ``plan`` fails; the
+self-collision filter, the IK iterates (on the whole model and on the robot alone), the hand clearance on shared
+scratch data and the grasp ranking are those of the code before each saving, bit for bit.
 (``test_reach_decisions.py`` holds the check's decisions on 312 recorded layouts.)"""
 from __future__ import annotations
 
