@@ -1,6 +1,6 @@
-"""The stage generated scenes stand on: robosuite's by default and in protocol shopvrb2_v1 (its scene files name no
-stage and keep the bytes they had before stages could be chosen), the original release's with generator.stage=original
-(its desk, the Panda standing on it with a Robotiq 85), robot.stage in the generator's place when set."""
+"""The stage generated scenes stand on: the original release's by default (its desk, the Panda standing on it with a
+Robotiq 85), robosuite's in protocol shopvrb2_v1 and with generator.stage=robosuite (its scene files name no stage and
+keep the bytes they had before stages could be chosen), robot.stage in the generator's place when set."""
 from __future__ import annotations
 
 import numpy as np
@@ -16,9 +16,9 @@ from tests.generation.builtin import BUILTIN
 pytestmark = pytest.mark.gl
 
 
-def test_scenes_default_to_robosuites_stage_and_the_protocol_pins_it():
-    assert compose("generate", ["dataset.root=/tmp"]).generator.stage == "robosuite"
-    assert compose("run", ["dataset.root=/tmp"]).generator.stage == "robosuite"
+def test_scenes_default_to_the_original_stage_and_the_protocol_pins_robosuites():
+    assert compose("generate", ["dataset.root=/tmp"]).generator.stage == "original"
+    assert compose("run", ["dataset.root=/tmp"]).generator.stage == "original"
     assert compose("generate", ["dataset.root=/tmp", "protocol=shopvrb2_v1"]).generator.stage == "robosuite"
     # The protocol names its stage itself, so it keeps it whatever the generator's default.
     from importlib import resources
