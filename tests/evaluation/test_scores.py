@@ -277,6 +277,10 @@ def test_the_results_table_counts_each_task_type_with_its_interval_beside_the_pa
     assert rows["overall"][0].startswith("75.0% [53–89] (15/20)")
     assert rows["stack_weight"][-1].strip(" |") == "33%" and rows["overall"][-1].strip(" |") == "43.9%"
     assert capsys.readouterr().out == out.read_text()
+    assert _results_table().main([f"oracle={a}", "--paper", "ycb", "--out", str(out)]) == 0
+    rows = {line.split(" | ")[0].strip("| `*"): line.split(" | ")[1:] for line in out.read_text().splitlines()}
+    assert rows["stack_weight"][-1].strip(" |") == "—" and rows["overall"][-1].strip(" |") == "76.7%"
+    assert "YCB" in rows["task type"][-1]
 
 
 def test_the_results_table_refuses_a_folder_without_results(tmp_path, capsys):
