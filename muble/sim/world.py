@@ -264,12 +264,11 @@ def _build_staged_robot(robot: str, gripper: str | None, stage: Stage):
 # sank into a glass's 3-6 mm wall and left it wedged on them: tipped over, or held up, as the fingers opened.
 ROBOTIQ_TORQUE = 1.0
 # s, time constant of the joint equalities that close the Robotiq 85's four-bar linkage (robosuite's tendon
-# replaced, see _couple_linkage_fingers). At 0.01 s the linkage gave so much that a pad tilted by ~1.3 mrad per 5 N
-# (30 um from one end of the pad to the other, as much as a 70-110 kN/m glass or mug yields to the same 5 N): the
-# point of the pad pressed deepest jumped from end to end between squeeze levels and stiff objects misread by up to
-# 5 %. 0.004 s (two physics steps) chattered with a cylinder pressed on a pad's lower edge (repeated squeezes of it
-# +1 to +8 %); 0.006 s holds both within 3.5 % (docs/environment.md, "Stiffness").
-LINKAGE_TIMECONST = 0.006
+# replaced, see _couple_linkage_fingers). The linkage gives: a pad tilts by ~1.3 mrad per 5 N (30 um from one end
+# of the pad to the other, as much as a 70-110 kN/m glass or mug yields to the same 5 N), which squeeze allows for
+# (measure.jaw_travel). Stiffer, 0.006 s, halved the tilt but the fingers then closed on nothing at a bowl's rim
+# (tests/tasks/test_tasks_oracle_physics.py, stack_order on the original stage).
+LINKAGE_TIMECONST = 0.01
 
 
 def _couple_linkage_fingers(world, names: WorldNames) -> None:
