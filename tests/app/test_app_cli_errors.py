@@ -90,8 +90,15 @@ def test_ctrl_c_exits_130_with_one_line(tmp_path):
     root = tmp_path / "ds"
     cmd = [sys.executable, "-m", "muble.app.cli", *GENERATE, "dataset.sizes=[20]", "dataset.workers=2",
            f"dataset.root={root}", f"hydra.run.dir={tmp_path / 'run'}"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "MUJOCO_GL": "egl"}, start_new_session=True)
+    # A terminal's program takes Ctrl-C; a shell's background job (`pytest … &`, `nohup`) ignores SIGINT, and a
+    # process started from it would inherit that and finish the run. With a handler installed here, the child
+    # starts with SIGINT's default whatever this process inherited.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env={**os.environ, "MUJOCO_GL": "egl"}, start_new_session=True)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and not any((root / "v" / "instructions").glob("*.json")):
         time.sleep(0.1)
