@@ -52,10 +52,18 @@ def _assert_same(frames, others):
             np.testing.assert_array_equal(getattr(a, part), getattr(b, part), err_msg=part)
 
 
-def test_unseen_floor_is_drawn_without_its_reflection_and_the_frame_is_the_same(generated_env, monkeypatch):
+def test_unseen_floor_is_drawn_without_its_reflection_and_the_frame_is_the_same(monkeypatch):
     # robosuite's stage: the table hides the floor from the front camera.
-    skipped, drawn_without = _frames(generated_env, monkeypatch)
-    always, drawn_with = _frames(generated_env, monkeypatch, reflection_when_hidden=True)
+    from muble.app.config import compose
+    from muble.episode.components import build_components, generated_env
+
+    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", "generator.stage=robosuite"])
+    env = generated_env(cfg, build_components(cfg, renderer=False, task=False), 3)
+    try:
+        skipped, drawn_without = _frames(env, monkeypatch)
+        always, drawn_with = _frames(env, monkeypatch, reflection_when_hidden=True)
+    finally:
+        env.close()
     assert drawn_without == [0, 0, 0] and drawn_with == [1, 1, 1]
     _assert_same(skipped, always)
 
