@@ -67,12 +67,10 @@ def closing_axes(env) -> np.ndarray:
     """Unit vectors (2, 3) in which the left and right pads close: from each side's pad centre towards the other's.
     Any two-sided gripper has pads; its finger joints may slide (Panda) or turn (Robotiq 85's linkage), so no
     joint axis says which way a pad moves."""
-    centres = pad_centres(env)
-    gap = centres[1] - centres[0]
-    length = float(np.linalg.norm(gap))
-    if length <= 0:
+    axes = env.grasp.jaws.closing_axes(env.data)  # the jaw law's own directions
+    if axes is None:
         raise PhysicsError("the two pads' centres coincide: no closing direction to squeeze along")
-    return np.array([gap, -gap]) / length
+    return np.array([axes[1], axes[2]])
 
 
 def _jaw_contacts(env, obj_id: int):
