@@ -27,13 +27,13 @@ log = logging.getLogger(__name__)
 SCENE_TRIES = 20
 # Small RGB images drawn for speed: on a software rasteriser robosuite's shadow-casting lights and the robot's
 # ~170k visual triangles cost ~0.9 s a frame as a keyframe is drawn. Without shadows, floor reflection and
-# multisampling, and with the robot's meshes clustered on a 2 cm grid (about a pixel of a 128x128 view of the
-# table), the masks stay within IoU 0.95 of the detailed meshes' (benchmarks/gym_speed.py measures both; a 3 cm
-# grid falls below it).
+# multisampling, and with the robot's meshes drawn from decimated copies within 5 mm of the modelled surface (under
+# a third of a pixel of a 128x128 view of the table), the masks stay within IoU 0.98 of the detailed meshes'
+# (benchmarks/gym_speed.py measures both).
 DEFAULT_OVERRIDES = ("renderer.width=128", "renderer.height=128", "renderer.depth=false",
                      "renderer.segmentation=false")
 FAST_MUJOCO_OVERRIDES = ("renderer.shadows=false", "renderer.reflection=false", "renderer.multisamples=0",
-                         "renderer.mesh_cell=0.02")
+                         "renderer.mesh_tolerance=0.005")
 
 
 def default_overrides(overrides: Sequence[str]) -> tuple[str, ...]:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from muble import SEG_ROBOT, RenderError, get_registry
-from muble_plugins.renderers.mujoco.simplify import cluster_vertices
+from muble_plugins.renderers.mujoco.simplify import decimate, deviation
 
 pytestmark = pytest.mark.gl
 
@@ -26,20 +26,45 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
     return float((a & b).sum() / (a | b).sum())
 
 
-def test_clustering_keeps_vertices_within_a_cell_and_drops_collapsed_triangles():
-    # A finely tessellated unit square: 2 x 20 x 20 triangles.
-    n = 21
-    xs, ys = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
-    verts = np.stack([xs.ravel(), ys.ravel(), np.zeros(n * n)], axis=1)
-    quads = [(i * n + j, i * n + j + 1, (i + 1) * n + j + 1, (i + 1) * n + j) for i in range(n - 1) for j in range(n - 1)]
-    faces = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
-    out_verts, out_faces, normals = cluster_vertices(verts, faces, cell=0.25)
-    assert 0 < len(out_faces) < len(faces) / 10
-    # Every new vertex is the mean of one cell's vertices, so lies within it; the square stays flat and faces up.
-    assert out_verts[:, :2].min() >= 0 and out_verts[:, :2].max() <= 1
-    np.testing.assert_allclose(out_verts[:, 2], 0)
-    np.testing.assert_allclose(normals, np.tile([0, 0, 1], (len(normals), 1)), atol=1e-9)
-    assert len({tuple(sorted(f)) for f in out_faces.tolist()}) == len(out_faces)
+def _surface_distances(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each point's distance to the nearest of all the triangles (brute force, for small meshes)."""
+    from trimesh.triangles import closest_point
+
+    triangles = verts[faces]
+    pairs_t = np.tile(triangles, (len(points), 1, 1))
+    pairs_p = np.repeat(points, len(triangles), axis=0)
+    gaps = np.linalg.norm(closest_point(pairs_t, pairs_p) - pairs_p, axis=1)
+    return gaps.reshape(len(points), len(triangles)).min(axis=1)
+
+
+def _capsule_mesh(radius: float, length: float):
+    import trimesh
+
+    mesh = trimesh.creation.capsule(height=length, radius=radius, count=[48, 48])
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
+def test_decimation_keeps_every_vertex_within_the_tolerance_and_the_tolerance_decides_the_reduction():
+    # A finely tessellated capsule as a mesh is stored for drawing: a vertex per triangle corner.
+    verts, faces = _capsule_mesh(radius=0.03, length=0.2)
+    corners = verts[faces].reshape(-1, 3)
+    stored_faces = np.arange(len(corners)).reshape(-1, 3)
+    loose = decimate(corners, stored_faces, tolerance=0.003)
+    tight = decimate(corners, stored_faces, tolerance=0.0003)
+    assert loose is not None and tight is not None
+    # The coincident corners were welded: the decimation found a closed surface and removed most triangles.
+    assert len(loose[1]) <= 0.2 * len(faces)
+    # A tighter tolerance keeps more of them, and each copy stays within its own tolerance of every vertex.
+    assert len(tight[1]) > len(loose[1]) and tight[3] < loose[3]
+    for (out_verts, out_faces, normals, _), tolerance in ((loose, 0.003), (tight, 0.0003)):
+        assert _surface_distances(verts, out_verts, out_faces).max() <= tolerance + 1e-9
+        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1, atol=1e-9)
+        # Outward normals on the capsule's round end: away from its centre.
+        tip = out_verts[:, 2].argmax()
+        assert normals[tip, 2] > 0.9
+    # The measured deviation bounds the true one (it is never smaller than the brute-force distance).
+    out_verts, out_faces = loose[0], loose[1]
+    assert deviation(verts, out_verts, out_faces) >= _surface_distances(verts, out_verts, out_faces).max() - 1e-12
 
 
 def test_fast_settings_keep_the_masks_and_leave_the_model_as_compiled(generated_env):
@@ -47,7 +72,7 @@ def test_fast_settings_keep_the_masks_and_leave_the_model_as_compiled(generated_
     before = (model.mesh_vert.copy(), model.mesh_face.copy(), model.mesh_facenum.copy(),
               int(model.vis.global_.offwidth), int(model.vis.quality.offsamples))
     detailed = _frame(generated_env)
-    fast = _frame(generated_env, shadows=False, reflection=False, multisamples=0, mesh_cell=0.01)
+    fast = _frame(generated_env, shadows=False, reflection=False, multisamples=0, mesh_tolerance=0.005)
     assert _iou(detailed.mask(SEG_ROBOT), fast.mask(SEG_ROBOT)) > 0.95
     visible = [obj.id for obj in generated_env.scene.objects if detailed.mask(obj.id).any()]
     assert visible
@@ -64,7 +89,7 @@ def test_fast_settings_keep_the_masks_and_leave_the_model_as_compiled(generated_
 
 
 def test_out_of_range_settings_are_refused():
-    with pytest.raises(RenderError, match="mesh_cell"):
-        get_registry().create("renderer", "mujoco", {"mesh_cell": 0.5})
+    with pytest.raises(RenderError, match="mesh_tolerance"):
+        get_registry().create("renderer", "mujoco", {"mesh_tolerance": 0.5})
     with pytest.raises(RenderError, match="multisamples"):
         get_registry().create("renderer", "mujoco", {"multisamples": 64})

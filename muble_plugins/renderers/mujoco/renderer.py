@@ -47,9 +47,10 @@ class MujocoRendererConfig:
     reflection_when_hidden: bool = False
     # Multisampling of the RGB pass (None: the model's ``visual/quality/offsamples``, robosuite's 4); 0 turns it off.
     multisamples: int | None = None
-    # Visual meshes of at least a thousand triangles drawn simplified on a grid of this many metres (None: as
-    # modelled); for small images, whose pixels are larger than the cell (muble_plugins/renderers/mujoco/simplify.py).
-    mesh_cell: float | None = None
+    # Visual meshes of at least a thousand triangles drawn from decimated copies whose surface stays within this
+    # many metres of every modelled vertex (None: as modelled); for small images, whose pixels are larger than the
+    # tolerance (muble_plugins/renderers/mujoco/simplify.py).
+    mesh_tolerance: float | None = None
 
 
 class MujocoRenderer(Renderer):
@@ -58,7 +59,8 @@ class MujocoRenderer(Renderer):
     def __init__(self, width: int = 848, height: int = 480, rgb: bool = True, depth: bool = True,
                  segmentation: bool = True, reuse_meshes: bool = True, geom_groups: list[int] | tuple = (1, 2),
                  shadows: bool = True, shadow_size: int | None = DEFAULT_SHADOW_SIZE, reflection: bool = True,
-                 multisamples: int | None = None, mesh_cell: float | None = None, reflection_when_hidden: bool = False):
+                 multisamples: int | None = None, mesh_tolerance: float | None = None,
+                 reflection_when_hidden: bool = False):
         if width <= 0 or height <= 0:
             raise RenderError(f"image size must be positive, got {width}x{height}; set renderer.width/height")
         if not (rgb or depth or segmentation):
@@ -69,15 +71,15 @@ class MujocoRenderer(Renderer):
             raise RenderError(f"shadow_size must be 64..16384 texels (or null for the model's own), got {shadow_size}")
         if multisamples is not None and not 0 <= int(multisamples) <= 16:
             raise RenderError(f"multisamples must be 0..16 (or null for the model's own), got {multisamples}")
-        if mesh_cell is not None and not 0 < float(mesh_cell) <= 0.1:
-            raise RenderError(f"mesh_cell must be a grid of 0..0.1 m (or null for meshes as modelled), got {mesh_cell}")
+        if mesh_tolerance is not None and not 0 < float(mesh_tolerance) <= 0.05:
+            raise RenderError(f"mesh_tolerance must be 0..0.05 m (or null for meshes as modelled), got {mesh_tolerance}")
         self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes,
                                            [int(g) for g in geom_groups], bool(shadows),
                                            None if shadow_size is None else int(shadow_size), bool(reflection),
                                            bool(reflection_when_hidden),
                                            None if multisamples is None else int(multisamples),
-                                           None if mesh_cell is None else float(mesh_cell))
-        self._simplified = None if mesh_cell is None else SimplifiedMeshes(float(mesh_cell))
+                                           None if mesh_tolerance is None else float(mesh_tolerance))
+        self._simplified = None if mesh_tolerance is None else SimplifiedMeshes(float(mesh_tolerance))
         self._gl = None
         self._context = None  # MjrContext
         self._context_model = None  # the model the context was made from, or whose meshes it was refilled with
