@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol, runtime_checkable
 
 import numpy as np
 
+from muble.core.table import TABLE_MARGIN
 from muble.core.table import part_region as _part_region
 from muble.core.types import Pose, Trajectory
 
@@ -22,7 +23,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from muble.core.objects import ObjectModel
     from muble.core.scene import SceneGraph
 
-TABLE_MARGIN = 0.08  # m kept free along the table top's edges when choosing a place on it
 
 
 class EnvironmentNames(Protocol):
@@ -55,10 +55,9 @@ class TableTop:
         """(low, high) corners in x, y where a placed object's centre goes to lie in a named part of the table:
         the part of ``muble.core.table`` (the definition tasks and success checks share), kept ``margin`` inside
         this top's edges."""
-        (x0, x1), (y0, y1) = _part_region(part)
-        lo = np.maximum([x0, y0], self.centre - self.half + margin)
-        hi = np.minimum([x1, y1], self.centre + self.half - margin)
-        return lo, hi
+        edges = self.centre - self.half, self.centre + self.half
+        (x0, x1), (y0, y1) = _part_region(part, ((edges[0][0], edges[1][0]), (edges[0][1], edges[1][1])), margin)
+        return np.array([x0, y0]), np.array([x1, y1])
 
 
 @runtime_checkable

@@ -10,7 +10,7 @@ import numpy as np
 
 from muble.core.free_place import free_places
 from muble.core.scene import SceneGraph, SceneObject
-from muble.core.table import part_region
+from muble.core.table import part_region, scene_top
 
 # Sizes (m) assumed for an object whose record has no bbox.
 DEFAULT_RADIUS = 0.04
@@ -52,7 +52,7 @@ def free_spot(scene: SceneGraph, obj: SceneObject, part: str) -> list[float] | N
     """Where ``obj`` is put down on ``part``: the first free place of the one free-place rule
     (``muble.core.free_place``, nearest the part's centre) with bounding boxes as footprints; None when the part
     has no room for it."""
-    (x0, x1), (y0, y1) = part_region(part)
+    (x0, x1), (y0, y1) = part_region(part, scene_top(scene))
     held = outline(obj) - np.asarray(obj.position[:2], dtype=float)
     others = [outline(other) for other in scene.objects if other.id != obj.id]
     places = free_places((x0, y0), (x1, y1), held, others)

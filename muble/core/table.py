@@ -27,6 +27,19 @@ TABLE_CENTRE_RADIUS = 0.08  # m; objects this close to the centre are also in "c
 PLACE_REGION = ((0.28, 0.74), (-0.40, 0.26))
 SPLIT_MARGIN = 0.04  # m between a placed object's centre and a split line
 BELOW_TABLE = 0.05  # m: an object whose origin is this far below the table top has fallen off
+TABLE_MARGIN = 0.08  # m kept free along the table top's edges when choosing a place on it
+# The table top's (x0, x1), (y0, y1) in the scene frame on each stage a scene is built on (``muble.sim.world``'s
+# ``STAGES`` builds them; a test checks the two agree), by the name a scene file's ``stage`` key gives: robosuite's
+# table, and the original release's 1.36 x 0.8 m desk with the robot's base 0.23 m in from its back edge. The part
+# regions are kept ``TABLE_MARGIN`` inside the top, in both worlds: on robosuite's table that leaves them as
+# ``PLACE_REGION`` has them, on the narrower desk it keeps placed objects off its left edge.
+_DESK_CENTRE_X = 1.36 / 2 - 0.23
+STAGE_TOPS = {
+    "robosuite": (TABLE_X, TABLE_Y),
+    "original": ((_DESK_CENTRE_X - 1.36 / 2, _DESK_CENTRE_X + 1.36 / 2), (-0.8 / 2, 0.8 / 2)),
+}
+UNNAMED_STAGE = "robosuite"  # the stage of a scene file that names none (protocol shopvrb2_v1's among them)
+STAGE_KEY = "stage"  # the scene file's key naming its stage
 TABLE_PARTS = ("left", "right", "front", "back", "centre")
 OPPOSITE_PART = {"left": "right", "right": "left", "front": "back", "back": "front"}
 _ALIASES = {"center": "centre"}
@@ -57,19 +70,38 @@ def parts_at(x: float, y: float, directions: Mapping[str, Sequence[float]] | Non
     return frozenset(parts)
 
 
-def part_region(part: str) -> tuple[tuple[float, float], tuple[float, float]]:
-    """The (x0, x1), (y0, y1) ranges where a placed object's centre may go to lie in ``part``."""
+def stage_name(scene) -> str:
+    """The name of the stage ``scene`` stands on: its file's ``stage`` key, else ``original`` for a scene of the
+    original release's files (which name none; they were made on it), else ``UNNAMED_STAGE``."""
+    return scene.extra.get(STAGE_KEY) or ("original" if scene.from_original_release else UNNAMED_STAGE)
+
+
+def scene_top(scene) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The table top's ranges for ``scene``'s stage (None for a stage this module does not know: the part regions
+    are then not clipped, and the physical world's own table still clips its own)."""
+    return STAGE_TOPS.get(stage_name(scene))
+
+
+def part_region(part: str, top: tuple[tuple[float, float], tuple[float, float]] | None = None,
+                margin: float = TABLE_MARGIN) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The (x0, x1), (y0, y1) ranges where a placed object's centre may go to lie in ``part``; with ``top`` (the
+    table top's (x0, x1), (y0, y1), see ``scene_top``) kept ``margin`` inside its edges."""
     part = canonical_part(part)
     (x0, x1), (y0, y1) = PLACE_REGION
     cx, cy = TABLE_CENTRE
     if part == "left":
-        return (x0, x1), (y0, cy - SPLIT_MARGIN)
-    if part == "right":
-        return (x0, x1), (cy + SPLIT_MARGIN, y1)
-    if part == "front":
-        return (cx + SPLIT_MARGIN, x1), (y0, y1)
-    if part == "back":
-        return (x0, cx - SPLIT_MARGIN), (y0, y1)
-    # A square inside the centre disc, its corners SPLIT_MARGIN / 2 within the circle.
-    half = (TABLE_CENTRE_RADIUS - SPLIT_MARGIN / 2) / 2 ** 0.5
-    return (cx - half, cx + half), (cy - half, cy + half)
+        ranges = (x0, x1), (y0, cy - SPLIT_MARGIN)
+    elif part == "right":
+        ranges = (x0, x1), (cy + SPLIT_MARGIN, y1)
+    elif part == "front":
+        ranges = (cx + SPLIT_MARGIN, x1), (y0, y1)
+    elif part == "back":
+        ranges = (x0, cx - SPLIT_MARGIN), (y0, y1)
+    else:
+        # A square inside the centre disc, its corners SPLIT_MARGIN / 2 within the circle.
+        half = (TABLE_CENTRE_RADIUS - SPLIT_MARGIN / 2) / 2 ** 0.5
+        ranges = (cx - half, cx + half), (cy - half, cy + half)
+    if top is None:
+        return ranges
+    return tuple((max(lo, edge_lo + margin), min(hi, edge_hi - margin))  # type: ignore[return-value]
+                 for (lo, hi), (edge_lo, edge_hi) in zip(ranges, top))

@@ -17,6 +17,7 @@ holds the decisions of the check before these savings on 312 recorded layouts, r
 from __future__ import annotations
 
 import logging
+import re
 from typing import Any
 
 from muble.core.errors import PlanningError
@@ -25,6 +26,21 @@ from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
 
 log = logging.getLogger(__name__)
+
+# A refusal's measured numbers (positions, distances, how far along a straight line it was blocked: decimals and
+# percentages) depend on floating point's last bits, which differ between CPUs' instruction sets and which inverse
+# kinematics' iterates amplify: the recording commit's own check, run on another machine, blocks a straight line at
+# 19 % of the way instead of 15 %, the same object against the same neighbour. Counts and ids are exact.
+_MEASURED = re.compile(r"-?\d+\.\d+(?:e-?\d+)?|\d+%")
+
+
+def same_decision(a: str | None, b: str | None) -> bool:
+    """Whether two reach-check decisions are the same: both accept (None), or both refuse for the same reason word
+    for word (which object, which step failed, what collided, how many candidates were tried), its measured
+    numbers aside (``_MEASURED``)."""
+    if a is None or b is None:
+        return a is b
+    return _MEASURED.sub("#", a) == _MEASURED.sub("#", b)
 
 SETTLE = 0.5  # s of physics before the check, as before an episode (the fingers open, the objects at rest)
 # m every object keeps from the robot at rest. On robosuite's stage the hand rests 0.4 m above the table, clear of

@@ -19,7 +19,7 @@ from muble.core.camera import CameraParams
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
-from muble.core.table import TABLE_X, TABLE_Y
+from muble.core.table import STAGE_KEY, TABLE_X, TABLE_Y, UNNAMED_STAGE, stage_name  # noqa: F401 (re-exported)
 from muble.sim.object_mjcf import object_mjcf
 
 logger = logging.getLogger(__name__)
@@ -70,11 +70,10 @@ STAGES = {
                       gripper="Robotiq85Gripper",
                       start_qpos={"Panda": (0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi)}),
 }
-# The stage of a scene file that names none: robosuite's, on which every scene was generated before stages could be
-# chosen, protocol shopvrb2_v1's included. The generator writes the key for any other stage only, so a file made on
-# robosuite's keeps its old bytes whatever stage the generator defaults to (muble_conf/generator/shopvrb2.yaml).
-UNNAMED_STAGE = "robosuite"
-STAGE_KEY = "stage"  # the scene file's key naming its stage (absent: UNNAMED_STAGE)
+# A scene file that names no stage stands on robosuite's (``muble.core.table.UNNAMED_STAGE``), on which every scene
+# was generated before stages could be chosen, protocol shopvrb2_v1's included. The generator writes the key
+# (``STAGE_KEY``) for any other stage only, so a file made on robosuite's keeps its old bytes whatever stage the
+# generator defaults to (muble_conf/generator/shopvrb2.yaml).
 
 
 def stage_named(name: str, where: str = "robot.stage") -> Stage:
@@ -90,9 +89,8 @@ def scene_stage(scene: SceneGraph, override: str | None = None) -> Stage:
     ``UNNAMED_STAGE``."""
     if override:
         return stage_named(override)
-    name = scene.extra.get(STAGE_KEY) or ("original" if scene.from_original_release else UNNAMED_STAGE)
-    return stage_named(name, f"scene {scene.image_index}'s '{STAGE_KEY}' key; or give robot.stage= to build it on "
-                             "another")
+    return stage_named(stage_name(scene),
+                       f"scene {scene.image_index}'s '{STAGE_KEY}' key; or give robot.stage= to build it on another")
 
 
 def object_weld_name(obj_id: int) -> str:

@@ -13,7 +13,7 @@ from muble.core.geometry import tilt_deg
 from muble.core.observation import TOUCHING_TABLE
 from muble.core.program import table_parts_of
 from muble.core.rest import UPRIGHT_DEG, at_rest
-from muble.core.table import BELOW_TABLE, part_region
+from muble.core.table import BELOW_TABLE, part_region, scene_top
 
 # Where SHOP-VRB2 scenes stand objects (world x, y in metres; synthetic scenes sample it). The table parts and
 # where the robot places objects are defined in muble.core.table.
@@ -56,9 +56,10 @@ def _separating_axes(mover, obstacles: list, gap: float) -> tuple[np.ndarray, np
 
 
 @functools.lru_cache(maxsize=None)
-def _grid(part: str, spacing: float) -> tuple[np.ndarray, tuple[tuple[float, float], tuple[float, float]]]:
-    """The part's candidate centres on a ``spacing`` grid, nearest its middle first, and its ranges."""
-    (x0, x1), (y0, y1) = region = part_region(part)
+def _grid(part: str, spacing: float, top) -> tuple[np.ndarray, tuple[tuple[float, float], tuple[float, float]]]:
+    """The part's candidate centres on a ``spacing`` grid, nearest its middle first, and its ranges (kept inside the
+    table top ``top``, see ``muble.core.table.part_region``)."""
+    (x0, x1), (y0, y1) = region = part_region(part, top)
     gx, gy = np.meshgrid(np.arange(x0, x1 + 1e-9, spacing), np.arange(y0, y1 + 1e-9, spacing), indexing="ij")
     points = np.stack([gx.ravel(), gy.ravel()], axis=1)
     middle = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
@@ -72,7 +73,7 @@ def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: f
     """Whether ``movers``, put down one after another on ``part`` (each at the free centre nearest the part's
     middle, as the placing primitives choose), all find room beside the objects that stay and those placed
     before. Boxes from the scene's bboxes, turned as the objects stand, stand in for their footprints."""
-    points, ((x0, x1), (y0, y1)) = _grid(part, spacing)
+    points, ((x0, x1), (y0, y1)) = _grid(part, spacing, scene_top(scene))
     moving = {o.id for o in movers}
     obstacles = [_box(o) for o in scene.objects if o.id not in moving]
     for obj in movers:

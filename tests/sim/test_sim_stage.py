@@ -99,3 +99,40 @@ def test_the_original_stage_grasps_and_lifts_with_its_robotiq(scene_models):
     assert env.held_object == target.id
     assert env.object_pose(target.id).pos[2] > start[2] + 0.08
     assert weigh(env) == pytest.approx(target.weight_gt, abs=max(1.0, 0.01 * target.weight_gt))
+
+
+@pytest.mark.parametrize("stage", sorted(STAGES))
+def test_both_worlds_place_within_the_same_table_top_on_every_stage(scene_models, stage):
+    """The symbolic world (scene graph only) and the physical one (the compiled table) keep a part's places inside
+    the same top: on the original release's narrower desk a place the symbolic world chose off its left edge was
+    one the arm could never put an object on, and episodes asking for it failed."""
+    from muble.core.footprint import free_spot
+    from muble.core.table import STAGE_TOPS, TABLE_PARTS, part_region, scene_top
+
+    scene, models = scene_models
+    scene = copy.deepcopy(scene)
+    scene.extra["stage"] = stage
+    env = TabletopEnv(scene, models)
+    try:
+        table = env.table()
+        np.testing.assert_allclose(np.array(STAGE_TOPS[stage]).T, [table.centre - table.half, table.centre + table.half],
+                                   atol=1e-9)
+        assert scene_top(scene) == STAGE_TOPS[stage]
+        for part in TABLE_PARTS:
+            lo, hi = table.part_region(part)
+            np.testing.assert_allclose(np.array(part_region(part, scene_top(scene))).T, [lo, hi], atol=1e-9)
+        # Where the symbolic world puts an object down on the left lies in the physical world's region.
+        lo, hi = table.part_region("left")
+        spot = free_spot(scene, scene.objects[0], "left")
+        assert spot is not None and lo[0] <= spot[0] <= hi[0] and lo[1] <= spot[1] <= hi[1]
+    finally:
+        env.close()
+
+
+def test_the_original_desk_narrows_the_left_part_and_robosuite_table_leaves_the_parts_as_they_were():
+    from muble.core.table import STAGE_TOPS, TABLE_PARTS, part_region
+
+    for part in TABLE_PARTS:
+        assert part_region(part, STAGE_TOPS["robosuite"]) == part_region(part)
+    (_, _), (y0, _) = part_region("left", STAGE_TOPS["original"])
+    assert y0 == pytest.approx(-0.4 + 0.08) and part_region("left")[1][0] == pytest.approx(-0.40)
