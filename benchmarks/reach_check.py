@@ -147,8 +147,8 @@ def main() -> None:
                 before_runs.append(before.decide(k))
     finally:
         before.close()
-    # Compared here, with this tree's rule (the baseline's tree may predate it): word for word, numbers within a
-    # machine's floating-point rounding.
+    # Compared here, with this tree's rule (the baseline's tree may predate it): word for word, the measured numbers
+    # aside.
     from muble.generation.reachability import same_decision
 
     for runs in (now_runs, before_runs):

@@ -55,8 +55,8 @@ class TableTop:
         """(low, high) corners in x, y where a placed object's centre goes to lie in a named part of the table:
         the part of ``muble.core.table`` (the definition tasks and success checks share), kept ``margin`` inside
         this top's edges."""
-        edges = self.centre - self.half, self.centre + self.half
-        (x0, x1), (y0, y1) = _part_region(part, ((edges[0][0], edges[1][0]), (edges[0][1], edges[1][1])), margin)
+        lo, hi = self.centre - self.half, self.centre + self.half
+        (x0, x1), (y0, y1) = _part_region(part, ((lo[0], hi[0]), (lo[1], hi[1])), margin)
         return np.array([x0, y0]), np.array([x1, y1])
 
 

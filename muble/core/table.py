@@ -28,15 +28,19 @@ PLACE_REGION = ((0.28, 0.74), (-0.40, 0.26))
 SPLIT_MARGIN = 0.04  # m between a placed object's centre and a split line
 BELOW_TABLE = 0.05  # m: an object whose origin is this far below the table top has fallen off
 TABLE_MARGIN = 0.08  # m kept free along the table top's edges when choosing a place on it
+# The original MuBlE release's desk top (x, y size in m) and how far the robot's base stands in from its back edge;
+# ``muble.sim.world``'s ``original`` stage is built from these.
+DESK_SIZE = (1.36, 0.8)
+DESK_BASE_INSET = 0.23
+DESK_CENTRE_X = DESK_SIZE[0] / 2 - DESK_BASE_INSET
 # The table top's (x0, x1), (y0, y1) in the scene frame on each stage a scene is built on (``muble.sim.world``'s
-# ``STAGES`` builds them; a test checks the two agree), by the name a scene file's ``stage`` key gives: robosuite's
-# table, and the original release's 1.36 x 0.8 m desk with the robot's base 0.23 m in from its back edge. The part
+# ``STAGES`` builds them; a test checks the two agree), by the name a scene file's ``stage`` key gives. The part
 # regions are kept ``TABLE_MARGIN`` inside the top, in both worlds: on robosuite's table that leaves them as
 # ``PLACE_REGION`` has them, on the narrower desk it keeps placed objects off its left edge.
-_DESK_CENTRE_X = 1.36 / 2 - 0.23
 STAGE_TOPS = {
     "robosuite": (TABLE_X, TABLE_Y),
-    "original": ((_DESK_CENTRE_X - 1.36 / 2, _DESK_CENTRE_X + 1.36 / 2), (-0.8 / 2, 0.8 / 2)),
+    "original": ((DESK_CENTRE_X - DESK_SIZE[0] / 2, DESK_CENTRE_X + DESK_SIZE[0] / 2),
+                 (-DESK_SIZE[1] / 2, DESK_SIZE[1] / 2)),
 }
 UNNAMED_STAGE = "robosuite"  # the stage of a scene file that names none (protocol shopvrb2_v1's among them)
 STAGE_KEY = "stage"  # the scene file's key naming its stage

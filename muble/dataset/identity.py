@@ -72,7 +72,7 @@ def _renamed(key: str, value: Any) -> Any:
     if key == "generator.stage" and value is None:
         # A generator without a stage made robosuite's scenes (files naming none), as generator.stage=robosuite
         # (the default, and the protocol's) does: a folder made before still resumes.
-        from muble.sim.world import UNNAMED_STAGE
+        from muble.core.table import UNNAMED_STAGE
 
         return UNNAMED_STAGE
     return value

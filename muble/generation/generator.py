@@ -26,7 +26,7 @@ from muble.generation.placement import Placement, TableLayout, shared_collision_
 from muble.generation.staging import (CAMERA_STREAM, LAMP_STREAM, LAMPS, jitter_stream, jittered_camera,
                                       jittered_lamps)
 from muble.generation.view import shared_view
-from muble.sim.world import STAGE_KEY, UNNAMED_STAGE
+from muble.core.table import STAGE_KEY, UNNAMED_STAGE
 
 log = logging.getLogger(__name__)
 

@@ -27,6 +27,11 @@ from muble.core.scene import SceneGraph
 
 log = logging.getLogger(__name__)
 
+SETTLE = 0.5  # s of physics before the check, as before an episode (the fingers open, the objects at rest)
+# m every object keeps from the robot at rest. On robosuite's stage the hand rests 0.4 m above the table, clear of
+# the tallest object by 0.1 m; the original stage's rest pose holds the fingers 0.15 m above the table's middle,
+# where an object under them is touched or pushed by the first move (measured: 3 of 40 layouts before this rule).
+REST_CLEARANCE = 0.02
 # A refusal's measured numbers (positions, distances, how far along a straight line it was blocked: decimals and
 # percentages) depend on floating point's last bits, which differ between CPUs' instruction sets and which inverse
 # kinematics' iterates amplify: the recording commit's own check, run on another machine, blocks a straight line at
@@ -41,12 +46,6 @@ def same_decision(a: str | None, b: str | None) -> bool:
     if a is None or b is None:
         return a is b
     return _MEASURED.sub("#", a) == _MEASURED.sub("#", b)
-
-SETTLE = 0.5  # s of physics before the check, as before an episode (the fingers open, the objects at rest)
-# m every object keeps from the robot at rest. On robosuite's stage the hand rests 0.4 m above the table, clear of
-# the tallest object by 0.1 m; the original stage's rest pose holds the fingers 0.15 m above the table's middle,
-# where an object under them is touched or pushed by the first move (measured: 3 of 40 layouts before this rule).
-REST_CLEARANCE = 0.02
 
 
 def _too_near(env, scene: SceneGraph, when: str) -> str | None:

@@ -19,7 +19,7 @@ from muble.core.camera import CameraParams
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
-from muble.core.table import STAGE_KEY, TABLE_X, TABLE_Y, UNNAMED_STAGE, stage_name  # noqa: F401 (re-exported)
+from muble.core.table import DESK_CENTRE_X, DESK_SIZE, STAGE_KEY, TABLE_X, TABLE_Y, UNNAMED_STAGE, stage_name
 from muble.sim.object_mjcf import object_mjcf
 
 logger = logging.getLogger(__name__)
@@ -66,7 +66,7 @@ STAGES = {
     # The original MuBlE release's stage (michaal94/MuBlE environment/tabletop_env.py): a 1.36 x 0.8 m desk top
     # 2.6 cm thick, the Panda standing on it without a mount, its base 0.23 m in from the back edge, a Robotiq 85
     # gripper, and the arm bent over the table towards the camera at rest. Its scene files were made on it.
-    "original": Stage("original", (1.36, 0.8, 0.026), table_centre_x=1.36 / 2 - 0.23, mount=False,
+    "original": Stage("original", (*DESK_SIZE, 0.026), table_centre_x=DESK_CENTRE_X, mount=False,
                       gripper="Robotiq85Gripper",
                       start_qpos={"Panda": (0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi)}),
 }
