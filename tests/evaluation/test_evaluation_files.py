@@ -86,3 +86,22 @@ def test_muble_eval_runs_the_oracle_on_original_files(tmp_path):
     assert split["overall"]["successes"] == 1
     record = json.loads((out / "episodes_instructions.jsonl").read_text().splitlines()[0])
     assert record["answer"][0] == pytest.approx(120.0, rel=0.01)
+
+
+@pytest.mark.slow
+def test_the_oracle_solves_the_ten_original_demo_episodes(reference_dir, tmp_path):
+    """The original release's ten demo scenes and instructions (one per SHOP-VRB2 template), evaluated as they are:
+    the oracle succeeds on all ten."""
+    out = tmp_path / "run"
+    done = subprocess.run(
+        [sys.executable, "-m", "muble.app.cli", "eval", "agent=oracle",
+         f"dataset.scenes_file={reference_dir / 'NS_AP_demo_scenes.json'}",
+         f"dataset.instructions_file={reference_dir / 'NS_AP_demo_instructions.json'}",
+         "dataset.executor=serial", f"hydra.run.dir={out}"],
+        capture_output=True, text=True, env={**os.environ, "MUJOCO_GL": "egl"}, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    records = [json.loads(line) for line in (out / "episodes_NS_AP_demo_instructions.jsonl").read_text().splitlines()]
+    assert len(records) == 10
+    assert {r["index"]: r["outcome"] for r in records} == {i: "success" for i in range(10)}
+    report = json.loads((out / "report.json").read_text())
+    assert report["splits"]["NS_AP_demo_instructions"]["overall"]["successes"] == 10

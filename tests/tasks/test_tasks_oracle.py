@@ -117,6 +117,26 @@ def test_a_stack_not_built_is_a_scene_inconsistency(episodes):
     assert task.check(ins, scene, None) is Outcome.SCENE_INCONSISTENCY
 
 
+def test_a_stack_on_a_floor_thinner_than_raised_by_base_is_judged_by_its_contacts(episodes):
+    """A top object set on a base whose floor is thinner than ``RAISED_BY_BASE`` (the original release's plate2 at
+    import scale 0.6 holds a mug 1.8 mm up) touches the base and not the table: stacked. Touching the table too at
+    that height it is not, and a world that records no contacts is judged by the height alone."""
+    from muble_plugins.tasks.geometry import RAISED_BY_BASE
+
+    task, ins, scene = _first(episodes, "stack_simple")
+    (top_id,), (base_id,) = ins.program[-1]["output"]
+    stacked = copy.deepcopy(scene)
+    top, base = stacked.object(top_id), stacked.object(base_id)
+    top.position = base.position + [0.0, 0.0, 0.0018]
+    assert 0.0018 < RAISED_BY_BASE
+    top.extra["touching"] = [base_id]
+    assert task.check(ins, stacked, None) is Outcome.SUCCESS
+    top.extra["touching"] = [base_id, "table"]
+    assert task.check(ins, stacked, None) is Outcome.SCENE_INCONSISTENCY
+    del top.extra["touching"]
+    assert task.check(ins, stacked, None) is Outcome.SCENE_INCONSISTENCY
+
+
 def test_an_object_fallen_off_the_table_is_a_broken_scene(episodes):
     task, ins, scene = _first(episodes, "stack_simple")
     fallen = copy.deepcopy(scene)
