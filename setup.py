@@ -14,5 +14,6 @@ packages = find_packages(include=["muble", "muble.*"]) + plugin_packages + promp
 setup(
     packages=packages,
     package_data={**{p: ["*.yaml", "*.json"] for p in plugin_packages}, **{p: ["*.md"] for p in prompt_packages},
-                  **{p: ["*.yaml", "*.json"] for p in conf_packages}},
+                  # The frozen protocols' shipped splits (muble_conf/protocol/*.tar.xz, about 2 MB in all).
+                  **{p: ["*.yaml", "*.json", "*.tar.xz"] for p in conf_packages}},
 )

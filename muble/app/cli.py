@@ -24,6 +24,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("muble.app.generate", "generate the SHOP-VRB2 dataset (sharded, resumable)"),
     "eval": ("muble.app.evaluate", "evaluate an agent over a dataset split"),
     "train": ("muble.app.train", "train a learned part (planner, instruction parser, attribute recogniser)"),
+    "data": ("muble.app.data", "write a frozen protocol split's shipped scene and instruction files to a folder"),
     "compare": ("muble.app.compare", "compare `muble eval` runs: success with 95% intervals, paired McNemar tests"),
     "export": ("muble.app.export", "export a split's sequences as a LeRobot dataset (needs muble[lerobot])"),
     "serve": ("muble.app.serve", "serve episodes to an agent in another process (JSON protocol over ZeroMQ)"),

@@ -33,7 +33,7 @@ from muble.core.layout import DatasetLayout
 from muble.core.manifest import make_manifest, sha256_file
 from muble.dataset.executors import run_all
 from muble.dataset.production import cached_components
-from muble.dataset.protocol import check_data, select_split
+from muble.dataset.protocol import check_data, protocol_of, select_split, shipped_archive, shipped_root
 from muble.evaluation.episodes import EvalJob, evaluate_index
 from muble.evaluation.files import check_files, uses_files
 from muble.evaluation.plot import success_bar_chart
@@ -107,8 +107,28 @@ def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
     return records
 
 
+def use_shipped(cfg: DictConfig, split: str | None) -> None:
+    """With a protocol and no generated copy of its split in ``dataset.root``: point ``dataset.root`` at the
+    shipped files (unpacked into the cache once, hash-checked on every run), so no generation is needed."""
+    if split is None or uses_files(cfg.dataset):
+        return
+    root = Path(cfg.dataset.root)
+    if (root / split).is_dir():
+        return
+    from omegaconf import open_dict
+
+    protocol = protocol_of(cfg)
+    if shipped_archive(protocol, split) is None:
+        return  # check_config then says the split is missing and how to generate it
+    shipped = shipped_root(protocol, split)
+    log.info("protocol %s split %s: the shipped files (%s)", protocol["name"], split, shipped)
+    with open_dict(cfg):
+        cfg.dataset.root = str(shipped)
+
+
 def job(cfg: DictConfig) -> dict[str, Any]:
     protocol_split = select_split(cfg)  # protocol=NAME: evaluate the split benchmark.split names
+    use_shipped(cfg, protocol_split)
     root = check_config(cfg)
     out_dir = Path(cfg.output.dir)
     config = OmegaConf.to_container(cfg, resolve=True)

@@ -22,7 +22,7 @@ from muble.dataset.executors import run_all
 from muble.dataset.identity import check_or_store_identity
 from muble.dataset.lock import RunLock
 from muble.dataset.production import IndexJob, produce_index, split_seed
-from muble.dataset.protocol import PROTOCOL_FILE, check_data, select_split
+from muble.dataset.protocol import PROTOCOL_FILE, check_data, check_regenerates, protocol_of, select_split
 
 log = logging.getLogger(__name__)
 
@@ -131,6 +131,8 @@ def _job(cfg: DictConfig, root: Path) -> dict:
     import muble
 
     protocol_split = select_split(cfg)  # protocol=NAME: the split benchmark.split names, at its frozen size
+    if protocol_split is not None:
+        check_regenerates(protocol_of(cfg))
     sizes = split_sizes(cfg)
     root.mkdir(parents=True, exist_ok=True)
     config = OmegaConf.to_container(cfg, resolve=True)

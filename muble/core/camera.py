@@ -97,8 +97,14 @@ class CameraParams:
         return matrix_to_quat(self.rotation)
 
     def world_to_camera(self, points: np.ndarray) -> np.ndarray:
-        """Points (N, 3) in the camera frame (z < 0 in front of the camera)."""
-        return (np.asarray(points, dtype=float) - self.position) @ self.rotation
+        """Points (N, 3) in the camera frame (z < 0 in front of the camera).
+
+        Each coordinate is summed in a fixed order with elementwise products, not by a BLAS product, whose
+        result's last bits depend on the kernel the CPU gets: what is computed here is written to scene files
+        and must be the same on every machine (docs/protocol.md, "The same on every CPU")."""
+        d = np.atleast_2d(np.asarray(points, dtype=float)) - np.asarray(self.position, dtype=float)
+        r = np.asarray(self.rotation, dtype=float)
+        return np.stack([(d[:, 0] * r[0, j] + d[:, 1] * r[1, j]) + d[:, 2] * r[2, j] for j in range(3)], axis=1)
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points to (N, 3) rows of pixel u, pixel v (from the top left) and depth along the view."""

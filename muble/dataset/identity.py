@@ -20,10 +20,14 @@ _NOT_IDENTITY_DATASET = ("root", "executor", "workers", "shard", "num_shards", "
                          "start")
 
 
-def dataset_identity(config: dict[str, Any]) -> dict[str, Any]:
+def dataset_identity(config: dict[str, Any], current: bool = True) -> dict[str, Any]:
     """The part of a resolved config that decides the content of every index (seeds, templates, generator,
-    object set, robot, renderer, planner, agent …)."""
+    object set, robot, renderer, planner, agent …), with this MuBlE's ``generator_version`` when ``current``."""
+    from muble.generation.generator import GENERATOR_VERSION
+
     identity = {k: v for k, v in config.items() if k not in _NOT_IDENTITY}
+    if current:
+        identity["generator_version"] = GENERATOR_VERSION
     identity["dataset"] = {k: v for k, v in config.get("dataset", {}).items() if k not in _NOT_IDENTITY_DATASET}
     if identity.get("protocol"):
         # What a protocol's splits hold, not its bookkeeping: recording a split's hash or size (which index range
@@ -103,7 +107,7 @@ def check_or_store_identity(root: Path, config: dict[str, Any]) -> None:
             raise ConfigError(f"{path} holds {type(stored).__name__}, not the settings of a dataset; restore it or "
                               "pass another dataset.root")
     elif (root / "manifest.json").is_file():  # made before identities were stored: its manifest's config
-        stored = dataset_identity(json.loads((root / "manifest.json").read_text()).get("config", {}))
+        stored = dataset_identity(json.loads((root / "manifest.json").read_text()).get("config", {}), current=False)
     if stored is None:
         write_bytes_atomic(path, json.dumps(requested, indent=2, sort_keys=True).encode())
         return

@@ -5,9 +5,12 @@ generator, the object set, the template mix and the seed, and names its splits: 
 the settings it changes (``objects``, ``generator``: what a generalisation split holds out) and the sha256 of its
 data, recorded when the protocol was frozen.
 
-``muble generate protocol=NAME benchmark.split=SPLIT`` writes one split; ``muble eval protocol=NAME
-benchmark.split=SPLIT`` evaluates it and labels the report with the protocol only when the data's hash is the
-recorded one. The data hash is the sha256 of the split's *data manifest*: the canonical JSON of
+Each frozen split also *ships* with MuBlE: its scene and instruction files, compressed, in
+``muble_conf/protocol/<name>.<split>.tar.xz`` (``shipped_archive``). ``muble eval protocol=NAME
+benchmark.split=SPLIT`` evaluates the shipped files (checked against the recorded hashes, unpacked once into a
+cache folder, ``data_cache``) unless ``dataset.root`` holds the split, ``muble data`` writes them to a folder, and
+``muble generate protocol=NAME benchmark.split=SPLIT`` regenerates one split and says whether it matches. A report
+is labelled with the protocol only when the data's hash is the recorded one. The data hash is the sha256 of the split's *data manifest*: the canonical JSON of
 ``{relative path: sha256}`` of its scene and instruction files (``data_manifest``), which hold everything that
 decides an episode; images, package versions and run times are left out, so the hash says whether two machines
 evaluate the same episodes. The manifest itself is recorded beside the protocol's config
@@ -18,15 +21,30 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import io
 import json
+import os
+import tarfile
+import tempfile
 from pathlib import Path
 from typing import Any
 
+from muble.core.atomic import check_output_folder, staged_folder
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.layout import DatasetLayout
 from muble.core.manifest import sha256_file
 
 DATA_FOLDERS = ("scenes", "instructions")
+ARCHIVE = "{name}.{split}.tar.xz"  # a split's shipped files, beside the protocol's config in muble_conf/protocol
+# Where shipped splits are unpacked for `muble eval` (one folder per protocol, split and data hash).
+CACHE_ENV = "MUBLE_DATA_CACHE"
+
+# Why a regenerated split can differ from the recorded one on another machine: said where a hash differs.
+CPU_NOTE = ("Generation is written to give the same files on every CPU (fixed-order sums instead of BLAS products "
+            "where values are written, floats rounded to 9 decimals, named random streams); a differing file means "
+            "another MuBlE generator or object set, other physics versions (mujoco, robosuite, numpy, scipy) or a "
+            "decision that a last-bit difference between CPUs still flips (docs/protocol.md, \"The same on every "
+            "CPU\"). The shipped files are the protocol's: `muble data` writes them and `muble eval` uses them")
 PROTOCOL_FILE = "protocol_{split}.json"  # written at the dataset root beside manifest.json
 
 
@@ -137,6 +155,20 @@ def _differences(recorded: dict[str, str] | None, found: dict[str, str], limit: 
     return f" ({'; '.join(parts)})" if parts else ""
 
 
+def check_regenerates(protocol: dict[str, Any]) -> None:
+    """Refuse to regenerate a protocol whose files this MuBlE's generator no longer makes (``regenerates: false``):
+    its splits are evaluated from the shipped files."""
+    if protocol.get("regenerates", True):
+        return
+    shipped = [s for s in protocol.get("splits", {}) if shipped_archive(protocol, s) is not None]
+    raise ConfigError(
+        f"protocol {protocol['name']}'s files were made by {protocol.get('generated_by', 'an earlier generator')}, "
+        "and this MuBlE's generator makes other scenes, so it is not regenerated. Its shipped splits "
+        f"({', '.join(shipped) or 'none'}) are evaluated as they are (`muble eval protocol={protocol['name']} "
+        f"benchmark.split=SPLIT`, `muble data protocol={protocol['name']} benchmark.split=SPLIT --out DIR`); "
+        "generate new data with protocol=shopvrb2_v2")
+
+
 def check_data(cfg: Any, root: str | Path, split: str) -> dict[str, Any]:
     """Compare the split's data in ``root`` with the protocol's recorded hash. Returns the stamp a report carries
     (protocol, version, split, data hash); raises ``ConfigError`` when a recorded hash differs, since results on
@@ -149,9 +181,150 @@ def check_data(cfg: Any, root: str | Path, split: str) -> dict[str, Any]:
     if recorded and recorded != found:
         raise ConfigError(
             f"the data of split '{split}' in {root} is not protocol {protocol['name']}'s: its data hash is {found}, "
-            f"the protocol records {recorded}{_differences(recorded_manifest(protocol, split), files)}. Regenerate it into an empty folder with `muble generate "
-            f"protocol={protocol['name']} benchmark.split={split} dataset.root=DIR` and no other generator, objects, "
-            "seed or dataset overrides, or evaluate without protocol= (the report then carries no protocol)")
+            f"the protocol records {recorded}{_differences(recorded_manifest(protocol, split), files)}. Evaluate "
+            f"the shipped files (`muble eval protocol={protocol['name']} benchmark.split={split}` without "
+            "dataset.root), regenerate into an empty folder with no other generator, objects, seed or dataset "
+            "overrides, or evaluate without protocol= (the report then carries no protocol). " + CPU_NOTE)
     return {"protocol": protocol["name"], "version": protocol.get("version"), "split": split,
             "data_sha256": found, "recorded_sha256": recorded, "matches": recorded == found if recorded else None,
             "files": files}
+
+
+def protocol_names() -> list[str]:
+    """The protocols that ship with MuBlE (``muble_conf/protocol/*.yaml``)."""
+    from importlib import resources
+
+    folder = resources.files("muble_conf") / "protocol"
+    return sorted(p.name[:-len(".yaml")] for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+def load_protocol(name: str) -> dict[str, Any]:
+    """The ``protocol`` section of the protocol config ``name``; an unknown name is a ``ConfigError``."""
+    from importlib import resources
+
+    from omegaconf import OmegaConf
+
+    names = protocol_names()
+    if name not in names:
+        raise ConfigError(unknown_name("protocol", name, names) + "; choose it with protocol=")
+    text = (resources.files("muble_conf") / "protocol" / f"{name}.yaml").read_text()
+    return OmegaConf.to_container(OmegaConf.create(text)["protocol"], resolve=True)
+
+
+def shipped_archive(protocol: dict[str, Any], split: str):
+    """The shipped archive of ``split`` (an importlib resource), None when the split does not ship (``train``)."""
+    from importlib import resources
+
+    path = resources.files("muble_conf") / "protocol" / ARCHIVE.format(name=protocol["name"], split=split)
+    return path if path.is_file() else None
+
+
+def shipped_files(protocol: dict[str, Any], split: str) -> dict[str, bytes]:
+    """``{relative path: contents}`` of the split's shipped files, checked file by file against the recorded
+    manifest and as a whole against the recorded hash. A split that does not ship, or an archive that does not
+    match (a damaged install), is a ``ConfigError``."""
+    spec = split_spec(protocol, split)
+    archive = shipped_archive(protocol, split)
+    if archive is None:
+        shipped = [s for s in protocol.get("splits", {}) if shipped_archive(protocol, s) is not None]
+        raise ConfigError(f"split '{split}' of protocol '{protocol['name']}' does not ship with MuBlE (splits that "
+                          f"do: {', '.join(shipped) or 'none'}); generate it with `muble generate "
+                          f"protocol={protocol['name']} benchmark.split={split} dataset.root=DIR`")
+    files: dict[str, bytes] = {}
+    with tarfile.open(fileobj=io.BytesIO(archive.read_bytes()), mode="r:xz") as tar:
+        for member in tar.getmembers():
+            if not member.isfile():
+                continue
+            parts = Path(member.name).parts
+            if len(parts) != 3 or parts[0] != split or parts[1] not in DATA_FOLDERS or ".." in parts:
+                raise ConfigError(f"{archive}: unexpected member {member.name!r}; reinstall MuBlE")
+            files[member.name] = tar.extractfile(member).read()
+    found = {path: hashlib.sha256(data).hexdigest() for path, data in sorted(files.items())}
+    recorded = spec.get("sha256")
+    if recorded is None or manifest_hash(found) != recorded:
+        raise ConfigError(f"{archive}: the shipped files of split '{split}' do not match protocol "
+                          f"{protocol['name']}'s recorded hash{_differences(recorded_manifest(protocol, split), found)}"
+                          "; reinstall MuBlE")
+    return files
+
+
+def write_split(protocol: dict[str, Any], split: str, out: str | Path) -> Path:
+    """Write the split's shipped scene and instruction files under ``out`` (``out/<split>/scenes``, …), in the
+    layout ``muble generate`` writes, atomically: ``out`` gets the whole split or, on any error, nothing.
+    Returns ``out``."""
+    files = shipped_files(protocol, split)
+    out = check_output_folder(out, "--out")
+    if (out / split).exists():
+        raise ConfigError(f"{out / split} exists; pass an --out without a '{split}' folder (nothing was written)")
+    with staged_folder(out, "--out") as stage:
+        for rel, data in files.items():
+            path = stage / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(data)
+            os.chmod(path, 0o666 & ~_umask())
+    return out
+
+
+def _umask() -> int:
+    from muble.core.atomic import current_umask
+
+    return current_umask()
+
+
+def data_cache() -> Path:
+    """Where shipped splits are unpacked for evaluation: ``$MUBLE_DATA_CACHE``, else
+    ``$XDG_CACHE_HOME/muble/protocols`` (``~/.cache/muble/protocols``)."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "muble" / "protocols"
+
+
+def shipped_root(protocol: dict[str, Any], split: str) -> Path:
+    """A dataset root holding the split's shipped files, unpacked into the cache on first use (atomically, so two
+    runs starting together both end with a whole folder) and checked against the recorded hash on every use."""
+    recorded = split_spec(protocol, split).get("sha256")
+    root = data_cache() / protocol["name"] / f"{split}-{(recorded or 'none')[:16]}"
+    if (root / split).is_dir() and data_hash(root, split) == recorded:
+        return root
+    files = shipped_files(protocol, split)
+    root.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".unpacking-", dir=root.parent))
+    try:
+        for rel, data in files.items():
+            path = stage / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(data)
+        if root.exists():  # a damaged earlier copy
+            import shutil
+
+            shutil.rmtree(root, ignore_errors=True)
+        try:
+            os.replace(stage, root)
+        except OSError:  # another run published it first
+            if not ((root / split).is_dir() and data_hash(root, split) == recorded):
+                raise
+    finally:
+        if stage.exists():
+            import shutil
+
+            shutil.rmtree(stage, ignore_errors=True)
+    return root
+
+
+def pack_split(root: str | Path, split: str, archive: str | Path) -> dict[str, str]:
+    """Write the split's scene and instruction files under ``root`` into a reproducible xz tar ``archive``
+    (members in path order, no times or owners); returns their manifest."""
+    files = data_manifest(root, split)
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w:xz", format=tarfile.PAX_FORMAT, preset=9) as tar:
+        for rel in files:
+            data = (Path(root) / rel).read_bytes()
+            info = tarfile.TarInfo(rel)
+            info.size, info.mtime, info.mode, info.uid, info.gid = len(data), 0, 0o644, 0, 0
+            info.uname = info.gname = ""
+            tar.addfile(info, io.BytesIO(data))
+    tmp = Path(archive).with_name(Path(archive).name + ".tmp")
+    tmp.write_bytes(buffer.getvalue())
+    os.replace(tmp, archive)
+    return files

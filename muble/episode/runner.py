@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from muble.core import streams
 from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.interfaces import Instruction, MotionPlanner, Renderer, Task
@@ -31,8 +32,8 @@ log = logging.getLogger(__name__)
 
 
 def instruction_rng(seed: int, index: int) -> np.random.Generator:
-    """The random stream for choosing an instruction: independent of the scene generator's stream."""
-    return np.random.default_rng([seed, index, 1])
+    """The random stream for choosing an instruction (``episode.instruction``), distinct from every scene stream."""
+    return streams.stream(streams.INSTRUCTION, seed, index)
 
 
 class NoInstructionError(ConfigError):

@@ -1,8 +1,9 @@
 """The SHOP-VRB2 scene generator: sample objects, place them mesh-exactly, check visibility and rest, record GT.
 
-Every scene is a pure function of (``seed``, ``index``): the random stream is ``numpy.random.default_rng([seed,
-index])`` and every retry draws from it, so the same pair always yields the same JSON, and a shard of indices
-can be generated anywhere in any order.
+Every scene is a pure function of (``seed``, ``index``): its objects are drawn from the named stream
+``scene.objects`` and their placements from ``scene.layout`` (``muble.core.streams``, keyed by index and scene
+sample), and every retry draws from them, so the same pair always yields the same JSON, and a shard of indices can
+be generated anywhere in any order.
 """
 from __future__ import annotations
 
@@ -23,14 +24,17 @@ from muble.core.scene import SceneGraph, SceneObject
 from muble.generation import checks, ground_truth
 from muble.generation.config import GeneratorConfig
 from muble.generation.placement import Placement, TableLayout, shared_collision_meshes
-from muble.generation.staging import (CAMERA_STREAM, LAMP_STREAM, LAMPS, jitter_stream, jittered_camera,
-                                      jittered_lamps)
+from muble.core import streams
+from muble.generation.staging import LAMPS, jittered_camera, jittered_lamps
 from muble.generation.view import shared_view
 from muble.core.table import STAGE_KEY, UNNAMED_STAGE
 
 log = logging.getLogger(__name__)
 
 WEIGHT_RESAMPLES = 30
+# Raised whenever the same settings make other files (2: named random streams, fixed-order sums, 9-decimal floats);
+# a dataset folder records it, so one made by another version is not resumed into a mix of both.
+GENERATOR_VERSION = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,16 +167,19 @@ class SceneGenerator:
         cfg = self.config
         camera, directions, jittered = self.camera, self.directions, False
         if cfg.camera_jitter_m > 0 or cfg.camera_jitter_deg > 0:
-            camera = jittered_camera(self.camera, cfg.camera_rotation, jitter_stream(self.seed, index, CAMERA_STREAM),
+            camera = jittered_camera(self.camera, cfg.camera_rotation, streams.stream(streams.CAMERA_JITTER, self.seed, index),
                                      cfg.camera_jitter_m, cfg.camera_jitter_deg)
             directions, jittered = ground_truth.directions(camera), True
         lamps, energy = {k: list(v) for k, v in LAMPS.items()}, None
         if cfg.lamp_jitter > 0:
-            lamps, energy = jittered_lamps(LAMPS, jitter_stream(self.seed, index, LAMP_STREAM), cfg.lamp_jitter)
+            lamps, energy = jittered_lamps(LAMPS, streams.stream(streams.LAMP_JITTER, self.seed, index),
+                                           cfg.lamp_jitter)
         return Staging(camera, directions, lamps, energy, jittered)
 
     # --- sampling ---------------------------------------------------------------------------------------------
     def _sample_specs(self, rng: np.random.Generator, count: int | None = None) -> list[ObjectSpec] | None:
+        """``count`` objects (default: drawn from the count probabilities) whose weights differ pairwise by at least
+        ``min_weight_gap``, or None when no such set was drawn in ``WEIGHT_RESAMPLES`` draws per object."""
         cfg = self.config
         if count is None:
             count = cfg.min_objects + int(rng.choice(len(cfg.count_probabilities), p=cfg.count_probabilities))
@@ -205,26 +212,27 @@ class SceneGenerator:
                  stacks: Callable[[SceneGraph], list[tuple[int, int]]] | None = None) -> SceneGraph:
         """The scene for ``index``; raises ``SceneGenerationError`` naming the failing checks if no layout passes.
 
-        ``sample`` > 0 draws a further, independent scene for the same index (its own stream ``[seed, index,
-        sample]``), e.g. when the scene drawn first does not suit the task wanted there. ``objects`` fixes the
+        ``sample`` > 0 draws a further, independent scene for the same index (its own streams, keyed by
+        ``(index, sample)``), e.g. when the scene drawn first does not suit the task wanted there. ``objects`` fixes the
         object count instead of drawing it. ``accept(scene)`` is asked about each placed layout before the
         costlier checks (visibility, rest, reach); it sees every field but the masks. ``stacks(scene)`` names the
         (top, base) pairs, bottom pair first, that the scene's task will stack (asked after ``accept``): with
         ``stack_check`` on, a layout is kept only when each such stack stands upright in physics.
         """
         cfg = self.config
-        rng = np.random.default_rng([self.seed, int(index)] + ([int(sample)] if sample else []))
+        objects_rng = streams.stream(streams.SCENE_OBJECTS, self.seed, int(index), int(sample))
+        layout_rng = streams.stream(streams.SCENE_LAYOUT, self.seed, int(index), int(sample))
         staging = self.staging(index)
         reasons: collections.Counter[str] = collections.Counter()
         for _ in range(cfg.layout_tries):
-            specs = self._sample_specs(rng, objects)
+            specs = self._sample_specs(objects_rng, objects)
             if specs is None:
                 reasons["weights"] += 1
                 continue
             t0 = time.perf_counter()
             models = [self.object_set.build(s) for s in specs]
             t1 = time.perf_counter()
-            placements = self._layout(models, rng)
+            placements = self._layout(models, layout_rng)
             t2 = time.perf_counter()
             self.timings["build"] += t1 - t0
             self.timings["placement"] += t2 - t1
@@ -301,28 +309,32 @@ class SceneGenerator:
             from muble.core.types import SEG_TABLE
 
             *masks, table_mask = ground_truth.encode_masks(segmentation, [*range(len(specs)), SEG_TABLE])
+        # Every float the file gets is rounded (ground_truth.rounded), so that values a rounding error apart on
+        # another CPU are written the same; relationships are decided on the rounded positions the file holds.
+        rounded = ground_truth.rounded
         for i, (spec, model, p) in enumerate(zip(specs, models, placements)):
             ext = np.asarray(model.extents, float)
+            position = np.array(rounded(p.position))
             objects.append(SceneObject(
                 id=i, model=spec.model, name=spec.category, shape=spec.shape, size=spec.size,
-                material=spec.material, colour=spec.colour, position=p.position, orientation=p.quat,
+                material=spec.material, colour=spec.colour, position=position, orientation=np.array(rounded(p.quat)),
                 weight_gt=spec.weight_g, stackable=bool(model.stackable), stack_base=bool(model.stack_base),
-                pickupable=bool(model.pickupable), rotation=math.degrees(p.yaw) % 360.0,
-                pixel_coords=ground_truth.pixel_coords(staging.camera, p.position),
+                pickupable=bool(model.pickupable), rotation=rounded(math.degrees(p.yaw) % 360.0),
+                pixel_coords=rounded(ground_truth.pixel_coords(staging.camera, position)),
                 movability="portable" if model.pickupable else "stationary",
-                bbox={"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])},
-                scale_factor=float(spec.scale),
+                bbox=rounded({"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])}),
+                scale_factor=rounded(float(spec.scale)),
                 mask=masks[i] if masks is not None else None,
-                stiffness=float(model.stiffness),
+                stiffness=rounded(float(model.stiffness)),
             ))
         name = f"SHOPVRB2_{cfg.split}_{index:06d}.png"
         scene = SceneGraph(
             objects=objects, split=cfg.split, image_index=int(index), image_filename=name,
-            directions=staging.directions, camera_params=staging.camera.to_scene_params(),
-            lamp_params={k: list(v) for k, v in staging.lamps.items()},
-            relationships=ground_truth.relationships([o.position for o in objects], staging.directions),
+            directions=rounded(staging.directions), camera_params=rounded(staging.camera.to_scene_params()),
+            lamp_params={k: rounded(list(v)) for k, v in staging.lamps.items()},
+            relationships=ground_truth.relationships([o.position for o in objects], rounded(staging.directions)),
             # Lamp energy factors (``lamp_jitter``) sit beside lamp_params, which maps lamp names to positions.
-            extra={**({"lamp_energy": dict(staging.lamp_energy)} if staging.lamp_energy is not None else {}),
+            extra={**({"lamp_energy": rounded(dict(staging.lamp_energy))} if staging.lamp_energy is not None else {}),
                    "generator": {"seed": self.seed, "index": int(index), "object_set": cfg.object_set},
                    # A file without the key stands on UNNAMED_STAGE (robosuite's): scenes made on it keep the
                    # bytes they had before stages could be chosen (protocol shopvrb2_v1's data hashes).

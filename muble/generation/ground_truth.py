@@ -29,9 +29,35 @@ def relationships(positions: list[np.ndarray], dirs: dict[str, list[float]], eps
     out: dict[str, list[list[int]]] = {}
     for rel in ("behind", "front", "left", "right"):
         d = np.asarray(dirs[rel])
-        out[rel] = [[j for j, pj in enumerate(positions) if j != i and float(np.dot(pj - pi, d)) > eps]
+        out[rel] = [[j for j, pj in enumerate(positions) if j != i and _along(pj, pi, d) > eps]
                     for i, pi in enumerate(positions)]
     return out
+
+
+def _along(a, b, direction) -> float:
+    """``(a - b) . direction`` summed in a fixed order (a BLAS dot's last bits depend on the CPU's kernel)."""
+    return ((float(a[0]) - float(b[0])) * float(direction[0]) + (float(a[1]) - float(b[1])) * float(direction[1])
+            + (float(a[2]) - float(b[2])) * float(direction[2]))
+
+
+# Decimal places of the floats the generator writes (positions and sizes to a nanometre, angles to a nanodegree):
+# far below what any check or simulation resolves, and far above the last bits in which two CPUs' arithmetic may
+# differ, so a value computed a rounding error apart on another machine is written the same.
+FILE_DECIMALS = 9
+
+
+def rounded(value):
+    """``value`` (a float, or lists, tuples and dicts of them) with every float rounded to ``FILE_DECIMALS``
+    places; ints, bools, strings and None unchanged."""
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
+        return value
+    if isinstance(value, dict):
+        return {k: rounded(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [rounded(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return rounded(value.tolist())
+    return round(float(value), FILE_DECIMALS) + 0.0  # + 0.0: no negative zero
 
 
 def pixel_coords(camera: CameraParams, position: np.ndarray) -> list:

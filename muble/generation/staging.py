@@ -1,10 +1,9 @@
 """Where a scene's camera and lamps stand: the generator's defaults, or those moved per scene by the held-out
 options ``camera_jitter_m``, ``camera_jitter_deg`` and ``lamp_jitter`` (as CLEVR jitters its camera and lamps).
 
-Each jitter is drawn from a stream of its own, ``SeedSequence([seed, index], spawn_key=(key,))``: a child of the
-scene's entropy that the placement stream (``default_rng([seed, index, sample])``, an empty spawn key) never
-meets, so turning jitter on moves the camera or lamps and nothing else of the scene. It depends on the index, not
-on the scene sample, so an index keeps one camera and one light whichever sample suits its template, and the
+Each jitter is drawn from a named stream of its own (``scene.camera_jitter``, ``scene.lamp_jitter``:
+``muble.core.streams``), which the object and placement streams never meet, so turning jitter on moves the camera
+or lamps and nothing else of the scene. It depends on the index, not on the scene sample, so an index keeps one camera and one light whichever sample suits its template, and the
 viewpoint is never selected by what the template accepts.
 """
 from __future__ import annotations
@@ -16,18 +15,9 @@ from muble.core.camera import CameraParams, euler_xyz_to_matrix
 # Key, back and fill lamps (metres, robot frame) that the Blender renderer lights the table with.
 LAMPS = {"Lamp_Key": [3.2, -2.1, 2.2], "Lamp_Back": [-1.8, 2.0, 2.3], "Lamp_Fill": [-2.4, -3.0, 2.5]}
 
-# Spawn keys of the jitter streams (the placement stream has none).
-CAMERA_STREAM = 1
-LAMP_STREAM = 2
-
 # The least energy factor a lamp gets, whatever ``lamp_jitter`` asks: a lamp dims but never goes out or turns
 # negative, so every scene keeps its key, fill and back light.
 MIN_LAMP_ENERGY = 0.05
-
-
-def jitter_stream(seed: int, index: int, key: int) -> np.random.Generator:
-    """The random stream of one jitter (``key``: ``CAMERA_STREAM`` or ``LAMP_STREAM``) of scene ``index``."""
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index)], spawn_key=(int(key),)))
 
 
 def jittered_camera(camera: CameraParams, rotation_deg, rng: np.random.Generator, metres: float,

@@ -9,9 +9,9 @@ default; Sainte-Laguë apportionment, then shuffled within the block), and likew
 generator's count probabilities. The scene generator then draws scene samples for the index, all with that
 object count, until the template yields an instruction whose ground truth the symbolic oracle completes.
 
-Everything is a pure function of (split seed, index): the template and count streams are
-``default_rng([seed, block, MIX_STREAM, k])``, the scene samples the generator's ``[seed, index, sample]``
-streams and the instruction the episode runner's ``[seed, index, 1]`` stream.
+Everything is a pure function of (split seed, index): the template and count orders are drawn from the named
+streams ``split.template_mix`` and ``split.count_mix`` (keyed by block), the scene samples from the generator's
+``scene.*`` streams and the instruction from ``episode.instruction`` (``muble.core.streams``).
 """
 from __future__ import annotations
 
@@ -21,13 +21,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from muble.core import streams
 from muble.core.errors import ConfigError, PlanningError, SceneGenerationError
 from muble.core.interfaces import Instruction, Task
 from muble.core.program import stacked_pairs
 from muble.core.scene import SceneGraph
 
-MIX_STREAM = 7  # keeps the mix's random streams apart from the scene and instruction streams of an index
-TEMPLATE_KEY, COUNT_KEY = 0, 1
+TEMPLATE_KEY, COUNT_KEY = streams.TEMPLATE_MIX, streams.COUNT_MIX  # the purposes of balanced_choice's draws
 
 _sequences: dict[tuple[float, ...], list[int]] = {}
 _lock = threading.Lock()
@@ -52,16 +52,17 @@ def apportioned(weights: Sequence[float], length: int) -> list[int]:
         return seq[:length]
 
 
-def balanced_choice(weights: Sequence[float], seed: int, index: int, key: int) -> int:
+def balanced_choice(weights: Sequence[float], seed: int, index: int, key: str) -> int:
     """The category of ``index``: blocks of ``len(weights)`` consecutive indices take their share of the
-    apportioned sequence, in an order shuffled per block (``key`` separates independent draws)."""
+    apportioned sequence, in an order shuffled per block, drawn from the named stream ``key``
+    (``TEMPLATE_KEY``, ``COUNT_KEY``)."""
     w = np.asarray(weights, dtype=float)
     if w.ndim != 1 or len(w) == 0 or np.any(w < 0) or not np.isfinite(w).all() or w.sum() <= 0:
         raise ConfigError(f"weights {list(weights)} must be non-negative numbers, not all zero")
     size = len(w)
     block, slot = divmod(int(index), size)
     entries = apportioned(w / w.sum(), (block + 1) * size)[block * size:]
-    order = np.random.default_rng([int(seed), block, MIX_STREAM, int(key)]).permutation(size)
+    order = streams.stream(key, int(seed), block).permutation(size)
     return entries[int(order[slot])]
 
 

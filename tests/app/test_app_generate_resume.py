@@ -117,3 +117,13 @@ def test_run_lock_is_exclusive(tmp_path):
         with pytest.raises(ConfigError, match="in use by process"):
             RunLock(path, "the folder").acquire()
     assert not path.exists()
+
+
+def test_a_dataset_made_by_another_generator_version_is_not_resumed(tmp_path):
+    """The same settings make other files under another generator version (muble.generation.generator
+    GENERATOR_VERSION): a folder made by an older one is refused rather than extended into a mix."""
+    config = {"seed": 0, "robot": {"name": "Panda"}, "dataset": {}}
+    older = {k: v for k, v in dataset_identity(config).items() if k != "generator_version"}
+    (tmp_path / IDENTITY_FILE).write_text(json.dumps(older))
+    with pytest.raises(ConfigError, match="generator_version: not stored, requested"):
+        check_or_store_identity(tmp_path, config)

@@ -32,3 +32,8 @@ def test_wheel_builds_without_warnings_and_ships_the_configs(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     configs = {str(p.relative_to(ROOT)) for p in (ROOT / "muble_conf").rglob("*.yaml")}
     assert configs <= names, sorted(configs - names)
+    # The frozen protocols' shipped splits and their manifests, and the wheel still small with them.
+    shipped = {str(p.relative_to(ROOT)) for pattern in ("*.tar.xz", "*.json")
+               for p in (ROOT / "muble_conf" / "protocol").glob(pattern)}
+    assert shipped and shipped <= names, sorted(shipped - names)
+    assert wheel.stat().st_size < 12 * 2**20, wheel.stat().st_size

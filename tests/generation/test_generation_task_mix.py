@@ -11,7 +11,7 @@ from muble import ConfigError, get_registry
 from muble.core.errors import SceneGenerationError
 from muble.core.scene_io import scene_to_dict
 from muble.generation import SceneGenerator
-from muble.generation.task_mix import balanced_choice, suited_scene, template_weights
+from muble.generation.task_mix import COUNT_KEY, TEMPLATE_KEY, balanced_choice, suited_scene, template_weights
 from tests.generation.builtin import BUILTIN
 
 TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
@@ -19,17 +19,17 @@ TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest"
 
 
 def test_equal_weights_give_every_template_once_in_every_block_of_ten():
-    drawn = [balanced_choice([1.0] * 10, 3, i, 0) for i in range(1000)]
+    drawn = [balanced_choice([1.0] * 10, 3, i, TEMPLATE_KEY) for i in range(1000)]
     assert collections.Counter(drawn) == {k: 100 for k in range(10)}
     assert all(sorted(drawn[b:b + 10]) == list(range(10)) for b in range(0, 1000, 10))
-    assert drawn == [balanced_choice([1.0] * 10, 3, i, 0) for i in range(1000)]  # a pure function of the index
-    assert drawn[:30] != [balanced_choice([1.0] * 10, 4, i, 0) for i in range(30)]  # shuffled per seed
+    assert drawn == [balanced_choice([1.0] * 10, 3, i, TEMPLATE_KEY) for i in range(1000)]  # a pure function of the index
+    assert drawn[:30] != [balanced_choice([1.0] * 10, 4, i, TEMPLATE_KEY) for i in range(30)]  # shuffled per seed
 
 
 def test_weights_and_object_counts_are_apportioned_at_every_block():
-    drawn = [balanced_choice([2.0, 1.0, 0.0, 1.0], 0, i, 0) for i in range(400)]
+    drawn = [balanced_choice([2.0, 1.0, 0.0, 1.0], 0, i, TEMPLATE_KEY) for i in range(400)]
     assert collections.Counter(drawn) == {0: 200, 1: 100, 3: 100}
-    counts = [balanced_choice([0.473, 0.527], 0, i, 1) for i in range(1000)]
+    counts = [balanced_choice([0.473, 0.527], 0, i, COUNT_KEY) for i in range(1000)]
     assert counts.count(0) == 473
     for n in range(2, 1000, 2):  # any whole number of blocks holds each count within one of its share
         assert abs(counts[:n].count(0) - 0.473 * n) <= 1.0
@@ -63,7 +63,7 @@ def test_scenes_suit_the_template_drawn_for_their_index(generator):
     for index in range(10):
         suited = _suited(generator, index, tasks)
         assert suited.instruction.template_id == suited.template
-        assert len(suited.scene.objects) == 4 + balanced_choice([0.473, 0.527], 11, index, 1)
+        assert len(suited.scene.objects) == 4 + balanced_choice([0.473, 0.527], 11, index, COUNT_KEY)
         assert suited.ground_truth and suited.ground_truth == tasks[suited.template].ground_truth(
             suited.instruction, suited.scene)
         seen.append(suited.template)
@@ -100,7 +100,7 @@ def test_distractors_are_objects_beyond_the_count_that_no_step_of_the_instructio
         for index in range(10):
             suited = _suited(g, index, tasks)
             scene, program = suited.scene, suited.instruction.program
-            assert len(scene.objects) == 4 + balanced_choice([0.473, 0.527], 11, index, 1) + 2
+            assert len(scene.objects) == 4 + balanced_choice([0.473, 0.527], 11, index, COUNT_KEY) + 2
             listed = scene.extra["generator"]["distractors"]
             assert len(listed) >= 2 and listed == unreferenced(program, scene)
             picked = set(_ints([step.get("output") for step in program if step["type"] != "scene"]))

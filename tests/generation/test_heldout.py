@@ -252,7 +252,8 @@ def test_jitter_moves_camera_and_lamps_and_leaves_the_objects(object_set):
             for o in b["objects"]:  # the file's Euler angles round-trip to the last bit or two
                 assert o["pixel_coords"] == pytest.approx(ground_truth.pixel_coords(camera, np.asarray(o["3d_coords"])))
             for name, direction in b["directions"].items():
-                assert direction == pytest.approx(ground_truth.directions(camera)[name], abs=1e-12)
+                # The file keeps 9 decimals (ground_truth.FILE_DECIMALS) of the directions and the camera's angles.
+                assert direction == pytest.approx(ground_truth.directions(camera)[name], abs=1e-8)
             models, placements = models_from_scene(object_set, scene), placements_from_scene(scene)
             view, data = checks.view_model(models, placements, camera, jittered.config.table_x,
                                            jittered.config.table_y)
