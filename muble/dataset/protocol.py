@@ -262,7 +262,25 @@ def write_split(protocol: dict[str, Any], split: str, out: str | Path) -> Path:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(data)
             os.chmod(path, 0o666 & ~_umask())
+    _add_to_manifest(out, protocol, split, files)
     return out
+
+
+def _add_to_manifest(root: Path, protocol: dict[str, Any], split: str, files: dict[str, bytes]) -> None:
+    """List the split's files in ``root/manifest.json`` (with their sha256, as ``muble generate`` lists what it
+    wrote), keeping the entries of other splits already there, so readers find the split's indices in it."""
+    from muble.core.atomic import write_bytes_atomic
+
+    path = root / "manifest.json"
+    try:
+        manifest = json.loads(path.read_text()) if path.is_file() else {}
+        listed = dict(manifest.get("files") or {})
+    except (OSError, ValueError, AttributeError):
+        manifest, listed = {}, {}
+    listed.update({rel: hashlib.sha256(data).hexdigest() for rel, data in files.items()})
+    manifest.update({"files": dict(sorted(listed.items())), "protocol": protocol["name"],
+                     "shipped_splits": sorted({*manifest.get("shipped_splits", []), split})})
+    write_bytes_atomic(path, json.dumps(manifest, indent=1, sort_keys=True).encode())
 
 
 def _umask() -> int:
@@ -295,6 +313,7 @@ def shipped_root(protocol: dict[str, Any], split: str) -> Path:
             path = stage / rel
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(data)
+        _add_to_manifest(stage, protocol, split, files)
         if root.exists():  # a damaged earlier copy
             import shutil
 

@@ -22,7 +22,7 @@ from muble.dataset.protocol import (data_manifest, load_protocol, manifest_hash,
 MUBLE = [sys.executable, "-m", "muble.app.cli"]
 V2 = "shopvrb2_v2"
 SHIPPED = {"shopvrb2_v1": ["mini"],
-           V2: ["mini", "unseen_objects", "unseen_properties", "perturbed_views", "long_horizon"]}
+           V2: ["mini", "test", "unseen_objects", "unseen_properties", "perturbed_views", "long_horizon"]}
 
 
 def muble(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
