@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# Set up MuBlE on a fresh Debian/Ubuntu machine: system libraries for headless OpenGL (MuJoCo) and bpy,
+# Set up MuBlE on a fresh Debian/Ubuntu machine: system libraries for headless OpenGL (MuJoCo), bpy and the browser tests,
 # a Python 3.13 (else 3.11) virtual environment in .venv, and the project with its test extras (editable).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # Headless GL (EGL through Mesa, OSMesa as the fallback) and the X libraries bpy links against.
+# Headless Chromium and its driver: the results site's browser tests (`muble site`, tests/app/test_app_site.py).
 APT_PACKAGES=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libosmesa6 libglu1-mesa libx11-6 libxrender1 libxi6
-              libxxf86vm1 libxfixes3 libxkbcommon0 libsm6)
+              libxxf86vm1 libxfixes3 libxkbcommon0 libsm6 chromium chromium-driver)
 missing=()
 for p in "${APT_PACKAGES[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
 if [ ${#missing[@]} -gt 0 ]; then

@@ -131,7 +131,10 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
             written.append(str(folder / f"frame_{i:04d}.png"))
     t = output.timing
     measuring = measuring_primitives()
-    return {**out, "outcome": result.outcome.value, "primitives": [str(a) for a in result.actions],
+    steps = [{"action": str(step.action), "success": bool(step.result.success),
+              "measurement": plain(step.result.measurement), "failure_reason": step.result.failure_reason}
+             for step in result.steps]
+    return {**out, "outcome": result.outcome.value, "primitives": [str(a) for a in result.actions], "steps": steps,
             "measurements": sum(1 for a in result.actions if a.name in measuring),
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
