@@ -139,5 +139,6 @@ def execute(env, trajectory: Trajectory, world: CollisionWorld, allowed: set[int
     return report
 
 
-def hover_pose(env, xy: np.ndarray, clear_z: float, quat: np.ndarray) -> PoseGoal:
-    return PoseGoal(Pose(np.array([xy[0], xy[1], clear_z + HOVER]), quat), *tol.FREE)
+def hover_pose(env, xy: np.ndarray, clear_z: float, quat: np.ndarray, height: float = HOVER) -> PoseGoal:
+    """The hand ``height`` above ``clear_z`` over ``xy``, turned to ``quat``."""
+    return PoseGoal(Pose(np.array([xy[0], xy[1], clear_z + height]), quat), *tol.FREE)

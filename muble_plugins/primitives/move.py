@@ -93,29 +93,35 @@ def first_planned(env, world, goals: list):
 # rad the empty hand may turn about the vertical to hover over an object, tried in this order: as it is, then a
 # quarter turn either way (the open fingers turned away from a tall neighbour), then the eighths between.
 HOVER_TURNS = tuple(np.radians([0, 90, -90, 45, -45]))
+# m above everything standing near the target that the hand hovers at, tried last, where the usual height
+# (``ctx.HOVER``) is out of the arm's reach: over an object at the far edge of the workspace the arm reaches down to
+# grasp it (the generator's reach check asks exactly that) but not 12 cm above it (measured: 5-6 mm short).
+LOW_HOVERS = (0.06, 0.03)
 
 
 def hover_goals(env, target) -> list[PoseGoal]:
     """The hover poses over ``target`` to try in turn, the usual pose first, each once: the hand turned by each of
     ``HOVER_TURNS`` (``CARRY_TURNS`` when it carries an object), first at the usual height, then above everything
-    standing near the target.
+    standing near the target, then lower (``LOW_HOVERS``).
 
     Over an object near the edge of the workspace the hand may have to turn about the vertical (a carried object
     turning with it) to reach, and beside a tall neighbour rise above it or turn the open fingers away from it.
     """
     turns = CARRY_TURNS if env.held_object is not None else HOVER_TURNS
     goals = []
-    for clear, yaw in itertools.product((False, True), turns):
-        goal = hover_goal(env, target, yaw, clear)
+    tries = [(clear, yaw, ctx.HOVER) for clear, yaw in itertools.product((False, True), turns)]
+    tries += [(True, yaw, height) for height, yaw in itertools.product(LOW_HOVERS, turns)]
+    for clear, yaw, height in tries:
+        goal = hover_goal(env, target, yaw, clear, height)
         if not any(np.allclose(goal.pose.pos, g.pose.pos) and np.allclose(goal.pose.quat, g.pose.quat)
                    for g in goals):
             goals.append(goal)
     return goals
 
 
-def hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
-    """Hover pose over ``target``: the hand turned by ``yaw`` about the vertical; with ``clear``, above
-    everything standing near it rather than above the target alone."""
+def hover_goal(env, target, yaw: float = 0.0, clear: bool = False, height: float = ctx.HOVER) -> PoseGoal:
+    """Hover pose over ``target``, ``height`` above it: the hand turned by ``yaw`` about the vertical; with
+    ``clear``, above everything standing near it rather than above the target alone."""
     table = env.table()
     if isinstance(target, str):
         lo, hi = table.part_region(target)
@@ -131,7 +137,7 @@ def hover_goal(env, target, yaw: float = 0.0, clear: bool = False) -> PoseGoal:
         xy = xy - offset
     if isinstance(target, str) or clear:
         top = max(top, placement.clear_top(env, xy, table.top_z, env.held_object))
-    return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat)
+    return ctx.hover_pose(env, xy, top + placement.held_depth(env), quat, height)
 
 
 def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
