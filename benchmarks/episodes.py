@@ -27,8 +27,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 def setup(episodes: int):
     from muble.app.config import SHOPVRB2_TEMPLATES, compose
-    from muble.app.run import build_components, scene_generator
-    from muble.dataset.production import choose_instruction
+    from muble.episode.components import build_components, scene_generator
+    from muble.generation.task_mix import choose_from_mix as choose_instruction
     from muble.plugins.registry import get_registry
 
     cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])
@@ -50,7 +50,7 @@ def setup(episodes: int):
 
 
 def run_mode(cfg, components, work, render: bool) -> dict:
-    from muble.app.run import episode_runner
+    from muble.episode.components import episode_runner
 
     runner = episode_runner(cfg, {**components, "renderer": components["renderer"] if render else None})
     parts = {"physics": 0.0, "planning": 0.0, "rendering": 0.0, "total": 0.0}

@@ -1,6 +1,6 @@
 """How far generated scenes move under the initial-state check, against its tolerances, and what the check costs.
 
-Each scene comes from the configured scene generator (``muble.app.run.scene_generator``, the ``eval`` config), is
+Each scene comes from the configured scene generator (``muble.episode.components.scene_generator``, the ``eval`` config), is
 built into a ``TabletopEnv`` and settled and checked by ``muble.sim.initial_state.settle_and_check``. Reported:
 how many pass, the largest displacement, rotation and resting contact depth over all objects, and the wall time of
 the check per scene. Goal: every generated scene passes with its largest displacement at most a tenth of
@@ -24,7 +24,7 @@ def main() -> None:
     from omegaconf import OmegaConf
 
     from muble.app.config import compose
-    from muble.app.run import scene_generator
+    from muble.episode.components import scene_generator
     from muble.core.errors import InitialStateError
     from muble.evaluation.episodes import build_components
     from muble.sim.build import object_models

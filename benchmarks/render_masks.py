@@ -51,7 +51,7 @@ def main() -> int:
 
     from muble import get_registry
     from muble.app.config import compose
-    from muble.app.run import build_components, scene_generator
+    from muble.episode.components import build_components, scene_generator
     from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
     from muble.sim.build import object_models
     from muble.sim.env import TabletopEnv

@@ -201,7 +201,7 @@ def main() -> int:
     if args.sheet:
         from PIL import Image
 
-        from muble.app.render import contact_sheet
+        from muble.core.image_grid import contact_sheet
 
         column = names.index(chosen) + 1 if chosen else 1
         images = [im for row in sheet_rows for im in (row[column], row[0])]

@@ -25,8 +25,7 @@ from typing import Any
 import numpy as np
 
 from muble.core.errors import ConfigError
-# The image grid lives in the core (renderer plugins draw sheets too); imported here too, where it used to live.
-from muble.core.image_grid import SHEET_COLUMNS, SHEET_THUMB_WIDTH, contact_sheet  # noqa: F401
+from muble.core.image_grid import contact_sheet
 from muble.core.types import SEG_ROBOT, SEG_TABLE, Frame
 
 log = logging.getLogger(__name__)

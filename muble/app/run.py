@@ -18,9 +18,8 @@ from muble.app.hydra_app import run_hydra_job
 from muble.core.errors import MubleError
 from muble.core.manifest import make_manifest
 from muble.core.scene_io import write_json_atomic
-# Where they are built; imported here too, where they used to live.
-from muble.episode.components import build_components, episode_runner, scene_generator  # noqa: F401
-from muble.episode.runner import KeyframeStateRecorder  # noqa: F401
+from muble.episode.components import build_components, episode_runner, scene_generator
+from muble.episode.runner import KeyframeStateRecorder
 
 log = logging.getLogger(__name__)
 

@@ -153,6 +153,8 @@ class PrimitiveAction(ABC):
     # What a successful call's ``ActionResult.measurement`` is: a measured property of the held object ("weight" in
     # g, "stiffness" in N/m, as in ``env.measurements``) or None. Sequence files record the last weight.
     measures: ClassVar[str | None] = None
+    # The unit of that measurement ("g", "N/m"), for reports; "" where it has none.
+    measure_unit: ClassVar[str] = ""
 
     def __init__(self, **params: Any) -> None:
         from muble.core.params import specs

@@ -25,8 +25,6 @@ import numpy as np
 from muble.core.atomic import write_bytes_atomic
 from muble.core.layout import DatasetLayout
 from muble.generation.ground_truth import apply_masks
-# Drawing an instruction from a template mix lives with the mix; imported here too, where it used to live.
-from muble.generation.task_mix import choose_from_mix as choose_instruction  # noqa: F401
 
 log = logging.getLogger(__name__)
 

@@ -19,6 +19,7 @@ from muble.core.errors import MubleError, PhysicsError, SceneValidationError, un
 from muble.core.layout import DatasetLayout
 from muble.core.types import Outcome
 from muble.dataset.production import IndexJob, cached_components
+from muble.core.symbolic import ArmState
 from muble.episode.plain import plain
 from muble.evaluation.report import UNKNOWN
 
@@ -132,7 +133,8 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     t = output.timing
     measuring = measuring_primitives()
     steps = [{"action": str(step.action), "success": bool(step.result.success),
-              "measurement": plain(step.result.measurement), "failure_reason": step.result.failure_reason}
+              "measurement": plain(step.result.measurement), "failure_reason": step.result.failure_reason,
+              "held": None if step.scene_gt is None else ArmState.of(step.scene_gt).held}
              for step in result.steps]
     return {**out, "outcome": result.outcome.value, "primitives": [str(a) for a in result.actions], "steps": steps,
             "measurements": sum(1 for a in result.actions if a.name in measuring),

@@ -33,8 +33,19 @@ from muble.core.errors import ConfigError
 ASSETS = Path(__file__).with_name("site_assets")
 RECORDS = "episodes_{split}.jsonl"
 LLM_LOGS = "llm_logs"
-# Primitives whose measurement is set beside a scene file's ground truth: name -> (object field, unit, label).
-TRUTH = {"weigh": ("weight_gt", "g", "weight"), "squeeze": ("stiffness", "N/m", "stiffness")}
+def measured_properties() -> dict[str, tuple[str, str]]:
+    """Registered primitive name -> (the property it measures, its unit): the registry says which primitives
+    measure (``PrimitiveAction.measures``, ``measure_unit``)."""
+    from muble.plugins.registry import get_registry
+
+    registry = get_registry()
+    out = {}
+    for name in registry.names("primitive"):
+        factory = registry.get("primitive", name).record.factory
+        prop = getattr(factory, "measures", None)
+        if prop:
+            out[name] = (str(prop), str(getattr(factory, "measure_unit", "") or ""))
+    return out
 _ACTION = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\((?P<args>.*)\)$")
 
 
@@ -205,14 +216,17 @@ def measured_against_truth(steps: list[dict[str, Any]], scene: dict[str, Any] | 
     """One row per measuring step: what was measured, of which object, and the scene file's true value."""
     rows = []
     objects = {o.get("id", i): o for i, o in enumerate((scene or {}).get("objects") or [])}
+    measures = measured_properties()
     for step in steps:
         name, args = parse_action(step.get("action", ""))
-        if name not in TRUTH or step.get("measurement") is None:
+        if name not in measures or step.get("measurement") is None:
             continue
-        key, unit, label = TRUTH[name]
-        target = args.get("target")
-        obj = objects.get(int(target)) if target is not None and target.lstrip("-").isdigit() else None
-        true = obj.get(key) if obj else None
+        label, unit = measures[name]
+        target = args.get("target", step.get("held"))  # without a target: the object in the hand
+        obj = objects.get(int(target)) if target is not None and str(target).lstrip("-").isdigit() else None
+        # The scene file's true value: the property's ground-truth field (``<property>_gt``), else the field of
+        # its name.
+        true = (obj.get(f"{label}_gt", obj.get(label)) if obj else None)
         measured = step["measurement"]
         error = None
         if isinstance(measured, (int, float)) and isinstance(true, (int, float)) and true:

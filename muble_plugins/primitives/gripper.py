@@ -80,6 +80,7 @@ class Weigh(PrimitiveAction):
 
     params = ()
     measures = "weight"
+    measure_unit = "g"
 
     def execute(self, env) -> ActionResult:
         if env.held_object is None:
@@ -105,6 +106,7 @@ class Squeeze(PrimitiveAction):
 
     params = ()
     measures = "stiffness"
+    measure_unit = "N/m"
 
     def execute(self, env) -> ActionResult:
         if env.held_object is None:

@@ -5,12 +5,12 @@ Ground-truth plans come from it, and it tests agents without physics.
 from __future__ import annotations
 
 from muble import Agent, Instruction, SceneGraph
-from muble.episode import EpisodeMonitor, EpisodeResult, run_episode
+from muble.episode import EpisodeResult, run_episode
 
 from muble_plugins.tasks.success import check
 from muble_plugins.tasks.symbolic import SymbolicWorld
 
-__all__ = ["EpisodeMonitor", "EpisodeResult", "run_symbolic_episode"]
+__all__ = ["run_symbolic_episode"]
 
 
 def run_symbolic_episode(instruction: Instruction, scene: SceneGraph, agent: Agent,

@@ -53,7 +53,7 @@ def test_a_scene_generated_on_the_original_stage_names_it_and_the_oracle_solves_
     """`muble run`'s generator with generator.stage=original: the scene file names the stage, its environment is
     built there with the Robotiq 85 (robot.stage and robot.gripper left unset), and the oracle weighs an object on
     it with physics."""
-    from muble.app.run import episode_runner, scene_generator
+    from muble.episode.components import episode_runner, scene_generator
     from muble.evaluation.episodes import build_components
     from muble.sim.build import env_from_object_set
 

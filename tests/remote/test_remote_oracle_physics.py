@@ -25,7 +25,7 @@ MAX_SCENES = 40
 def episodes():
     """template -> the first scene index (seed 0) with an instruction of it."""
     from muble.app.config import compose
-    from muble.app.run import build_components, scene_generator
+    from muble.episode.components import build_components, scene_generator
 
     cfg = compose("run", [f"seed={SEED}"])
     generator = scene_generator(cfg, build_components(cfg, renderer=False, task=False)["object_set"])

@@ -4,7 +4,8 @@ import pytest
 from PIL import Image
 
 from muble import ConfigError, SceneGraph, SceneObject, get_registry
-from muble.app.render import contact_sheet, main, renderer_options
+from muble.app.render import main, renderer_options
+from muble.core.image_grid import contact_sheet
 from muble.core.scene_io import save_scene
 
 

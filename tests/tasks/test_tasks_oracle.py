@@ -8,7 +8,8 @@ import pytest
 
 from muble import ActionCall, Answer, Observation, Outcome, get_registry
 from muble_plugins.tasks.agents import OracleAgent, RandomAgent
-from muble_plugins.tasks.episodes import EpisodeMonitor, run_symbolic_episode
+from muble.episode import EpisodeMonitor
+from muble_plugins.tasks.episodes import run_symbolic_episode
 from muble_plugins.tasks.symbolic import SymbolicWorld
 from muble_plugins.tasks.synthetic import sample_scenes
 from muble_plugins.tasks.templates import ALL_TEMPLATES

@@ -40,7 +40,7 @@ class LazyScenes:
 @pytest.fixture(scope="module")
 def setup():
     from muble.app.config import compose
-    from muble.app.run import episode_runner, scene_generator
+    from muble.episode.components import episode_runner, scene_generator
     from muble.evaluation.episodes import build_components
 
     cfg = compose("eval", [f"seed={SEED}", "agent=oracle", "output.dir=/tmp", "dataset.root=/tmp"])
