@@ -19,7 +19,7 @@ import signal
 import socket
 from typing import Any, Callable
 
-from muble.remote.protocol import DEFAULT_HOST, DEFAULT_PORT, HARD_LIMIT_BYTES, MAX_REQUEST_BYTES, PROTOCOL
+from muble.remote.wire import DEFAULT_HOST, DEFAULT_PORT, HARD_LIMIT_BYTES, MAX_REQUEST_BYTES, PROTOCOL
 
 log = logging.getLogger(__name__)
 

@@ -22,13 +22,13 @@ from muble.core.instructions_io import instruction_from_dict
 from muble.core.interfaces import Agent, Instruction
 from muble.core.types import Frame, Observation
 from muble.episode.plain import decision_to_plain, observation_from_plain
-from muble.remote.protocol import DEFAULT_HOST, DEFAULT_PORT, PROTOCOL
+from muble.remote.wire import DEFAULT_HOST, DEFAULT_PORT, PROTOCOL
 
 log = logging.getLogger(__name__)
 
 
 class RemoteError(MubleError):
-    """An error reply of the server (``code`` as in ``muble.remote.protocol.ERROR_CODES``) or no reply in time."""
+    """An error reply of the server (``code`` as in ``muble.remote.wire.ERROR_CODES``) or no reply in time."""
 
     def __init__(self, code: str, message: str):
         super().__init__(f"{code}: {message}")

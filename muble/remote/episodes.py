@@ -19,7 +19,7 @@ from typing import Any
 from muble.core.errors import MubleError
 from muble.core.layout import DatasetLayout
 from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, episode_kind
-from muble.remote.protocol import ProtocolError
+from muble.remote.wire import ProtocolError
 
 # A split the server may name: one folder name (muble.core.layout.SPLIT_NAME) without dots.
 _SPLIT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")

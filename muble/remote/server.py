@@ -1,5 +1,5 @@
 """``muble serve``: SHOP-VRB2 episodes driven by an agent in another process, over the protocol of
-``muble.remote.protocol`` on a ZeroMQ ROUTER socket.
+``muble.remote.wire`` on a ZeroMQ ROUTER socket.
 
 Each ``reset`` opens a session (a token) bound to one episode, run by ``SteppedEpisode`` through the same action
 loop as ``muble run``/``muble eval``.
@@ -34,7 +34,7 @@ from typing import Any, Callable
 from muble.core.errors import MubleError
 from muble.episode.plain import MalformedDecision, decision_from_plain
 from muble.remote.episodes import EpisodeRequest, dataset_root, public_text
-from muble.remote.protocol import (DEFAULT_HOST, DEFAULT_PORT, HARD_LIMIT_BYTES, IMAGE_FORMATS, MAX_REQUEST_BYTES,
+from muble.remote.wire import (DEFAULT_HOST, DEFAULT_PORT, HARD_LIMIT_BYTES, IMAGE_FORMATS, MAX_REQUEST_BYTES,
                                    PROTOCOL, ProtocolError, decode_request, encode, error_header)
 from muble.remote.schema import primitive_entries
 from muble.remote.simulation import SimulationProcess, SimulationSetup

@@ -107,7 +107,7 @@ def run_job(job: dict[str, Any], factory: Any, sessions: dict[str, tuple[Any, st
     from muble.episode.sources import agent_instruction
     from muble.episode.stepped import SteppedEpisode
     from muble.remote.episodes import EpisodeRequest, public_text
-    from muble.remote.protocol import ProtocolError
+    from muble.remote.wire import ProtocolError
 
     token, kind = job["token"], job["kind"]
     root = Path(setup.dataset_root) if setup.dataset_root else None

@@ -25,7 +25,7 @@ import pytest
 
 from muble import get_registry
 from muble.remote import PROTOCOL, RemoteClient, run_agent
-from muble.remote.protocol import ERROR_CODES, MAX_DEPTH
+from muble.remote.wire import ERROR_CODES, MAX_DEPTH
 
 from tests.remote.server import REPO, ServerProcess
 

@@ -1,4 +1,4 @@
-"""The remote agent protocol, version 1 (see docs/remote.md): JSON headers, images as binary frames, over ZeroMQ.
+"""The remote agent wire protocol, version 1 (see docs/remote.md): JSON headers, images as binary frames, over ZeroMQ.
 
 A request is one ZeroMQ message of exactly one frame: a UTF-8 JSON object with ``protocol`` ("muble.remote/1"),
 ``type`` and the type's fields. A reply is a JSON header frame followed by zero or more binary frames (images)
