@@ -9,7 +9,6 @@ Three sources, the same for the Gymnasium environments and the remote agent serv
 """
 from __future__ import annotations
 
-import dataclasses
 import logging
 import re
 from dataclasses import dataclass
@@ -22,7 +21,6 @@ from muble.core.errors import ConfigError, SceneValidationError, unknown_name
 from muble.core.interfaces import Instruction, Task
 from muble.core.scene import SceneGraph
 from muble.episode.components import KeptRenderer
-from muble.episode.modes import track_instruction
 
 log = logging.getLogger(__name__)
 
@@ -44,8 +42,6 @@ def episode_kind(request: Any) -> str | None:
     if keys == {"scene", "instruction"}:
         return "data"
     return None
-# Keys of an instruction record that are ground truth for the judge and the records, not for the agent.
-GROUND_TRUTH_KEYS = ("ground_truth_actions",)
 
 
 @dataclass
@@ -56,14 +52,6 @@ class EpisodeSpec:
     instruction: Instruction
     task: Task
     source: dict[str, Any]
-
-
-def agent_instruction(instruction: Instruction, track: str = "program") -> Instruction:
-    """The instruction as an agent receives it: the stored ground-truth action list left out, and the program
-    without the outputs and inputs recorded on the ground truth, or none on the ``language`` track
-    (``muble.episode.modes.track_instruction``); the instruction file's other records are kept."""
-    extra = {k: v for k, v in instruction.extra.items() if k not in GROUND_TRUTH_KEYS}
-    return dataclasses.replace(track_instruction(instruction, track), extra=extra)
 
 
 class EpisodeFactory:

@@ -31,7 +31,8 @@ from muble.core.instructions_io import instruction_to_dict
 from muble.core.types import Outcome
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
 from muble.episode.components import benchmark_settings
-from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, agent_instruction, episode_kind
+from muble.episode.modes import track_instruction
+from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, episode_kind
 from muble.episode.stepped import EpisodeStateError, EpisodeThread, Step, SteppedEpisode
 from muble.gym.config import environment_config
 from muble.gym.spaces import as_text, image_space, json_text, text_space
@@ -143,7 +144,7 @@ class ShopVRB2Env(gym.Env):
             else:
                 raise ConfigError(f"no episode of templates {self.templates} starts in {SCENE_TRIES} drawn scenes")
         self.spec_now = spec
-        told = agent_instruction(spec.instruction, benchmark_settings(self.cfg)[0])  # benchmark.track
+        told = track_instruction(spec.instruction, benchmark_settings(self.cfg)[0])  # benchmark.track
         info = {"instruction": instruction_to_dict(told), "source": spec.source,
                 "template": spec.instruction.template_id}
         return self._observation(step), info

@@ -104,7 +104,7 @@ def run_job(job: dict[str, Any], factory: Any, sessions: dict[str, tuple[Any, st
     from muble.core.instructions_io import instruction_to_dict
     from muble.episode.components import benchmark_settings
     from muble.episode.plain import decision_from_plain
-    from muble.episode.sources import agent_instruction
+    from muble.episode.modes import track_instruction
     from muble.episode.stepped import SteppedEpisode
     from muble.remote.episodes import EpisodeRequest, public_text
     from muble.remote.wire import ProtocolError
@@ -127,7 +127,7 @@ def run_job(job: dict[str, Any], factory: Any, sessions: dict[str, tuple[Any, st
             sessions[token] = (episode, job["images"])
             header, binary = observation_reply(token, job["images"], step, root)
             header.update(instruction=instruction_to_dict(
-                agent_instruction(spec.instruction, benchmark_settings(factory.cfg)[0])), source=spec.source)
+                track_instruction(spec.instruction, benchmark_settings(factory.cfg)[0])), source=spec.source)
         elif kind == "act":
             episode, images = sessions[token]
             decision, stop = decision_from_plain(job["action"])

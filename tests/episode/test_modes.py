@@ -162,3 +162,24 @@ def test_each_mode_gives_only_what_it_says_and_the_oracle_solves_each():
                     assert all(o.mask is not None for o in observation.scene.objects)
             # The primitive's result reaches the agent in every mode.
             assert recorder.given[2][1].last_result is not None
+
+
+def test_the_instruction_told_on_either_track_holds_no_ground_truth_record():
+    """A stored instruction's records beside its text and program (the ground-truth actions, the task's target,
+    the scene samples drawn) reach no agent, on either track: one function (``track_instruction`` on
+    ``muble.core.observation.agent_instruction``) makes what the loop, Gymnasium and the remote server hand out."""
+    from muble.core.instructions_io import instruction_from_dict
+    from muble.dataset.protocol import load_protocol, shipped_files
+    from muble.episode.modes import track_instruction
+
+    files = shipped_files(load_protocol("shopvrb2_v2"), "mini")
+    rel = next(k for k in sorted(files) if "/instructions/" in k)
+    import json
+
+    stored = instruction_from_dict(json.loads(files[rel]))
+    assert {"task", "ground_truth_actions"} <= set(stored.extra)
+    for track in ("program", "language"):
+        told = track_instruction(stored, track)
+        assert told.extra == {} and told.instruction == stored.instruction
+        assert all(step.get("output") is None for step in told.program)
+    assert track_instruction(stored, "language").program == []
