@@ -104,7 +104,8 @@ def _set_down(scene: SceneGraph, held, hand: ArmState, spot: list[float] | None)
 
 
 def _places(env, target, held, table):
-    """(support body, its top, the places for the held object's centre to try in turn) for ``target``."""
+    """(support body, the height the held object's bottom rests at there as a function of the hand's turn about the
+    vertical, the places for the held object's centre to try in turn) for ``target``."""
     here = env.object_pose(held).pos[:2]
     if isinstance(target, str):
         lo, hi = table.part_region(target)
@@ -114,15 +115,26 @@ def _places(env, target, held, table):
         inside = bool(np.all(here >= lo) and np.all(here <= hi))
         if inside and placement.is_free(env, here, held):
             places = [here, *places]
-        return table.body, table.top_z, placement.spread(places)
+        return table.body, _level(table.top_z), placement.spread(places)
     if target is None:
         parts = parts_at(*here)
         near = placement.free_places(env, here - PUT_BACK_RADIUS, here + PUT_BACK_RADIUS, held, prefer=here)
         near = [p for p in near if parts_at(*p) == parts and np.linalg.norm(p - here) <= PUT_BACK_RADIUS]
-        return table.body, table.top_z, [here, *placement.spread(near, limit=6)]
+        return table.body, _level(table.top_z), [here, *placement.spread(near, limit=6)]
     ctx.body_name(env, target)
-    return (env.model.body(env.names.objects[int(target)]).id, placement.resting_top(env, int(target), held),
-            [env.object_pose(int(target)).pos[:2]])
+    tops: dict[float, float] = {}
+
+    def on_target(yaw: float) -> float:  # per turn: a handle turned over a base's higher side meets it higher up
+        if yaw not in tops:
+            tops[yaw] = placement.resting_top(env, int(target), held, yaw)
+        return tops[yaw]
+
+    return env.model.body(env.names.objects[int(target)]).id, on_target, [env.object_pose(int(target)).pos[:2]]
+
+
+def _level(top: float):
+    """The resting height on a flat support, whatever the turn."""
+    return lambda yaw: top
 
 
 def put_down_tries(places: list, target, attempt: int = 0):
@@ -141,11 +153,12 @@ def put_down_tries(places: list, target, attempt: int = 0):
 
 
 def _plan(env, world, target, places, support_body, support_top, attempt=0):
-    """(planned move over the first place that works, straight descent onto it)."""
+    """(planned move over the first place that works, straight descent onto it); ``support_top(yaw)``: the height
+    the held object's bottom rests at, the hand turned by ``yaw``."""
     reasons = []
     hand = env.ee_pose().pos
     for xy, yaw, gap in put_down_tries(places, target, attempt):
-        place = placement.place_pose(env, xy, support_top, gap, yaw)
+        place = placement.place_pose(env, xy, support_top(yaw), gap, yaw)
         above = place.pos + [0.0, 0.0, ctx.HOVER]
         if yaw == 0.0 and np.linalg.norm(hand[:2] - place.pos[:2]) < 0.01 and hand[2] > place.pos[2]:
             above = hand.copy()  # already over the place (``move`` went there): straight down from here

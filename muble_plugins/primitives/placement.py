@@ -48,8 +48,7 @@ def held_offset(env) -> np.ndarray:
 
 
 def geom_bottom(env, g: int) -> float:
-    import mujoco
-
+    """World z of geom ``g``'s lowest point (a mesh's lowest vertex, else its bounding sphere's bottom)."""
     m, d = env.model, env.data
     if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
         mesh = m.geom_dataid[g]
@@ -57,6 +56,17 @@ def geom_bottom(env, g: int) -> float:
         verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
         return float(verts[:, 2].min())
     return float(d.geom_xpos[g][2] - m.geom_rbound[g])
+
+
+def geom_top(env, g: int) -> float:
+    """World z of geom ``g``'s highest point (a mesh's highest vertex, else its bounding sphere's top)."""
+    m, d = env.model, env.data
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = m.geom_dataid[g]
+        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+        verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
+        return float(verts[:, 2].max())
+    return float(d.geom_xpos[g][2] + m.geom_rbound[g])
 
 
 def clear_top(env, xy: np.ndarray, table_top: float, skip: int | None) -> float:
@@ -83,14 +93,20 @@ def place_pose(env, xy: np.ndarray, support_top: float, gap: float, yaw: float =
     return Pose(np.array([hand[0], hand[1], support_top + held_depth(env) + gap]), quat)
 
 
-def resting_top(env, target: int, held: int) -> float:
-    """Height the held object's bottom comes to rest at on ``target`` (scene ids), its centre over the
-    target's: the highest point of the target under the held object's footprint, found by rays straight down
-    (the inner bottom of a bowl a can fits into, the rim of one a wider object spans). Falls back to the
-    target's top where no ray meets it."""
+def resting_top(env, target: int, held: int, yaw: float = 0.0) -> float:
+    """Height the held object's bottom comes to rest at on ``target`` (scene ids), its centre over the target's and
+    turned with the hand by ``yaw`` about the vertical: where it first touches the target's collision geometry as it
+    is lowered straight down (``first_touch``: the inner floor of a bowl a can fits into, the rim of one a wider
+    object spans, a bowl's wall under a mug's handle, which stands above the mug's base). Where lowering never
+    meets the target, the highest point of the target under the held object's footprint (rays straight down), else
+    the target's top."""
     m, d = env.model, env.data
     target_body = m.body(env.names.objects[target]).id
     held_body = m.body(env.names.objects[held]).id
+    centre = env.object_pose(held).pos
+    touch = first_touch(env, held_body, target_body, env.object_pose(target).pos[:2] - centre[:2], centre, yaw)
+    if touch is not None:
+        return touch
     top = env.object_top(target)
     shape = footprint(env, held_body) - d.xpos[held_body][:2]
     points = np.vstack([np.zeros((1, 2)), shape, 0.5 * shape]) + env.object_pose(target).pos[:2]
@@ -98,6 +114,61 @@ def resting_top(env, target: int, held: int) -> float:
     groups[3] = 1  # object collision geoms
     height = resting_height(m, d, target_body, points, top + 0.05, held_body, groups)
     return top if height is None else height
+
+
+# m between the lowered object and its support at which it counts as touching: the search for the first contact
+# stops there (a release gap of ``RELEASE_GAPS`` is added to what it finds).
+TOUCH = 0.0005
+TOUCH_STEPS = 100  # steps down at most; stopping early leaves the object above the contact, never in it
+TOUCH_START = 0.01  # m above the support's top that the lowered object's bottom starts from
+
+
+def collision_geoms(m, body: int) -> list[int]:
+    return [int(g) for g in np.flatnonzero(m.geom_bodyid == body) if m.geom_contype[g] or m.geom_conaffinity[g]]
+
+
+def first_touch(env, body: int, support: int, shift: np.ndarray, centre: np.ndarray, yaw: float = 0.0) -> float | None:
+    """World z of ``body``'s bottom where, moved by ``shift`` (x, y) and turned by ``yaw`` about the vertical
+    through ``centre``, then lowered straight down from ``TOUCH_START`` above ``support``'s top, it first comes
+    within ``TOUCH`` of ``support``'s collision geometry; ``None`` where it passes the support's bottom without
+    touching it.
+
+    Each step goes down by the smallest distance between the two bodies' convex parts (MuJoCo's
+    ``mj_geomDistance``, on a scratch copy of the poses: the simulation is not touched); a vertical move no longer
+    than the distance cannot reach the support, so the search never passes a contact, whatever the shapes. The
+    object's own shape counts, not only its outline: a mug's handle stands above its base, and over a bowl it meets
+    the wall well below the rim."""
+    m, d = env.model, env.data
+    mine, theirs = collision_geoms(m, body), collision_geoms(m, support)
+    if not mine or not theirs:
+        return None
+    scratch = mujoco.MjData(m)
+    scratch.geom_xpos[theirs] = d.geom_xpos[theirs]
+    scratch.geom_xmat[theirs] = d.geom_xmat[theirs]
+    c, s = np.cos(yaw), np.sin(yaw)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    placed = {g: turn @ (d.geom_xpos[g] - centre) + centre + [shift[0], shift[1], 0.0] for g in mine}
+    for g in mine:
+        scratch.geom_xmat[g] = (turn @ d.geom_xmat[g].reshape(3, 3)).ravel()
+    bottom = min(geom_bottom(env, g) for g in mine)  # turning about the vertical keeps it
+    floor = min(geom_bottom(env, g) for g in theirs)
+    dz = max(geom_top(env, g) for g in theirs) + TOUCH_START - bottom
+    radius = m.geom_rbound
+    for _ in range(TOUCH_STEPS):
+        for g in mine:
+            scratch.geom_xpos[g] = placed[g] + [0.0, 0.0, dz]
+        gap = np.inf
+        for a in mine:
+            for b in theirs:
+                far = np.linalg.norm(scratch.geom_xpos[a] - scratch.geom_xpos[b]) - radius[a] - radius[b]
+                if far < gap:  # bounding spheres closer than the nearest pair so far
+                    gap = min(gap, mujoco.mj_geomDistance(m, scratch, a, b, 1.0, None))
+        if gap <= TOUCH:
+            return float(bottom + dz)
+        if bottom + dz < floor:
+            return None
+        dz -= gap
+    return float(bottom + dz)
 
 
 def footprint(env, body: int) -> np.ndarray:
