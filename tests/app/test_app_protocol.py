@@ -120,7 +120,7 @@ def test_eval_runs_the_shipped_split_with_no_generation(tmp_path, name):
     assert report["protocol"] == name and report["protocol_data"]["matches"] is True
     assert report["protocol_data"]["data_sha256"] == protocol["splits"]["mini"]["sha256"]
     results = json.loads((out / "results.json").read_text())
-    assert results["protocol"] == name and len(results["episodes"]) == 2
+    assert results["protocol"] == name and len(results["splits"]["mini"]["episodes"]) == 2
 
 
 @pytest.mark.slow
