@@ -196,14 +196,24 @@ class TabletopEnv:
         return self.observation(), 0.0, False, False, info
 
     # ------------------------------------------------------------------------------------------ physics loop
-    def advance(self, duration: float, on_control: Callable[[int], None] | None = None) -> None:
+    def advance(self, duration: float, on_control: Callable[[int], None] | None = None,
+                on_physics: Callable[[], None] | None = None) -> None:
         """Run the physics for ``duration`` seconds at the current set-points, ``n_substeps`` per ``mj_step``
-        call; between calls, grasp and faults are checked and ``on_control(k)`` may set new set-points."""
+        call; between calls, grasp and faults are checked and ``on_control(k)`` may set new set-points.
+
+        ``on_physics()``, if given, is called after every physics step (the control period's ``n_substeps`` are
+        then stepped one call each, which is the same computation): what a sensor sampled at the physics rate
+        reads, ``data.sensordata`` as of that step."""
         count = max(1, int(round(duration / self.control_dt)))
         for k in range(count):
             if on_control is not None:
                 on_control(k)
-            mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
+            if on_physics is None:
+                mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
+            else:
+                for _ in range(self.n_substeps):
+                    mujoco.mj_step(self.model, self.data)
+                    on_physics()
             self._after_control_step()
 
     def _after_control_step(self) -> None:
