@@ -47,26 +47,25 @@ def held_offset(env) -> np.ndarray:
     return env.object_pose(env.held_object).pos[:2] - env.ee_pose().pos[:2]
 
 
-def geom_bottom(env, g: int) -> float:
-    """World z of geom ``g``'s lowest point (a mesh's lowest vertex, else its bounding sphere's bottom)."""
+def geom_heights(env, g: int) -> tuple[float, float]:
+    """World z of geom ``g``'s lowest and highest points (a mesh's vertices, else its bounding sphere's)."""
     m, d = env.model, env.data
     if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
         mesh = m.geom_dataid[g]
         start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-        verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
-        return float(verts[:, 2].min())
-    return float(d.geom_xpos[g][2] - m.geom_rbound[g])
+        z = (m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g])[:, 2]
+        return float(z.min()), float(z.max())
+    return float(d.geom_xpos[g][2] - m.geom_rbound[g]), float(d.geom_xpos[g][2] + m.geom_rbound[g])
+
+
+def geom_bottom(env, g: int) -> float:
+    """World z of geom ``g``'s lowest point."""
+    return geom_heights(env, g)[0]
 
 
 def geom_top(env, g: int) -> float:
-    """World z of geom ``g``'s highest point (a mesh's highest vertex, else its bounding sphere's top)."""
-    m, d = env.model, env.data
-    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
-        mesh = m.geom_dataid[g]
-        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-        verts = m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
-        return float(verts[:, 2].max())
-    return float(d.geom_xpos[g][2] + m.geom_rbound[g])
+    """World z of geom ``g``'s highest point."""
+    return geom_heights(env, g)[1]
 
 
 def clear_top(env, xy: np.ndarray, table_top: float, skip: int | None) -> float:
