@@ -128,9 +128,9 @@ def parse_action(text: str) -> tuple[str, dict[str, str]]:
     return m.group("name"), args
 
 
-def success_svg(rows: list[tuple[str, dict[str, Any]]], width: int = 640) -> str:
+def success_svg(rows: list[tuple[str, dict[str, Any]]], width: int = 700) -> str:
     """Success rate per task type as points with their 95% intervals, drawn as SVG."""
-    bar_h, left, right = 22, 190, 20
+    bar_h, left, right = 22, 250, 20
     height = bar_h * len(rows) + 40
     plot_w = width - left - right
     x = lambda v: left + plot_w * max(0.0, min(1.0, v))  # noqa: E731
