@@ -24,6 +24,7 @@ import hashlib
 import io
 import json
 import os
+import shutil
 import tarfile
 import tempfile
 from pathlib import Path
@@ -257,11 +258,7 @@ def write_split(protocol: dict[str, Any], split: str, out: str | Path) -> Path:
     if (out / split).exists():
         raise ConfigError(f"{out / split} exists; pass an --out without a '{split}' folder (nothing was written)")
     with staged_folder(out, "--out") as stage:
-        for rel, data in files.items():
-            path = stage / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(data)
-            os.chmod(path, 0o666 & ~_umask())
+        _write_files(stage, files)
     _add_to_manifest(out, protocol, split, files)
     return out
 
@@ -283,10 +280,11 @@ def _add_to_manifest(root: Path, protocol: dict[str, Any], split: str, files: di
     write_bytes_atomic(path, json.dumps(manifest, indent=1, sort_keys=True).encode())
 
 
-def _umask() -> int:
-    from muble.core.atomic import current_umask
-
-    return current_umask()
+def _write_files(folder: Path, files: dict[str, bytes]) -> None:
+    for rel, data in files.items():
+        path = folder / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
 
 
 def data_cache() -> Path:
@@ -309,14 +307,9 @@ def shipped_root(protocol: dict[str, Any], split: str) -> Path:
     root.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".unpacking-", dir=root.parent))
     try:
-        for rel, data in files.items():
-            path = stage / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(data)
+        _write_files(stage, files)
         _add_to_manifest(stage, protocol, split, files)
         if root.exists():  # a damaged earlier copy
-            import shutil
-
             shutil.rmtree(root, ignore_errors=True)
         try:
             os.replace(stage, root)
@@ -325,8 +318,6 @@ def shipped_root(protocol: dict[str, Any], split: str) -> Path:
                 raise
     finally:
         if stage.exists():
-            import shutil
-
             shutil.rmtree(stage, ignore_errors=True)
     return root
 

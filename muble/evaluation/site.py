@@ -212,11 +212,12 @@ class Truth:
             return None
 
 
-def measured_against_truth(steps: list[dict[str, Any]], scene: dict[str, Any] | None) -> list[dict[str, Any]]:
-    """One row per measuring step: what was measured, of which object, and the scene file's true value."""
+def measured_against_truth(steps: list[dict[str, Any]], scene: dict[str, Any] | None,
+                           measures: dict[str, tuple[str, str]]) -> list[dict[str, Any]]:
+    """One row per measuring step (``measures``: ``measured_properties()``): what was measured, of which object,
+    and the scene file's true value."""
     rows = []
     objects = {o.get("id", i): o for i, o in enumerate((scene or {}).get("objects") or [])}
-    measures = measured_properties()
     for step in steps:
         name, args = parse_action(step.get("action", ""))
         if name not in measures or step.get("measurement") is None:
@@ -376,6 +377,7 @@ def _write_run(env, stage: Path, run: Run, split: str, records: list[dict[str, A
     others = [(o, s) for o, s in pairs.get(run.pair_key(split), []) if o is not run]
     indices = {(o.slug, s): {r["index"] for r in o.records[s]} for o, s in others}
     layout = DatasetLayout(Path("."), split)
+    measures = measured_properties()
     for i, record in enumerate(records):
         index = record["index"]
         stem = layout.stem(index)
@@ -385,7 +387,7 @@ def _write_run(env, stage: Path, run: Run, split: str, records: list[dict[str, A
         scene = truth.scene(run, split, index)
         page = env.get_template("episode.html").render(
             root="../../../", run=run, split=split, record=record, steps=steps, frames=frames, gif=gif,
-            truth=measured_against_truth(steps, scene), program=truth.program(run, split, index),
+            truth=measured_against_truth(steps, scene, measures), program=truth.program(run, split, index),
             dialogue=dialogue(run, split, index, record.get("template", "")),
             same=[(o, s, f"../../../runs/{o.slug}/{s}/{index:06d}.html") for o, s in others
                   if index in indices[(o.slug, s)]],
