@@ -21,10 +21,10 @@ import numpy as np
 
 from muble import Outcome
 from muble.core.scene_io import load_scenes
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.episodes import run_symbolic_episode
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.episodes import run_symbolic_episode
+from muble_plugins.common.synthetic import sample_scenes
 from muble_plugins.tasks.generator import generate_instructions
-from muble_plugins.tasks.synthetic import sample_scenes
 from muble_plugins.tasks.templates import TEMPLATES
 
 ANCHOR_PER_S = 4032 / 1.21

@@ -18,9 +18,9 @@ def main(argv: list[str]) -> dict:
     import torch
 
     torch.set_num_threads(1)
+    from muble_plugins.agents.oracle import OracleAgent
     from muble_plugins.learned.agent import LearnedPlannerAgent
     from muble_plugins.learned.planner import instructions_for, scene_for, symbolic_success
-    from muble_plugins.tasks.agents import OracleAgent
 
     checkpoint = argv[0]
     seed = int(argv[1]) if len(argv) > 1 else 7

@@ -25,6 +25,7 @@ from muble.core.objects import GraspFrame, MeshPart, ObjectModel, ObjectSpec
 from muble.core.object_physics import realised_damping, realised_stiffness
 from muble.core.ranges import bounded
 
+from muble_plugins.common.materials import STIFFNESS_RANGE  # ground-truth stiffness by material (N/m)
 from muble_plugins.objects.build_cache import built_geometry
 from muble_plugins.objects.geometry import GEOMETRY_VERSION
 from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F401 - re-exported for callers
@@ -46,19 +47,6 @@ COLOUR_RGBA = {
     "metallic": (0.75, 0.76, 0.78, 1.0),
 }
 PAINTS = ("red", "blue", "green", "brown", "purple", "cyan", "yellow")
-
-# Ground-truth contact stiffness (N/m) of the object as a whole when pressed by a gripper jaw or resting on
-# the table: the structural stiffness of thin-walled household items (a squeezed cup wall, a can side wall),
-# not the Young's modulus of the material. Ordered so that squeeze can tell the classes apart; the upper ends
-# stay below what a 2 ms contact time constant allows for objects of ~60 g and more.
-STIFFNESS_RANGE = {
-    "rubber": (4_000.0, 8_000.0),
-    "plastic": (9_000.0, 20_000.0),
-    "metal": (25_000.0, 50_000.0),
-    "wooden": (40_000.0, 70_000.0),
-    "glass": (70_000.0, 110_000.0),
-    "ceramic": (70_000.0, 110_000.0),
-}
 
 
 def default_stiffness(material: str) -> float | None:
@@ -104,6 +92,7 @@ class Category:
     stack_base: bool
     sizes: tuple[str, ...] = ("small", "medium-sized", "large")
     mass_exponent: float = 2.0  # mass ∝ scale^e: 2 for thin-walled shells, 3 for solid or filled items
+    closed: bool = False  # a closed container (a can, a flask, a food box): it can hold loose contents
     # Models built when a scene names them but never sampled (so that adding one changes no generated scene):
     # the original SHOP-VRB2 models this catalogue does not sample.
     imported_variants: dict[str, tuple[str, Callable[[float], Geometry]]] = field(default_factory=dict)
@@ -328,7 +317,7 @@ class CatalogueObjectSet(ObjectSet):
             rgba=rgba, material_class=MATERIAL_CLASS[spec.material],
             grasp_type=cat.grasp_type, grasp_frames=geometry.grasp_frames, pickupable=cat.pickupable,
             stackable=cat.stackable, stack_base=cat.stack_base,
-            extents=built.extents.copy(), uv=built.uv,
+            extents=built.extents.copy(), uv=built.uv, closed=cat.closed,
         )
 
 

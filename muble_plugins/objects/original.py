@@ -34,7 +34,8 @@ from muble.core.errors import SceneValidationError, unknown_name
 from muble.core.objects import ObjectSpec
 from muble.core.scene import LARGEST_ORIGINAL_SCALE, SceneObject
 
-from muble_plugins.objects.catalogue import COLOUR_RGBA, FRICTION, SIZE_SCALES, STIFFNESS_RANGE, Category
+from muble_plugins.common.materials import STIFFNESS_RANGE
+from muble_plugins.objects.catalogue import COLOUR_RGBA, FRICTION, SIZE_SCALES, Category
 
 # The original SHOP-VRB2 models per category (the "file" field of its scene files).
 ORIGINAL_MODELS: dict[str, tuple[str, ...]] = {

@@ -30,8 +30,8 @@ from scipy.spatial.transform import Rotation
 from muble.core.objects import GraspFrame, MeshPart
 from muble_plugins.objects import geometry as g
 from muble_plugins.objects.catalogue import Geometry, side, top_down
-from muble_plugins.objects.shopvrb2 import (GRIP_DEPTH, STEM_GRIP_HEIGHT, _cylinder_frames, _handle_frames,
-                                            _radius_at, _rim_frames, _side_frames)
+from muble_plugins.objects.frames import (GRIP_DEPTH, STEM_GRIP_HEIGHT, cylinder_frames, handle_frames, radius_at,
+                                          rim_frames, side_frames)
 
 # The thinnest wall (m at import scale 1) a vessel is built with: the original's glass walls are 1.5-3 mm, which
 # at an import scale of 0.45 is thinner than MuJoCo's contacts hold reliably; walls hardly show in a mask.
@@ -199,7 +199,7 @@ def bowl(outer, wall, floor, centre=(0.0, 0.0), rim_saddle=None):
     def build(s: float) -> Geometry:
         pts, w = _scaled(outer, s), max(wall, MIN_WALL) * s
         visual, uv, parts = lathe(pts, w, floor * s)
-        body = Geometry(visual, parts, _rim_frames(pts, w, 12), uv)
+        body = Geometry(visual, parts, rim_frames(pts, w, 12), uv)
         if rim_saddle is not None:
             body = saddle_rim(body, rim_saddle[0] * s, rim_saddle[1] * s, pts[-1][1])
         return turned_and_moved(body, _scaled([centre], s)[0])
@@ -225,8 +225,8 @@ def glass(outer, wall, floor):
         visual, uv, parts = lathe(pts, w, floor * s, sectors=10)
         h = pts[-1][1]
         z, mid = h - GRIP_DEPTH, 0.5 * h
-        frames = _cylinder_frames(_radius_at(pts, z), z) + _rim_frames(pts, w, 10)
-        frames += _side_frames(_radius_at(pts, max(mid, STEM_GRIP_HEIGHT)), mid)
+        frames = cylinder_frames(radius_at(pts, z), z) + rim_frames(pts, w, 10)
+        frames += side_frames(radius_at(pts, max(mid, STEM_GRIP_HEIGHT)), mid)
         return Geometry(visual, parts, frames, uv)
     return build
 
@@ -241,7 +241,7 @@ def square_glass(levels, wall, floor):
         z = h - GRIP_DEPTH
         width_at_z = 2 * float(np.interp(z, [v[0] for v in lv], [v[1] for v in lv]))
         frames = [top_down((0.0, 0.0, z), k * math.pi / 2, width_at_z) for k in range(2)]
-        return _convex_body(parts, frames + _side_frames(w / 2, 0.5 * h))
+        return _convex_body(parts, frames + side_frames(w / 2, 0.5 * h))
     return build
 
 
@@ -257,8 +257,8 @@ def mug(outer, wall, floor, centre, handle, strap):
         grip = strap_handle(path, strap[0] * s, strap[1] * s)
         r_top, h = pts[-1]
         x_mid = 0.5 * (low[0] + high[0]) * s
-        frames = _handle_frames(x_mid, low[1] * s, high[1] * s, reach * s - x_mid, strap[1] * s / 1.4, h)
-        frames += _rim_frames(pts, w, 10, skip=lambda a: abs(math.remainder(a, 2 * math.pi)) < 1.0)
+        frames = handle_frames(x_mid, low[1] * s, high[1] * s, reach * s - x_mid, strap[1] * s / 1.4, h)
+        frames += rim_frames(pts, w, 10, skip=lambda a: abs(math.remainder(a, 2 * math.pi)) < 1.0)
         body = Geometry(g.concatenate([visual, *grip]), [*parts, *grip], frames, None)
         return turned_and_moved(body, _scaled([centre], s)[0], turn=True)
     return build
@@ -271,7 +271,7 @@ def can(outer):
         visual, uv, parts = lathe(pts)
         r = max(p[0] for p in pts)
         h = pts[-1][1]
-        frames = _cylinder_frames(_radius_at(pts, h - GRIP_DEPTH), h - GRIP_DEPTH) + _side_frames(r, 0.5 * h)
+        frames = cylinder_frames(radius_at(pts, h - GRIP_DEPTH), h - GRIP_DEPTH) + side_frames(r, 0.5 * h)
         return Geometry(visual, parts, frames, uv)
     return build
 
@@ -282,8 +282,8 @@ def flask(outer, handle=None, strap=None):
         pts = _scaled(outer, s)
         visual, uv, parts = lathe(pts)
         h = pts[-1][1]
-        r_top = _radius_at(pts, h - GRIP_DEPTH)
-        frames = _cylinder_frames(r_top, h - GRIP_DEPTH) + _side_frames(_radius_at(pts, 0.5 * h), 0.5 * h)
+        r_top = radius_at(pts, h - GRIP_DEPTH)
+        frames = cylinder_frames(r_top, h - GRIP_DEPTH) + side_frames(radius_at(pts, 0.5 * h), 0.5 * h)
         if handle is None:
             return Geometry(visual, parts, frames, uv)
         low, high, reach = handle
@@ -302,7 +302,7 @@ def wine_glass(outer, wall, floor):
         pts, w = _scaled(outer, s), max(wall, MIN_WALL * 0.8) * s
         visual, uv, parts = lathe(pts, w, floor * s, sectors=10)
         bowl_pts = [p for p in pts if p[1] >= floor * s]
-        frames = _rim_frames(bowl_pts, w, 10)
+        frames = rim_frames(bowl_pts, w, 10)
         stem = [p for p in pts if p[1] < floor * s]
         stem_r = min(r for r, _ in stem)
         stem_z = max(floor * s * 0.5, STEM_GRIP_HEIGHT)
@@ -318,7 +318,7 @@ def round_box(outer, centre):
         pts = _scaled(outer, s)
         visual, uv, parts = lathe(pts)
         h = pts[-1][1]
-        body = Geometry(visual, parts, _cylinder_frames(_radius_at(pts, h - 0.02), h - 0.02), uv)
+        body = Geometry(visual, parts, cylinder_frames(radius_at(pts, h - 0.02), h - 0.02), uv)
         return turned_and_moved(body, _scaled([centre], s)[0])
     return build
 

@@ -21,13 +21,14 @@ import numpy as np
 from muble_plugins.objects import geometry as g
 from muble import ConfigError
 from muble.core.errors import unknown_name
-from muble.core.objects import GraspFrame, ObjectSpec
+from muble.core.objects import ObjectSpec
 from muble.core.scene import SceneObject
 from muble_plugins.objects import original
 from muble_plugins.objects.build_cache import built_geometry
-from muble_plugins.objects.catalogue import (PAINTS, Category, CatalogueObjectSet, Finish, Geometry, grasp_quat,
-                                             side,
-                                             top_down)
+from muble_plugins.objects.catalogue import PAINTS, Category, CatalogueObjectSet, Finish, Geometry, side, top_down
+from muble_plugins.objects.frames import (GRIP_DEPTH, STEM_GRIP_HEIGHT, cylinder_frames, handle_frames, radius_at,
+                                          rim_frames, side_frames)
+from muble_plugins.objects.original_models import ORIGINAL_GEOMETRY
 
 CERAMIC_COLOURS = (*PAINTS, "white", "black")
 
@@ -41,69 +42,12 @@ def _open_vessel(outer, wall, base, s, sectors=12) -> tuple[g.MeshPart, np.ndarr
     return visual, uv, parts
 
 
-# Grasp frames place the middle of the finger pads (see grasping.GripGeometry for how each gripper's grip site
-# follows). A top-down grasp puts it this far below an object's top, so that pads 16-34 mm tall lie on the
-# object's upper part while the palm above them stays clear of it.
-GRIP_DEPTH = 0.0165
-# A rim pinch puts the pads' middle just below the rim's edge, so that their upper part is over the edge: that
-# is where both walls stick out furthest, so the pads (not the fingertips below them) touch first.
-RIM_DEPTH = 0.0025
-
-
-def _radius_at(profile, z) -> float:
-    """Outer radius of an (r, z) profile at height ``z`` (clamped to its ends)."""
-    rs, zs = zip(*profile)
-    return float(np.interp(z, zs, rs))
-
-
-def _rim_frames(profile, wall, sectors, skip=None) -> list:
-    """Pinches of a vessel's rim, one at the middle of each of the ``sectors`` flat wall pieces of its
-    collision geometry (a flat face meets the pads, never a corner), jaws closing radially across the wall;
-    ``skip(angle)`` leaves out places (a mug's handle).
-
-    The fingers lean with the wall below the rim (from above and outside where it flares outwards, from above and
-    inside where it bulges out below the rim, as on a wine glass), so that a fingertip does not meet the wall
-    below the rim before the pads do.
-    """
-    height = profile[-1][1]
-    below = height - 0.015
-    lean = math.atan((profile[-1][0] - _radius_at(profile, below)) / 0.015)
-    z = height - RIM_DEPTH * math.cos(lean)
-    outer = _radius_at(profile, z)
-    r = math.cos(math.pi / sectors) * (outer / math.cos(math.pi / sectors) + outer - wall) / 2
-    frames = []
-    for k in range(sectors):
-        a = (k + 0.5) * 2 * math.pi / sectors
-        if skip is not None and skip(a):
-            continue
-        inward = np.array([-math.cos(a), -math.sin(a), 0.0])
-        down = np.array([0.0, 0.0, -1.0])
-        closing = inward * math.cos(lean) - down * math.sin(lean)
-        approach = inward * math.sin(lean) + down * math.cos(lean)
-        frames.append(GraspFrame(np.array([r * math.cos(a), r * math.sin(a), z]), grasp_quat(closing, approach),
-                                 wall / math.cos(lean)))
-    return frames
-
-
-def _cylinder_frames(radius, grip_z) -> list:
-    return [top_down((0.0, 0.0, grip_z), k * math.pi / 4, 2 * radius) for k in range(4)]
-
-
-def _side_frames(radius, z) -> list:
-    """Grasps around an upright body from the side, level and tilted down by 45 degrees, from eight directions:
-    for when neighbours leave no room for the hand above it. ``z`` is kept high enough for a level hand
-    (about 63 mm tall) to stay off the table."""
-    z = max(z, STEM_GRIP_HEIGHT)
-    return [side((0.0, 0.0, z), k * math.pi / 4, 2 * radius, pitch=pitch)
-            for pitch in (0.0, math.pi / 4) for k in range(8)]
-
-
 # --- bowls -----------------------------------------------------------------------------------------------
 
 def _bowl(outer, wall, base):
     def build(s: float) -> Geometry:
         visual, uv, parts = _open_vessel(outer, wall, base, s)
-        return Geometry(visual, parts, _rim_frames(_scaled(outer, s), wall * s, 12), uv)
+        return Geometry(visual, parts, rim_frames(_scaled(outer, s), wall * s, 12), uv)
     return build
 
 
@@ -163,7 +107,7 @@ def _tub(radius, height, lid):
         body = g.disc_part(r * 0.92, r, 0.0, h - t, 32)
         cap = g.disc_part(r * 1.03, r * 1.03, h - t, h, 32)
         parts = [body, cap]
-        return Geometry(g.concatenate(parts), parts, _cylinder_frames(r, h - 0.02), None)
+        return Geometry(g.concatenate(parts), parts, cylinder_frames(r, h - 0.02), None)
     return build
 
 
@@ -184,8 +128,8 @@ def _glass(outer, wall, base):
         z = pts[-1][1] - GRIP_DEPTH
         # Around the body near the top; a glass too wide for the fingers is pinched at the rim instead.
         mid = 0.5 * pts[-1][1]
-        frames = _cylinder_frames(_radius_at(pts, z), z) + _rim_frames(pts, wall * s, 10)
-        return Geometry(visual, parts, frames + _side_frames(_radius_at(pts, max(mid, STEM_GRIP_HEIGHT)), mid), uv)
+        frames = cylinder_frames(radius_at(pts, z), z) + rim_frames(pts, wall * s, 10)
+        return Geometry(visual, parts, frames + side_frames(radius_at(pts, max(mid, STEM_GRIP_HEIGHT)), mid), uv)
     return build
 
 
@@ -203,7 +147,7 @@ def _square_glass(width, height, wall, base):
         z = h - GRIP_DEPTH
         # Across two opposite walls from above, and around the body from the side like a round glass.
         frames = [top_down((0.0, 0.0, z), k * math.pi / 2, w) for k in range(2)]
-        return Geometry(visual, parts, frames + _side_frames(w / 2, 0.5 * h), uv)
+        return Geometry(visual, parts, frames + side_frames(w / 2, 0.5 * h), uv)
     return build
 
 
@@ -216,31 +160,11 @@ def _mug(outer, wall, base):
         handle = g.handle(r_top - 0.004, z_low, z_high, 0.032 * s, 0.009 * s)
         visual = g.concatenate([visual, *handle])
         uv = None  # the handle has no lathe coordinates; renderers fall back to cylindrical ones
-        frames = _handle_frames(r_top - 0.004, z_low, z_high, 0.032 * s, 0.009 * s, h)
+        frames = handle_frames(r_top - 0.004, z_low, z_high, 0.032 * s, 0.009 * s, h)
         # The rim away from the handle, for mugs whose handle faces away from the arm.
-        frames += _rim_frames(pts, wall * s, 10, skip=lambda a: abs(math.remainder(a, 2 * math.pi)) < 1.0)
+        frames += rim_frames(pts, wall * s, 10, skip=lambda a: abs(math.remainder(a, 2 * math.pi)) < 1.0)
         return Geometry(visual, [*parts, *handle], frames, uv)
     return build
-
-
-def _handle_frames(centre_x, z_low, z_high, reach, thickness, height) -> list:
-    """Grasps of a mug handle (a half ring in the x-z plane at +x): fingers closing across its width (y).
-
-    From outside, horizontal and tilted down (the hand beside the mug), and from above where the handle is
-    high enough for the palm to clear the mug's rim.
-    """
-    zc, rz = 0.5 * (z_low + z_high), 0.5 * (z_high - z_low)
-    width = 1.4 * thickness  # the tube's extent across the fingers, oval cross-section included
-    frames = []
-    for pitch in (0.0, math.pi / 6, math.pi / 3):
-        # The pads' middle on the tube's centre line, where the approach line meets its outer half.
-        a = pitch / 2
-        x, z = centre_x + reach * math.cos(a), zc + rz * math.sin(a)
-        frames.append(side((x, 0.0, z), math.pi, width, pitch=pitch))
-    z = min(height - GRIP_DEPTH, z_high - thickness)
-    a = math.asin(max(-1.0, min(1.0, (z - zc) / rz)))
-    frames.append(top_down((centre_x + reach * math.cos(a), 0.0, z), 0.0, width))
-    return frames
 
 
 MUG1 = [(0.040, 0.0), (0.040, 0.095)]  # straight
@@ -255,7 +179,7 @@ def _can(radius, height, neck):
         visual, uv = g.revolve(profile, 40)
         parts = [g.disc_part(r * 0.85, r, 0.0, 0.008 * s, 24), g.disc_part(r, r, 0.008 * s, h - 0.012 * s, 24),
                  g.disc_part(r, r * neck, h - 0.012 * s, h, 24)]
-        frames = _cylinder_frames(r, h - 0.012 * s - GRIP_DEPTH / 2) + _side_frames(r, 0.5 * h)
+        frames = cylinder_frames(r, h - 0.012 * s - GRIP_DEPTH / 2) + side_frames(r, 0.5 * h)
         return Geometry(visual, parts, frames, uv)
     return build
 
@@ -270,7 +194,7 @@ def _thermos(radius, body_h, cap_radius, cap_h):
                  g.disc_part(rc, rc, h, h + hc, 24)]
         # By the cap from above (the body of a wide flask does not fit between every gripper's fingers), or
         # around the body from the side.
-        frames = _cylinder_frames(rc, h + hc - GRIP_DEPTH) + _side_frames(r, 0.5 * h)
+        frames = cylinder_frames(rc, h + hc - GRIP_DEPTH) + side_frames(r, 0.5 * h)
         return Geometry(visual, parts, frames, uv)
     return build
 
@@ -285,15 +209,12 @@ def _wine_glass(foot_r, stem_h, bowl_outer):
         parts = [foot, stem, *bowl_parts]
         visual = g.concatenate([foot, stem, visual_bowl])
         # Pinching the bowl's rim from above, or the stem from the side where the hand fits under the bowl.
-        frames = _rim_frames(bowl, 0.003 * s, 10)
+        frames = rim_frames(bowl, 0.003 * s, 10)
         stem_z = max(sh * 0.5, STEM_GRIP_HEIGHT)
         if stem_z < sh - 0.012:
             frames += [side((0.0, 0.0, stem_z), k * math.pi / 4, 2 * stem_r) for k in range(8)]
         return Geometry(visual, parts, frames, None)
     return build
-
-
-STEM_GRIP_HEIGHT = 0.036  # m: a horizontal hand (about 63 mm tall) must stay off the table
 
 
 WINE1 = [(0.018, 0.0), (0.038, 0.03), (0.041, 0.06), (0.040, 0.10)]  # tulip bowl on an 8 cm stem, open enough for a finger
@@ -333,7 +254,7 @@ CATALOGUE: dict[str, Category] = {
             {"food_box1": ("cylindrical", _tub(0.06, 0.09, 0.012)),
              "food_box2": ("cuboid", _box_container(0.17, 0.12, 0.07))},
             (Finish("plastic", (200, 500), PAINTS), Finish("glass", (500, 800), ("transparent",))),
-            grasp_type="box", pickupable=False, stackable=False, stack_base=True, mass_exponent=3.0),
+            grasp_type="box", pickupable=False, stackable=False, stack_base=True, mass_exponent=3.0, closed=True),
         Category(
             "glass",
             {"glass1": ("cylindrical", _glass(GLASS1, 0.004, 0.008)),
@@ -363,13 +284,13 @@ CATALOGUE: dict[str, Category] = {
              "soda_can2": ("cylindrical", _can(0.029, 0.146, 0.85))},
             (Finish("metal", (340, 390), (*PAINTS, "gray")),),
             grasp_type="cylinder", pickupable=True, stackable=True, stack_base=False,
-            sizes=("medium-sized",), mass_exponent=3.0),
+            sizes=("medium-sized",), mass_exponent=3.0, closed=True),
         Category(
             "thermos",
             {"thermos1": ("cylindrical", _thermos(0.037, 0.20, 0.03, 0.05)),
              "thermos2": ("cylindrical", _thermos(0.045, 0.17, 0.031, 0.04))},
             (Finish("metal", (250, 400), (*PAINTS, "metallic", "black")), Finish("plastic", (150, 250), PAINTS)),
-            grasp_type="cylinder", pickupable=True, stackable=False, stack_base=False),
+            grasp_type="cylinder", pickupable=True, stackable=False, stack_base=False, closed=True),
         Category(
             "wine glass",
             {"wine_glass1": ("irregularly shaped", _wine_glass(0.037, 0.08, WINE1)),
@@ -404,9 +325,6 @@ class ShopVrb2Objects(CatalogueObjectSet):
         fit = original.original_fit(spec)
         if fit is None:
             return super().shape(category, spec)
-        # Imported here: original_models builds on this module's grasp helpers.
-        from muble_plugins.objects.original_models import ORIGINAL_GEOMETRY
-
         model, scale_factor = fit
         if model not in ORIGINAL_GEOMETRY:
             raise ConfigError(unknown_name("original SHOP-VRB2 model", model, sorted(ORIGINAL_GEOMETRY)))

@@ -1,4 +1,5 @@
-"""Built-in SHOP-VRB2 tasks (ten templates, plus the stiffness family) and agents (oracle, random).
+"""Built-in SHOP-VRB2 tasks (ten templates, plus the stiffness family); the oracle that solves them is the agents
+plugin's (``muble_plugins.agents``).
 
 Task names are the original template ids (``measure_weight_single`` … ``stack_order``). Template files named in
 the environment variable ``MUBLE_TEMPLATE_FILES`` (paths separated by the OS path separator) add their templates
@@ -26,14 +27,3 @@ def muble_register_tasks() -> list[PluginRecord]:
                               "rename them")
         classes.update(added)
     return [PluginRecord(name, cls, cls.template.description, ShopVrb2TaskConfig) for name, cls in classes.items()]
-
-
-@hookimpl
-def muble_register_agents() -> list[PluginRecord]:
-    from muble_plugins.tasks.agents import OracleAgent, OracleConfig, RandomAgent, RandomConfig
-
-    return [
-        PluginRecord("oracle", OracleAgent, "executes the ground-truth program, replanning after every primitive",
-                     OracleConfig),
-        PluginRecord("random", RandomAgent, "uniformly random primitives on random objects", RandomConfig),
-    ]

@@ -11,11 +11,11 @@ import numpy as np
 from muble import ActionCall, Answer, Instruction, Observation, Outcome, PlanningError, SceneGraph, Task
 from muble.core.descriptions import SceneIndex
 
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.episodes import run_symbolic_episode
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.episodes import run_symbolic_episode
+from muble_plugins.common.success import check
+from muble_plugins.common.task_planner import plan_next
 from muble_plugins.tasks.generator import generate_for_template
-from muble_plugins.tasks.task_planner import plan_next
-from muble_plugins.tasks.success import check
 from muble_plugins.tasks.templates import ALL_TEMPLATES, STIFFNESS_TEMPLATES, Template, load_templates
 
 MAX_PLAN_STEPS = 100

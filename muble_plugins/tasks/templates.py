@@ -17,7 +17,7 @@ from typing import Callable, Iterator
 from muble.core.descriptions import SceneIndex
 from muble.core.program import table_parts_of
 
-from muble_plugins.tasks.geometry import room_on_part
+from muble_plugins.common.geometry import room_on_part
 from muble_plugins.tasks.template_data import DataTemplate, read_template_file
 
 MAX_STACK = 4  # objects in one "stack all" tower (the built-in templates' max_count)

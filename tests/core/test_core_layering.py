@@ -1,5 +1,6 @@
-"""The layering of ``muble`` (see docs/architecture.md): imports run one way, there are no import circles (in
-``muble`` or among the built-in plugins), and the core names no built-in plugin.
+"""The layering of ``muble`` (see docs/architecture.md): imports run one way, there are no import circles (among
+the modules of ``muble`` and the built-in plugins together), no plugin imports another's private names, and the
+core names no built-in plugin.
 
 Every ``import`` is read from the whole source with ``ast`` (those inside functions too), so a lazy import cannot
 hide a wrong direction or close a circle at run time. To allow something, add one line to a table below, with the
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import ast
 import functools
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -26,18 +28,27 @@ LAYERS = {
     "muble.core": 0,
 }
 
+# The built-in plugin packages (the ``muble`` entry points), and the one package beside them that every plugin may
+# import: it registers nothing and imports no plugin.
+PLUGIN_PACKAGES = sorted(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]["muble"]
+                         .values())
+SHARED_PACKAGE = "muble_plugins.common"
+
 # Further rules, one line each: (importing package, imported package it may not import, why).
 FORBIDDEN = [
+    ("muble", "muble_plugins", "the core knows plugins only through the registry, by name"),
     ("muble_plugins", "muble.app", "plugins use the public API, not the command line's internals"),
     ("muble_plugins", "muble.dataset", "plugins do not write datasets; the core calls them"),
     ("muble_plugins", "muble.evaluation", "plugins do not run evaluations; the core calls them"),
     ("muble_plugins", "muble.generation", "plugins do not generate scenes; the core calls them"),
     ("muble_plugins", "muble.sim", "plugins use the environment they are handed (muble.core.environment), not "
                                "the simulation's modules"),
+    *[(SHARED_PACKAGE, plugin, "the shared package is what the plugins import; it imports none of them")
+      for plugin in PLUGIN_PACKAGES],
 ]
 
-# Imports allowed against the rules (a layer, a plugin rule or an import circle): (file, imported module) -> why it
-# must stay. None is needed today.
+# Imports allowed against the rules (a layer, a plugin rule, a private name or an import circle): (file, imported
+# module) -> why it must stay. None is needed today.
 EXCEPTIONS: dict[tuple[str, str], str] = {}
 
 # Plugin names that ``muble/`` may write as plugin names: (file, name) -> why.
@@ -81,24 +92,41 @@ def _run_time_nodes(node: ast.AST):
         yield from _run_time_nodes(child)
 
 
+def _from_base(path: Path, node: ast.ImportFrom) -> str:
+    """The module an ``ImportFrom`` in the file names, a relative one resolved."""
+    package = _module(path) if path.name == "__init__.py" else _module(path).rpartition(".")[0]
+    base = node.module or ""
+    if node.level:
+        base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
+    return base
+
+
 def _imports(path: Path, top_level_only: bool = False, run_time_only: bool = False) -> list[tuple[int, str]]:
     """(line, imported module) of every import in the file (inside functions too, unless ``top_level_only``;
     without those for annotations only, with ``run_time_only``); relative imports resolved."""
     tree = _tree(path)
     nodes = tree.body if top_level_only else _run_time_nodes(tree) if run_time_only else ast.walk(tree)
-    package = _module(path) if path.name == "__init__.py" else _module(path).rpartition(".")[0]
     found = []
     for node in nodes:
         if isinstance(node, ast.Import):
             found += [(node.lineno, a.name) for a in node.names]
         elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base
-                                                                                                  else []))
+            base = _from_base(path, node)
             # ``from muble.core import scene`` imports the module muble.core.scene; ``from muble import X`` muble
             found += [(node.lineno, f"{base}.{a.name}" if f"{base}.{a.name}" in _modules() else base)
                       for a in node.names]
+    return found
+
+
+def _imported_names(path: Path) -> list[tuple[int, str]]:
+    """(line, dotted name) of everything the file imports, annotations' imports included: a module
+    (``import a.b``) or a name of one (``from a.b import c``: ``a.b.c``); relative imports resolved."""
+    found = []
+    for node in ast.walk(_tree(path)):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            found += [(node.lineno, f"{_from_base(path, node)}.{a.name}") for a in node.names if a.name != "*"]
     return found
 
 
@@ -144,6 +172,35 @@ def rule_violations(files: list[Path]) -> list[str]:
             for who, what, why in FORBIDDEN:
                 if _under(importer, who) and _under(imported, what) and (rel, imported) not in EXCEPTIONS:
                     out.append(f"{rel}:{line}: {importer} imports {imported}: {why}")
+    return out
+
+
+def _plugin_package(module: str) -> str | None:
+    """``muble_plugins.X`` for a module of the built-in plugin package (or the shared package) X, else None."""
+    parts = module.split(".")
+    return ".".join(parts[:2]) if parts[0] == "muble_plugins" and len(parts) > 1 else None
+
+
+def _private(part: str) -> bool:
+    return part.startswith("_") and not (part.startswith("__") and part.endswith("__"))
+
+
+def private_imports(files: list[Path]) -> list[str]:
+    """Imports by a module of one package of ``muble_plugins`` of a private name of another: a name starting with
+    ``_``, or anything from a module whose name does."""
+    out = []
+    for path in files:
+        rel, importer = str(path.relative_to(ROOT)), _module(path)
+        mine = _plugin_package(importer)
+        for line, name in _imported_names(path):
+            theirs = _plugin_package(name)
+            if mine is None or theirs is None or theirs == mine:
+                continue
+            private = [p for p in name[len(theirs) + 1:].split(".") if _private(p)]
+            module = name.rpartition(".")[0] if name not in _modules() else name
+            if private and (rel, module) not in EXCEPTIONS:
+                out.append(f"{rel}:{line}: {importer} imports {name}, private to {theirs}: make it public there "
+                           f"or move it to {SHARED_PACKAGE}")
     return out
 
 
@@ -257,9 +314,29 @@ def test_plugins_keep_to_their_rules():
     assert not found, "\n".join(found)
 
 
-def test_no_import_circles_among_muble_modules():
-    found = cycles(_files("muble"))
+def test_the_core_imports_no_plugin():
+    found = rule_violations(_files("muble"))
+    assert not found, "\n".join(found)
+
+
+def test_no_plugin_imports_a_private_name_of_another():
+    found = private_imports(_files("muble_plugins"))
+    assert not found, "\n".join(found)
+
+
+def test_no_import_circles_among_the_modules_of_muble_and_the_plugins():
+    files = _files("muble") + _files("muble_plugins")
+    assert any(_under(_module(p), "muble_plugins.objects") for p in files)  # both trees are read
+    found = cycles(files)
     assert not found, "\n".join(" -> ".join(c) for c in found)
+
+
+def test_every_package_of_muble_plugins_is_a_plugin_or_the_shared_one():
+    packages = {_module(p) for p in (ROOT / "muble_plugins").glob("*/__init__.py")}
+    assert SHARED_PACKAGE in packages and SHARED_PACKAGE not in PLUGIN_PACKAGES
+    assert packages == set(PLUGIN_PACKAGES) | {SHARED_PACKAGE}, \
+        f"register these in pyproject.toml's muble entry points: " \
+        f"{sorted(packages - set(PLUGIN_PACKAGES) - {SHARED_PACKAGE})}"
 
 
 def test_the_core_names_no_builtin_plugin():
@@ -276,10 +353,9 @@ def test_every_package_of_muble_has_a_layer():
 
 
 def findings(files: list[Path]) -> list:
-    """Everything the import checks report for ``files`` (layers, plugin rules, circles)."""
-    mine = [p for p in files if _under(_module(p), "muble") and not _under(_module(p), "muble_plugins")]
-    return layer_violations(mine) + rule_violations([p for p in files if _under(_module(p), "muble_plugins")]) + \
-        cycles(files)
+    """Everything the import checks report for ``files`` (layers, plugin rules, private names, circles)."""
+    mine = [p for p in files if _under(_module(p), "muble")]
+    return layer_violations(mine) + rule_violations(files) + private_imports(files) + cycles(files)
 
 
 def unneeded_exceptions(files: list[Path]) -> list[str]:
@@ -357,6 +433,52 @@ def test_an_import_circle_closed_by_a_lazy_import_is_found_and_one_for_annotatio
     sets_too = tree("muble_plugins/objects/more.py", "import muble_plugins.objects.uses\n")
     assert cycles([cache, sets, hints, uses, sets_too]) == [
         ["muble_plugins.objects.cache", "muble_plugins.objects.sets", "muble_plugins.objects.cache"]]
+
+
+def test_a_circle_through_two_plugins_and_the_core_and_private_names_across_plugins_are_found(tree):
+    # A task module imports the oracle, whose module imports the task module back inside a function; the core
+    # imports that task module, which imports the core module back.
+    plan = tree("muble_plugins/tasks/plan.py", "from muble_plugins.agents.oracle import Oracle\n"
+                                               "from muble.core.names import NAMES\n")
+    oracle = tree("muble_plugins/agents/oracle.py", "class Oracle:\n    def act(self):\n"
+                                                    "        from muble_plugins.tasks import plan\n")
+    names = tree("muble/core/names.py", "NAMES = ()\ndef plan():\n    import muble_plugins.tasks.plan\n")
+    # Private names across plugins: another plugin's private helper, a name of another plugin's private module (by
+    # a relative import too); a package's own private names are its business.
+    frames = tree("muble_plugins/objects/frames.py", "def _rim(): ...\ndef rim(): ...\n")
+    cache = tree("muble_plugins/objects/_cache.py", "TABLE = {}\n")
+    own = tree("muble_plugins/objects/sets.py", "from muble_plugins.objects.frames import _rim\n"
+                                                "from ._cache import TABLE\n")
+    grasp = tree("muble_plugins/tasks/grasp.py", "from muble_plugins.objects.frames import rim, _rim\n"
+                                                 "import muble_plugins.objects._cache\n")
+    learned = tree("muble_plugins/learned/x.py", "def f():\n    from ..objects._cache import TABLE\n"
+                                                 "from muble_plugins.objects import frames, __version__\n")
+    shared = tree("muble_plugins/common/books.py", "from muble_plugins.objects.frames import rim\n")
+    files = [plan, oracle, names, frames, cache, own, grasp, learned, shared]
+    assert cycles(files) == [
+        ["muble.core.names", "muble_plugins.tasks.plan", "muble.core.names"],
+        ["muble_plugins.tasks.plan", "muble_plugins.agents.oracle", "muble_plugins.tasks.plan"]]
+    assert private_imports(files) == [
+        "muble_plugins/tasks/grasp.py:1: muble_plugins.tasks.grasp imports muble_plugins.objects.frames._rim, "
+        "private to muble_plugins.objects: make it public there or move it to muble_plugins.common",
+        "muble_plugins/tasks/grasp.py:2: muble_plugins.tasks.grasp imports muble_plugins.objects._cache, "
+        "private to muble_plugins.objects: make it public there or move it to muble_plugins.common",
+        "muble_plugins/learned/x.py:2: muble_plugins.learned.x imports muble_plugins.objects._cache.TABLE, "
+        "private to muble_plugins.objects: make it public there or move it to muble_plugins.common"]
+    assert rule_violations(files) == [
+        "muble/core/names.py:3: muble.core.names imports muble_plugins.tasks.plan: the core knows plugins only "
+        "through the registry, by name",
+        "muble_plugins/common/books.py:1: muble_plugins.common.books imports muble_plugins.objects.frames: the "
+        "shared package is what the plugins import; it imports none of them"]
+    assert len(findings(files)) == 2 + 3 + 2
+    # Without the planted imports, the same files pass.
+    fixed = [tree("muble_plugins/agents/oracle.py", "class Oracle: ...\n"),
+             tree("muble/core/names.py", "NAMES = ()\n"),
+             tree("muble_plugins/tasks/grasp.py", "from muble_plugins.objects.frames import rim\n"),
+             tree("muble_plugins/learned/x.py", "from muble_plugins.objects import frames\n"),
+             tree("muble_plugins/common/books.py", "RETRY_LIMIT = 16\n")]
+    _tree.cache_clear()
+    assert findings([plan, frames, cache, own, *fixed]) == []
 
 
 def test_a_lazy_import_against_a_plugin_rule_is_found(tree):

@@ -7,9 +7,9 @@ import pytest
 from muble import ActionCall, ConfigError, get_registry
 from muble.core.action_names import ORIGINAL_NAMES, call_from_original, from_original, named, to_original
 from muble.episode.sequence import sequence_dict
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.episodes import run_symbolic_episode
-from muble_plugins.tasks.synthetic import sample_scene
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.episodes import run_symbolic_episode
+from muble_plugins.common.synthetic import sample_scene
 
 ORIGINAL = ("move", "approach_grasp", "grasp", "pick_up", "put_down", "release")
 

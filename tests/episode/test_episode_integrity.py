@@ -13,10 +13,10 @@ import pytest
 from muble import ActionCall, Agent, Answer, Outcome, get_registry
 from muble.core.observation import agent_view, leaks
 from muble.episode import run_episode
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.success import check
-from muble_plugins.tasks.symbolic import SymbolicWorld
-from muble_plugins.tasks.synthetic import sample_scene
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.success import check
+from muble_plugins.common.symbolic import SymbolicWorld
+from muble_plugins.common.synthetic import sample_scene
 
 from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted, Snoop
 

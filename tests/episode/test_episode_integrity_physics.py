@@ -10,8 +10,8 @@ from muble.episode import run_episode
 from muble.episode.physical import PhysicalWorld
 from muble.sim.env import TabletopEnv
 from muble.testing import simple_object_model, simple_scene
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.success import check
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.success import check
 
 from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted
 

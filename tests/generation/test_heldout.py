@@ -16,7 +16,8 @@ from muble.generation import SceneGenerator, checks, ground_truth
 from muble.generation.contact_sheet import models_from_scene, placements_from_scene
 from muble.generation.ground_truth import decode_mask
 from muble.generation.staging import LAMPS
-from muble_plugins.objects.catalogue import FRICTION, SIZE_SCALES, STIFFNESS_RANGE, CatalogueObjectSet
+from muble_plugins.common.materials import STIFFNESS_RANGE
+from muble_plugins.objects.catalogue import FRICTION, SIZE_SCALES, CatalogueObjectSet
 from muble_plugins.objects.heldout import finish_name
 from muble_plugins.objects.shopvrb2 import CATALOGUE, ShopVrb2Objects
 from muble_plugins.objects.ycb import YcbObjects

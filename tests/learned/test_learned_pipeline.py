@@ -11,11 +11,11 @@ from muble import Outcome  # noqa: E402
 from muble.core.training import TrainingRun  # noqa: E402
 from muble.episode.loop import run_episode  # noqa: E402
 
+from muble_plugins.common.success import check  # noqa: E402
+from muble_plugins.common.symbolic import SymbolicWorld  # noqa: E402
 from muble_plugins.learned.agent import LearnedPlannerAgent  # noqa: E402
 from muble_plugins.learned.parser import ParserTrainer  # noqa: E402
 from muble_plugins.learned.planner import PlannerTrainer, instructions_for, scene_for  # noqa: E402
-from muble_plugins.tasks.success import check  # noqa: E402
-from muble_plugins.tasks.symbolic import SymbolicWorld  # noqa: E402
 
 
 def test_a_trained_parser_and_planner_solve_language_track_episodes(tmp_path):

@@ -18,6 +18,7 @@ from muble_plugins.learned.parser import (  # noqa: E402
     exact_match,
     program_from_tokens,
     program_tokens,
+    template_names,
 )
 
 TINY = {"scenes": 20, "epochs": 2, "validation_scenes": 3, "width": 32, "heads": 2, "layers": 1,
@@ -56,6 +57,13 @@ def test_program_tokens_round_trip():
                {"input": None, "type": "move_to", "input_value": "left"}]
     assert program_from_tokens(program_tokens(program)) == program
     assert program_from_tokens(["<unk>", *program_tokens(program)]) == program  # stray tokens are skipped
+
+
+def test_the_parser_learns_the_ten_shopvrb2_templates_of_the_tasks_plugin_in_their_overall_order():
+    from muble_plugins.tasks.templates import TEMPLATES
+
+    assert template_names() == [t.template_id for t in sorted(TEMPLATES.values(), key=lambda t: t.index)]
+    assert len(template_names()) == 10
 
 
 def test_same_seed_same_weights_other_seed_others(tmp_path):

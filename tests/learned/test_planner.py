@@ -13,10 +13,10 @@ from muble.app.cli import main as muble_main  # noqa: E402
 from muble.core.errors import ConfigError  # noqa: E402
 from muble.core.training import TrainingRun  # noqa: E402
 
+from muble_plugins.common.episodes import run_symbolic_episode  # noqa: E402
 from muble_plugins.learned import checkpoint as ck  # noqa: E402
 from muble_plugins.learned.agent import LearnedPlannerAgent  # noqa: E402
 from muble_plugins.learned.planner import PlannerTrainer, instructions_for, scene_for  # noqa: E402
-from muble_plugins.tasks.episodes import run_symbolic_episode  # noqa: E402
 
 
 @pytest.fixture(autouse=True)

@@ -83,7 +83,7 @@ def test_planning_a_can_held_by_its_rim_is_let_go_into_a_bowl_stacked_on_a_bowl(
     """The soda can is held by its top rim, one finger inside it. Let go with the hand fully open, that finger
     reaches across the can and catches the far side of the rim on the way up, tipping the upper bowl off; opened
     only part way, the hand leaves the three-object stack standing."""
-    from muble_plugins.tasks.geometry import rests_on
+    from muble_plugins.common.geometry import rests_on
     from muble.core.scene_io import load_scene
 
     steps = []

@@ -196,7 +196,7 @@ def test_missing_stiffness_takes_the_material_default_once_logged(base_scene, ob
 
 
 def test_every_material_has_a_default_inside_its_sampling_range(object_set):
-    from muble_plugins.objects.catalogue import STIFFNESS_RANGE
+    from muble_plugins.common.materials import STIFFNESS_RANGE
 
     assert set(STIFFNESS_RANGE) == set(DEFAULT_STIFFNESS)
     for material, (low, high) in STIFFNESS_RANGE.items():

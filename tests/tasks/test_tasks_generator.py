@@ -6,9 +6,9 @@ import pytest
 
 from muble.core.program import execute, outputs_match
 from muble.core.descriptions import SceneIndex
+from muble_plugins.common.geometry import room_on_part
+from muble_plugins.common.synthetic import sample_scenes
 from muble_plugins.tasks.generator import generate_for_template, generate_instructions
-from muble_plugins.tasks.geometry import room_on_part
-from muble_plugins.tasks.synthetic import sample_scenes
 from muble_plugins.tasks.templates import TEMPLATES, OptionContext
 from muble.core.descriptions import ATTRIBUTE_STEP, describe
 

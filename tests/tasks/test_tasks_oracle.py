@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 from muble import ActionCall, Answer, Observation, Outcome, get_registry
-from muble_plugins.tasks.agents import OracleAgent, RandomAgent
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.agents.random_agent import RandomAgent
 from muble.episode import EpisodeMonitor
-from muble_plugins.tasks.episodes import run_symbolic_episode
-from muble_plugins.tasks.symbolic import SymbolicWorld
-from muble_plugins.tasks.synthetic import sample_scenes
+from muble_plugins.common.episodes import run_symbolic_episode
+from muble_plugins.common.symbolic import SymbolicWorld
+from muble_plugins.common.synthetic import sample_scenes
 from muble_plugins.tasks.templates import ALL_TEMPLATES
 
 
@@ -35,6 +36,13 @@ def episodes(tasks):
 def test_every_template_is_registered_with_config(tasks):
     assert set(tasks) == set(ALL_TEMPLATES)
     assert set(get_registry().names("agent")) >= {"oracle", "random"}
+
+
+def test_the_agents_plugin_registers_the_oracle_and_the_random_agent():
+    for name, cls in (("oracle", OracleAgent), ("random", RandomAgent)):
+        provided = get_registry().get("agent", name)
+        assert provided.record.factory is cls
+        assert (provided.plugin, provided.distribution) == ("builtin_agents", "muble")
 
 
 def test_oracle_solves_every_task_type(episodes):
@@ -122,7 +130,7 @@ def test_a_stack_on_a_floor_thinner_than_raised_by_base_is_judged_by_its_contact
     """A top object set on a base whose floor is thinner than ``RAISED_BY_BASE`` (the original release's plate2 at
     import scale 0.6 holds a mug 1.8 mm up) touches the base and not the table: stacked. Touching the table too at
     that height it is not, and a world that records no contacts is judged by the height alone."""
-    from muble_plugins.tasks.geometry import RAISED_BY_BASE
+    from muble_plugins.common.geometry import RAISED_BY_BASE
 
     task, ins, scene = _first(episodes, "stack_simple")
     (top_id,), (base_id,) = ins.program[-1]["output"]

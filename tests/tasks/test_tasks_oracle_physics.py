@@ -13,7 +13,7 @@ from omegaconf import OmegaConf
 from muble import Outcome, get_registry
 from muble.app.config import SHOPVRB2_TEMPLATES
 from muble.episode.sequence import sequence_dict
-from muble_plugins.tasks.success import stiffness_match
+from muble_plugins.common.success import stiffness_match
 from muble_plugins.tasks.templates import STIFFNESS_TEMPLATES
 
 from tests.episode.probes import Snoop

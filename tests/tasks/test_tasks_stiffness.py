@@ -12,11 +12,11 @@ import pytest
 from muble import ActionCall, Answer, Outcome, PlanningError, get_registry
 from muble.core.observation import MEASURED_STIFFNESS, leaks
 from muble.core.program import STIFFNESS_STEPS, execute
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.episodes import run_symbolic_episode
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.episodes import run_symbolic_episode
+from muble_plugins.common.symbolic import SymbolicWorld
+from muble_plugins.common.synthetic import sample_scenes
 from muble_plugins.tasks.generator import generate_instructions
-from muble_plugins.tasks.symbolic import SymbolicWorld
-from muble_plugins.tasks.synthetic import sample_scenes
 from muble_plugins.tasks.templates import STIFFNESS_TEMPLATES, TEMPLATES
 
 STIFFNESS = ("measure_stiffness_single", "pick_up_stiffness", "stack_stiffness_order")

@@ -4,11 +4,11 @@ from __future__ import annotations
 import ast
 import inspect
 
-import muble_plugins.tasks.symbolic as symbolic
+import muble_plugins.common.symbolic as symbolic
 from muble import ActionCall, PrimitiveAction, get_registry
 from muble.core.symbolic import CARRIED_TO
-from muble_plugins.tasks.symbolic import PRIMITIVES, SymbolicWorld
-from muble_plugins.tasks.synthetic import sample_scenes
+from muble_plugins.common.symbolic import PRIMITIVES, SymbolicWorld
+from muble_plugins.common.synthetic import sample_scenes
 
 
 def test_each_builtin_primitive_declares_its_symbolic_effect_beside_its_execution():

@@ -10,10 +10,10 @@ import pytest
 
 from muble import ConfigError, Outcome, get_registry
 from muble.core.instructions_io import instruction_to_dict
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.episodes import run_symbolic_episode
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.episodes import run_symbolic_episode
+from muble_plugins.common.synthetic import sample_scenes
 from muble_plugins.tasks.generator import generate_instructions
-from muble_plugins.tasks.synthetic import sample_scenes
 from muble_plugins.tasks.template_data import expand_optional_words, read_template_file
 from muble_plugins.tasks.tasks import template_file_tasks
 from muble.testing import clear_caches

@@ -16,8 +16,8 @@ from muble import ActionCall, Answer, PlanningError, SceneGraph
 from muble.core.program import execute, stack_pairs, table_parts_of
 from muble.core.symbolic import ArmState, over
 
-from muble_plugins.tasks.geometry import on_table_part, rests_on, upright
-from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH
+from muble_plugins.common.geometry import on_table_part, rests_on, upright
+from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH
 
 
 @dataclass

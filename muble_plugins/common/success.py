@@ -12,7 +12,7 @@ from typing import Any
 from muble import Answer, ConfigError, Instruction, Outcome, PlanningError, SceneGraph
 from muble.core.program import execute, stack_pairs
 
-from muble_plugins.tasks.geometry import broken, on_table_part, rests_on
+from muble_plugins.common.geometry import broken, on_table_part, rests_on
 
 log = logging.getLogger(__name__)
 

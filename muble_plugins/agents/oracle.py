@@ -1,20 +1,18 @@
-"""Built-in agents: the oracle (the task's plan, replanned after every primitive) and a random baseline."""
+"""The oracle agent: the task's plan, replanned after every primitive."""
 from __future__ import annotations
 
 import copy
 import dataclasses
 import logging
-import zlib
 from dataclasses import dataclass
 
-import numpy as np
+from muble import (ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, Task, Track,
+                   get_registry)
 
-from muble import ActionCall, ActionResult, Agent, Answer, Instruction, Observation, SceneGraph, Task, get_registry
-
-from muble.core.observation import MEASURED_STIFFNESS
 from muble.core.symbolic import ArmState
 
-from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH
+from muble_plugins.common.books import RETRY_LIMIT, fill_known, primitive_params
+from muble_plugins.common.symbolic import SQUEEZE, WEIGH
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +53,8 @@ class OracleAgent(Agent):
         self.last: ActionCall | None = None
         self.failures: dict[object, int] = {}  # failed primitives per target (object id, table part or None)
 
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
         self.measured = {}
         self.stiffness = {}
         self.answered = False
@@ -106,73 +105,3 @@ class OracleAgent(Agent):
         if attempt and "attempt" in primitive_params(action.name):
             return ActionCall(action.name, {**action.params, "attempt": attempt})
         return action
-
-
-def fill_known(scene: SceneGraph, measured: dict[int, float], stiffness: dict[int, float],
-               last: ActionCall | None, result: ActionResult | None) -> None:
-    """Fill an agent's copy of the observed ``scene`` with what it knows: the weights and stiffnesses it measured,
-    and the gripper's hover state. After a failed primitive (``result`` of ``last``) the hover and grasp-pose
-    flags are cleared, so the plan starts over from hovering (a failed grasp or put-down leaves the hand where it
-    should not stay); a world that reports no hover flags has them filled in from the last primitive. The oracle
-    and the learned planner keep the same books, so the planner's labels fit."""
-    for o in scene.objects:
-        if o.weight is None and o.id in measured:
-            o.weight = measured[o.id]
-        if MEASURED_STIFFNESS not in o.extra and o.id in stiffness:
-            o.extra[MEASURED_STIFFNESS] = stiffness[o.id]
-    reported = any("gripper_over" in o.extra or "approached" in o.extra for o in scene.objects)
-    if last is not None and result is not None and not result.success:
-        for o in scene.objects:
-            o.extra["approached"] = o.extra["gripper_over"] = False
-    elif not reported and last is not None and result is not None:
-        target = last.params.get("target")
-        held = ArmState.of(scene).held
-        for o in scene.objects:
-            o.extra["gripper_over"] = last.name == MOVE and o.id == target
-            o.extra["approached"] = last.name == APPROACH and held is None and o.id == target
-
-
-RETRY_LIMIT = 16  # the highest ``attempt`` the built-in primitives take
-
-
-def primitive_params(name: str) -> set[str]:
-    """Names of the parameters the registered primitive ``name`` declares (empty if unknown)."""
-    from muble.core.params import specs
-
-    registry = get_registry()
-    if name not in registry.names("primitive"):
-        return set()
-    return {p.name for p in specs(registry.get("primitive", name).record.factory.params)}
-
-
-@dataclass
-class RandomConfig:
-    seed: int = 0
-    stop_probability: float = 0.05  # chance per step of declaring the task done
-
-
-class RandomAgent(Agent):
-    """Uniformly random primitives on random objects: the floor every reasoner should beat."""
-
-    def __init__(self, seed: int = 0, stop_probability: float = 0.05) -> None:
-        self.seed = seed
-        self.stop_probability = stop_probability
-        self.rng = np.random.default_rng(seed)
-
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
-        # Each episode its own stream, reproducible from (seed, split, scene index, template).
-        episode = zlib.crc32(f"{instruction.split}/{instruction.image_index}/{instruction.template_id}".encode())
-        self.rng = np.random.default_rng([self.seed, episode])
-
-    def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
-        if self.rng.random() < self.stop_probability:
-            return None
-        ids = [o.id for o in observation.scene.objects]
-        name = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE)[int(self.rng.integers(7))]
-        if name in (MOVE, APPROACH, GRASP) and ids:
-            return ActionCall(name, {"target": ids[int(self.rng.integers(len(ids)))]})
-        if name in (MOVE, APPROACH, GRASP) and observation.images:
-            # Image mode (no object ids): a random pixel of the latest image names the target.
-            height, width = next(iter(observation.images.values())).rgb.shape[:2]
-            return ActionCall(name, {"target": [int(self.rng.integers(width)), int(self.rng.integers(height))]})
-        return ActionCall(name)

@@ -12,7 +12,8 @@ import numpy as np
 from muble import SceneGraph, SceneObject
 from muble.core.geometry import yaw_quat
 
-from muble_plugins.tasks.geometry import TABLE_REGION
+from muble_plugins.common.geometry import TABLE_REGION
+from muble_plugins.common.materials import STIFFNESS_RANGE
 
 COLOURS = ("brown", "white", "gray", "blue", "purple", "green", "yellow", "cyan", "red", "black")
 # category: shapes, materials, sizes, (stackable, stack_base, pickupable), weight range g, extents m (x, y, z)
@@ -76,9 +77,7 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
         ))
     if stiffness_rng is not None:
         # The SHOP-VRB2 object set's ground-truth stiffness ranges (N/m) by material, drawn log-uniformly from a
-        # stream of their own, so adding them changed nothing else a seed gives.
-        from muble_plugins.objects.catalogue import STIFFNESS_RANGE
-
+        # stream of their own, so that they change nothing else a seed gives.
         for o in objects:
             low, high = STIFFNESS_RANGE[o.material]
             o.stiffness = round(float(np.exp(stiffness_rng.uniform(np.log(low), np.log(high)))), 1)

@@ -7,8 +7,8 @@ from __future__ import annotations
 from muble import Agent, Instruction, SceneGraph
 from muble.episode import EpisodeResult, run_episode
 
-from muble_plugins.tasks.success import check
-from muble_plugins.tasks.symbolic import SymbolicWorld
+from muble_plugins.common.success import check
+from muble_plugins.common.symbolic import SymbolicWorld
 
 __all__ = ["run_symbolic_episode"]
 

@@ -1,0 +1,17 @@
+"""Built-in agents: the oracle (the task's plan, replanned after every primitive) and a random baseline.
+
+Modules load only when the registry asks for the records.
+"""
+from muble import PluginRecord, hookimpl
+
+
+@hookimpl
+def muble_register_agents() -> list[PluginRecord]:
+    from muble_plugins.agents.oracle import OracleAgent, OracleConfig
+    from muble_plugins.agents.random_agent import RandomAgent, RandomConfig
+
+    return [
+        PluginRecord("oracle", OracleAgent, "executes the ground-truth program, replanning after every primitive",
+                     OracleConfig),
+        PluginRecord("random", RandomAgent, "uniformly random primitives on random objects", RandomConfig),
+    ]

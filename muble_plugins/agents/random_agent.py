@@ -1,0 +1,45 @@
+"""The random agent: a baseline of uniformly random primitives."""
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from muble import ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, Track
+
+from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, WEIGH
+
+
+@dataclass
+class RandomConfig:
+    seed: int = 0
+    stop_probability: float = 0.05  # chance per step of declaring the task done
+
+
+class RandomAgent(Agent):
+    """Uniformly random primitives on random objects: the floor every reasoner should beat."""
+
+    def __init__(self, seed: int = 0, stop_probability: float = 0.05) -> None:
+        self.seed = seed
+        self.stop_probability = stop_probability
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
+        # Each episode its own stream, reproducible from (seed, split, scene index, template).
+        episode = zlib.crc32(f"{instruction.split}/{instruction.image_index}/{instruction.template_id}".encode())
+        self.rng = np.random.default_rng([self.seed, episode])
+
+    def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
+        if self.rng.random() < self.stop_probability:
+            return None
+        ids = [o.id for o in observation.scene.objects]
+        name = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE)[int(self.rng.integers(7))]
+        if name in (MOVE, APPROACH, GRASP) and ids:
+            return ActionCall(name, {"target": ids[int(self.rng.integers(len(ids)))]})
+        if name in (MOVE, APPROACH, GRASP) and observation.images:
+            # Image mode (no object ids): a random pixel of the latest image names the target.
+            height, width = next(iter(observation.images.values())).rgb.shape[:2]
+            return ActionCall(name, {"target": [int(self.rng.integers(width)), int(self.rng.integers(height))]})
+        return ActionCall(name)
