@@ -64,7 +64,7 @@ def summary(values: list[int]) -> dict:
 
 
 def main() -> None:
-    from muble.app.config import SHOPVRB2_TEMPLATES
+    from muble.core.instructions_io import SHOPVRB2_TEMPLATES
     from muble.generation.task_mix import template_weights
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -42,8 +42,10 @@ def muble(*args: str) -> None:
 
 def failure_kind(record: dict) -> str:
     """The failure class, with execution errors (too many failed primitives) split by the last one that failed."""
+    from muble.core.types import Outcome
+
     outcome = record["outcome"]
-    if outcome != "execution_error":
+    if outcome != Outcome.EXECUTION_ERROR:
         return outcome
     error = record.get("error") or ""
     failed = error.split("the last ", 1)[1].split("(")[0] if "the last " in error else \
@@ -103,7 +105,7 @@ def run_seed(args, seed: int) -> dict:
 
 
 def main() -> None:
-    from muble.app.config import SHOPVRB2_TEMPLATES
+    from muble.core.instructions_io import SHOPVRB2_TEMPLATES
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--scenes", type=int, default=10, help="scenes per template (acceptance: 30)")

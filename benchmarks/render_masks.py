@@ -8,7 +8,7 @@ IoU of the two masks is reported; the goal is IoU >= 0.9 for every object of eve
 
     python benchmarks/render_masks.py [SCENES] [SCALE] [OVERRIDE ...]   # defaults: 20 scenes, scale 1.0 (848x480)
 
-Hydra overrides after the counts compose the run (``robot.stage=original``: scenes generated on that stage).
+Hydra overrides after the counts compose the run (``generator.stage=original``: scenes generated on that stage).
 """
 from __future__ import annotations
 

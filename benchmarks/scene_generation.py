@@ -49,7 +49,7 @@ def validate(generator: SceneGenerator, count: int) -> dict:
         placements = placements_from_scene(scene)
         clearance = min_pairwise_distance([CollisionMesh(m) for m in models], placements)
         visible = min(int(decode_mask(o.mask).sum()) for o in scene.objects)
-        moved = float(settle(models, placements, cfg.table_x, cfg.table_y, cfg.timestep, 1.0).max())
+        moved = float(settle(models, placements, cfg.table_x, cfg.table_y, generator.timestep, 1.0).max())
         gap = float(np.diff(sorted(o.weight_gt for o in scene.objects)).min())
         ok = (clearance >= cfg.margin - 1e-9 and visible >= cfg.min_visible_pixels and moved <= 0.005
               and gap >= cfg.min_weight_gap)

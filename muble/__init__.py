@@ -42,9 +42,11 @@ from muble.core.types import (
     Frame,
     JointGoal,
     Observation,
+    ObservationMode,
     Outcome,
     Pose,
     PoseGoal,
+    Track,
     Trajectory,
 )
 from muble.plugins import PluginRecord, get_registry, hookimpl
@@ -55,7 +57,7 @@ __version__ = "0.1.0"
 __all__ = [
     "SEG_BACKGROUND", "SEG_ROBOT", "SEG_TABLE", "ActionCall", "ActionResult", "Agent", "Answer", "CollisionWorld",
     "ConfigError", "Environment", "EnvironmentNames", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
-    "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
+    "ObservationMode", "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
     "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
-    "Sensor", "TableTop", "Task", "Trainer", "TrainingRun", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
+    "Sensor", "TableTop", "Task", "Track", "Trainer", "TrainingRun", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
 ]

@@ -14,7 +14,9 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
+from muble.core.instructions_io import SHOPVRB2_TEMPLATES
 from muble.core.ranges import bounded
+from muble.core.types import ObservationMode, Track
 from muble.episode.components import GROUP_OF_KIND
 from muble.plugins.registry import Registry
 
@@ -32,9 +34,6 @@ class RobotConfig:
     control_freq: float = bounded(20.0, gt=0)  # Hz
     timestep: float = bounded(0.002, gt=0)  # s, MuJoCo physics step
     grasp: str = "weld"  # "weld" (attach on contact of all pads) or "friction"
-    # The table and robot placement to build on (muble.sim.world.STAGES: robosuite, original); None: the scene's
-    # own (its file's "stage" key, else robosuite). The original release's files were made on "original".
-    stage: str | None = None
 
 
 @dataclass
@@ -66,10 +65,6 @@ class EpisodeConfig:
     # Primitive names in sequence files: "registry" (move, approach, close_gripper, lift, weigh, lower …) or
     # "original" (the original MuBlE's move, approach_grasp, grasp, pick_up, put_down, release).
     action_names: ActionNameStyle = ActionNameStyle.registry
-
-
-SHOPVRB2_TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
-                      "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order"]
 
 
 @dataclass
@@ -109,21 +104,6 @@ class EvaluationConfig:
     keyframes: bool = False  # with render: also write the keyframes of every episode as PNGs
     limit: int = bounded(0, ge=0)  # evaluate at most this many indices per split (the first ones); 0 = all
     plot: bool = True  # write the success bar chart per split
-
-
-class Track(str, Enum):
-    """What an agent is told about the task (``docs/protocol.md``)."""
-
-    program = "program"  # the instruction's text and its program, nothing computed on the ground truth
-    language = "language"  # the text only
-
-
-class ObservationMode(str, Enum):
-    """What an agent is told about the scene (``muble.core.observation``, ``docs/protocol.md``)."""
-
-    graph = "graph"  # ids, poses, visible attributes, contact state
-    masks = "masks"  # images + per-object ids, masks, poses, bboxes, contact state; no attribute words
-    image = "image"  # images only; a pixel of the latest image names an object in an action
 
 
 @dataclass

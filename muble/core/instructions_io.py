@@ -14,6 +14,10 @@ from muble.core.errors import SceneValidationError
 from muble.core.interfaces import Instruction
 from muble.core.scene_io import in_file, read_json, write_json_atomic
 
+# The ten SHOP-VRB2 task templates, in their overall order (``template_overall_idx`` 0..9): the benchmark's default
+# template mix (``dataset.templates``). The tasks plugin's templates data defines each one under this id and index.
+SHOPVRB2_TEMPLATES = ("measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
+                      "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order")
 _REQUIRED = ("instruction", "program", "template_id", "task_id")
 _KNOWN = {*_REQUIRED, "image_filename", "image_index", "split"}
 _STEP_KEYS = ("type", "input", "input_value", "output")

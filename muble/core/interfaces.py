@@ -19,9 +19,11 @@ from muble.core.types import (
     Frame,
     JointGoal,
     Observation,
+    ObservationMode,
     Outcome,
     Pose,
     PoseGoal,
+    Track,
     Trajectory,
 )
 
@@ -288,8 +290,13 @@ class Agent(ABC):
 
     privileged: bool = False
 
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
-        """Called at the start of an episode. Optional; default does nothing."""
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
+        """Called at the start of an episode with what the agent is told: its ``track`` (``program``: the
+        instruction's program is given; ``language``: its text only) and the observation ``mode`` of every
+        observation of the episode (``graph``, ``masks``, ``image``; ``muble.episode.modes``). Every runner
+        passes both (in process, through Gymnasium's ``AgentPolicy`` and over ``muble serve``). Optional; default
+        does nothing."""
 
     @abstractmethod
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:

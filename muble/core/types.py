@@ -94,6 +94,21 @@ class Trajectory:
         return np.array([np.interp(time, self.t, self.q[:, j]) for j in range(self.q.shape[1])])
 
 
+class Track(enum.StrEnum):
+    """What an agent is told about the task (``muble.episode.modes``, ``docs/protocol.md``)."""
+
+    program = "program"  # the instruction's text and its program, nothing computed on the ground truth
+    language = "language"  # the text only
+
+
+class ObservationMode(enum.StrEnum):
+    """What an agent is told about the scene (``muble.episode.modes``, ``docs/protocol.md``)."""
+
+    graph = "graph"  # ids, poses, visible attributes, contact state
+    masks = "masks"  # images + per-object ids, masks, poses, bboxes, contact state; no attribute words
+    image = "image"  # images only; a pixel of the latest image names an object in an action
+
+
 class Outcome(str, enum.Enum):
     """Episode outcomes; everything but SUCCESS is a failure class of the taxonomy.
 

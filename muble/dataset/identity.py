@@ -41,10 +41,35 @@ def dataset_identity(config: dict[str, Any], current: bool = True) -> dict[str, 
 
 
 ABSENT = object()  # what ``setting_differences`` gives for a key that one side lacks
-# Settings added after folders were made, with the value that does what those folders' runs did: a folder that
-# lacks the key matches a run with that value (``robot.stage`` null: each scene's own stage, robosuite's for
-# every generated scene before stages could be chosen; ``generator.stage`` null: robosuite's, see ``_renamed``).
+# Settings that one side may lack, with the value that does what the side without them does: a folder or run that
+# lacks the key matches one with that value (``robot.stage`` null: each scene on its own stage, as every run builds
+# it; ``generator.stage`` null: robosuite's, see ``_renamed``).
 ADDED_LATER = {"robot.stage": None, "generator.stage": None}
+# Settings a folder may store under a key the config does not have, with the key that decides the same thing:
+# the image size and the physics step have one setting each (renderer.width/height, robot.timestep), so a folder
+# that stores the generator's own matches a run whose setting has the stored value.
+STORED_ELSEWHERE = {"generator.image_width": "renderer.width", "generator.image_height": "renderer.height",
+                    "generator.timestep": "robot.timestep"}
+
+
+def _at(identity: dict[str, Any], key: str) -> Any:
+    node: Any = identity
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return ABSENT
+        node = node[part]
+    return node
+
+
+def _without_stored_elsewhere(stored: dict[str, Any], requested: dict[str, Any]) -> dict[str, Any]:
+    """``stored`` less each ``STORED_ELSEWHERE`` key whose value the requested identity has under its key now."""
+    out = json.loads(json.dumps(stored))
+    for key, now in STORED_ELSEWHERE.items():
+        group, name = key.split(".")
+        value = _at(out, key)
+        if value is not ABSENT and _at(requested, key) is ABSENT and _at(requested, now) == value:
+            del out[group][name]
+    return out
 
 
 def setting_differences(stored: Any, current: Any, where: str = "") -> list[tuple[str, Any, Any]]:
@@ -111,7 +136,8 @@ def check_or_store_identity(root: Path, config: dict[str, Any]) -> None:
     if stored is None:
         write_bytes_atomic(path, json.dumps(requested, indent=2, sort_keys=True).encode())
         return
-    differences = [_difference(*d) for d in setting_differences(stored, requested)]
+    differences = [_difference(*d) for d in setting_differences(_without_stored_elsewhere(stored, requested),
+                                                                 requested)]
     if differences:
         shown = "; ".join(differences[:8]) + (f"; and {len(differences) - 8} more" if len(differences) > 8 else "")
         raise ConfigError(f"dataset.root {root} holds a dataset made with other settings ({shown}). To resume or "

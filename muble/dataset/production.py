@@ -79,6 +79,7 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
     began = time.perf_counter()
     from muble.core.instructions_io import instruction_to_dict
     from muble.core.scene_io import scene_to_dict
+    from muble.episode.components import image_size
     from muble.episode.runner import KeyframeStateRecorder, instruction_rng, png_bytes, write_episode
     from muble.generation.generator import SceneGenerator
     from muble.generation.task_mix import suited_scene, template_weights
@@ -94,7 +95,8 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
     registry = get_registry()
     seed = split_seed(cfg["seed"], job.split)
     generator_options = dict(cfg["generator"], split=job.split)
-    generator = SceneGenerator(generator_options, seed=seed, object_set=components["object_set"])
+    generator = SceneGenerator(generator_options, seed=seed, object_set=components["object_set"],
+                               image_size=image_size(cfg))
     tasks = {name: registry.create("task", name, {}) for name in ds["templates"]}
     weights = template_weights(list(tasks), ds["template_weights"])
     try:

@@ -63,11 +63,18 @@ def benchmark_settings(cfg: Any) -> tuple[str, str]:
     return value(bench.get("track", "program")), value(bench.get("mode", "graph"))
 
 
+def image_size(cfg: Any) -> tuple[int, int]:
+    """(width, height) of a config's images: ``renderer.width`` and ``renderer.height``, the one setting that sizes
+    the scenes' camera, their masks, the keyframes and the Gym image spaces (a DictConfig or a plain dict)."""
+    renderer = cfg["renderer"]
+    return int(renderer["width"]), int(renderer["height"])
+
+
 def scene_generator(cfg: DictConfig, object_set: object):
     from muble.generation.generator import SceneGenerator
 
     options = OmegaConf.to_container(cfg.generator, resolve=True)
-    return SceneGenerator(options, seed=cfg.seed, object_set=object_set)
+    return SceneGenerator(options, seed=cfg.seed, object_set=object_set, image_size=image_size(cfg))
 
 
 def generated_env(cfg: DictConfig, components: dict[str, object], index: int):

@@ -22,8 +22,8 @@ from muble.core.errors import PhysicsError, PlanningError
 from muble.core.interfaces import Agent, Instruction, Task
 from muble.core.observation import agent_instruction
 from muble.core.scene import SceneGraph
-from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome
-from muble.episode.modes import ObservationView, express_with_pixels, resolve_pixels, track_instruction
+from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome, Track
+from muble.episode.modes import ObservationView, check_track, express_with_pixels, resolve_pixels, track_instruction
 
 log = logging.getLogger(__name__)
 
@@ -138,9 +138,10 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
     """Let ``agent`` act in ``world`` until it stops; the episode is judged by ``judge``: a ``Task`` (its ``judge``
     gets the whole record) or a function of (instruction, final ground-truth scene, answer).
 
-    ``track`` and ``mode`` say what the agent is told (``muble.episode.modes``): the world's observation is the
-    graph view with its frames; the agent gets the mode's view of it, and its object arguments are read in the
-    mode's form (pixels in ``image`` mode). A privileged agent gets the program and the graph view.
+    ``track`` and ``mode`` say what the agent is told (``muble.episode.modes``), and ``Agent.reset`` tells it
+    both: the world's observation is the graph view with its frames; the agent gets the mode's view of it, and its
+    object arguments are read in the mode's form (pixels in ``image`` mode). A privileged agent gets the program
+    and the graph view (and is told the program track and graph mode).
     """
     check_call = check_call or registry_call_check()
     privileged = bool(getattr(agent, "privileged", False))
@@ -165,7 +166,7 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
                              failures)
 
     try:
-        agent.reset(told, seen)
+        agent.reset(told, seen, track=Track.program if privileged else check_track(track), mode=view.mode)
     except Exception as e:  # noqa: BLE001 - whatever an agent raises ends its episode, never the evaluation
         return finish(Outcome.AGENT_ERROR, f"agent.reset raised {type(e).__name__}: {e}")
     while True:

@@ -33,10 +33,10 @@ from muble.core.interfaces import Instruction
 from muble.core.observation import agent_instruction
 from muble.core.params import specs
 from muble.core.scene import SceneGraph, SceneObject
-from muble.core.types import ActionCall, ActionResult, Frame, Observation
+from muble.core.types import ActionCall, ActionResult, Frame, Observation, ObservationMode, Track
 
-TRACKS = ("program", "language")
-MODES = ("graph", "masks", "image")
+TRACKS = tuple(t.value for t in Track)
+MODES = tuple(m.value for m in ObservationMode)
 # Fields of a scene object that ``masks`` mode keeps (with ``extra``: gripper flags, contact state, what the agent
 # measured); everything else of the graph view (attribute words, affordances, scale) is withheld.
 MASKS_OBJECT_FIELDS = ("id", "position", "orientation", "bbox", "mask", "pixel_coords", "weight", "extra",
@@ -48,18 +48,18 @@ OBJECT_KINDS = ("object", "place")
 _IDS_IN_TEXT = re.compile(r"\b(objects?|ids?|targets?|held)(\s*[=:]?\s*)(\[[\d,\s]*\]|\d+)", re.IGNORECASE)
 
 
-def check_track(track: str) -> str:
-    """``track`` if it is a track (``TRACKS``); otherwise ``ValueError`` naming the valid ones."""
+def check_track(track: str) -> Track:
+    """``track`` as a ``Track`` (a member or its name); otherwise ``ValueError`` naming the valid ones."""
     if track not in TRACKS:
         raise ValueError(f"unknown track '{track}'; valid tracks: {', '.join(TRACKS)}")
-    return track
+    return Track(track)
 
 
-def check_mode(mode: str) -> str:
-    """``mode`` if it is an observation mode (``MODES``); otherwise ``ValueError`` naming the valid ones."""
+def check_mode(mode: str) -> ObservationMode:
+    """``mode`` as an ``ObservationMode`` (a member or its name); otherwise ``ValueError`` naming the valid ones."""
     if mode not in MODES:
         raise ValueError(f"unknown observation mode '{mode}'; valid modes: {', '.join(MODES)}")
-    return mode
+    return ObservationMode(mode)
 
 
 def track_instruction(instruction: Instruction, track: str) -> Instruction:

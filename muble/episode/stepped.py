@@ -23,7 +23,7 @@ from typing import Any, Callable
 from muble.core.errors import MubleError
 from muble.core.interfaces import Agent, Instruction, Task
 from muble.core.scene import SceneGraph
-from muble.core.types import Answer, Observation
+from muble.core.types import Answer, Observation, ObservationMode, Track
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +56,8 @@ class _Bridge(Agent):
         self.episode = episode
         self.stop_after_answer = False
 
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
         self.stop_after_answer = False
 
     def act(self, instruction: Instruction, observation: Observation) -> Decision:

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_LENS_MM, DEFAULT_POSITION, DEFAULT_ROTATION_DEG, DEFAULT_WIDTH
+from muble.core.camera import DEFAULT_LENS_MM, DEFAULT_POSITION, DEFAULT_ROTATION_DEG
 from muble.core.ranges import bounded
 from muble.core.table import ROBOT_CLEARANCE, TABLE_X, TABLE_Y
 
@@ -16,11 +16,14 @@ class GeneratorConfig:
     ``count_probabilities`` gives the chance of each object count from ``min_objects`` up (SHOP-VRB2: 47.3% of
     scenes hold 4 objects, 52.7% hold 5). Objects are placed with their base centre inside ``reach_x`` x
     ``reach_y`` (the arm's reachable part of the table, metres in the robot frame) and their whole footprint on
-    the table; ``margin`` is the least mesh-to-mesh distance between objects. ``min_visible_pixels`` is counted
-    on the full-size image; the check renders at ``occlusion_scale`` of it. The plugins it uses are named here
-    (``muble_conf/generator/*.yaml`` names them): ``object_set``, the ``renderer`` that draws the segmentation for the
-    visibility checks and the masks (it gets ``width`` and ``height`` besides ``renderer_options`` and is set up
-    with MuJoCo models), and the ``reach_primitive`` asked whether each object can be grasped.
+    the table; ``margin`` is the least mesh-to-mesh distance between objects. The scenes' images are the run's
+    ``renderer.width`` x ``renderer.height`` (``SceneGenerator``'s ``image_size``); ``min_visible_pixels`` is counted
+    on the SHOP-VRB2 camera's 848 x 480 image and scales with the area of another size; the check renders at
+    ``occlusion_scale`` of the image. Layouts settle with the physics step of ``robot`` (``robot.timestep``). The
+    plugins it uses are named here (``muble_conf/generator/*.yaml`` names them): ``object_set``, the ``renderer``
+    that draws the segmentation for the visibility checks and the masks (it gets ``width`` and ``height`` besides
+    ``renderer_options`` and is set up with MuJoCo models), and the ``reach_primitive`` asked whether each object
+    can be grasped.
 
     The held-out options move each scene's camera (``camera_jitter_m`` metres per axis, ``camera_jitter_deg``
     degrees per Euler angle) and lamps (``lamp_jitter``: metres per axis, and the energy factor's spread around 1),
@@ -36,27 +39,26 @@ class GeneratorConfig:
     renderer: str = ""
     renderer_options: dict[str, Any] = field(default_factory=dict)
     split: str = "train"
-    min_objects: int = 4
-    count_probabilities: list[float] = field(default_factory=lambda: [0.473, 0.527])
+    min_objects: int = bounded(4, ge=1)
+    count_probabilities: list[float] = bounded(default_factory=lambda: [0.473, 0.527], ge=0, each=True)
     reach_x: list[float] = field(default_factory=lambda: [0.28, 0.72])
     reach_y: list[float] = field(default_factory=lambda: [-0.36, 0.12])
-    # The stage the scenes stand on (muble.sim.world.STAGES); robot.stage, when set, takes its place. Each scene
-    # file names it as its "stage" key, except robosuite's, which a file without the key stands on (None: that
-    # one too), so protocol shopvrb2_v1's files keep their bytes (the protocol pins robosuite's). table_x and
-    # table_y left at their defaults follow the stage's table.
+    # The stage the scenes stand on (muble.sim.world.STAGES), and so every episode of them. Each scene file names
+    # it as its "stage" key, except robosuite's, which a file without the key stands on (None: that one too), so
+    # protocol shopvrb2_v1's files keep their bytes (the protocol pins robosuite's). table_x and table_y left at
+    # their defaults follow the stage's table.
     stage: str | None = None
     table_x: list[float] = field(default_factory=lambda: list(TABLE_X))
     table_y: list[float] = field(default_factory=lambda: list(TABLE_Y))
-    margin: float = 0.01  # m
+    margin: float = bounded(0.01, ge=0)  # m
     robot_clearance: float = ROBOT_CLEARANCE  # m from the robot's base axis to any object footprint (pedestal)
     min_weight_gap: float = 5.0  # g
     min_visible_pixels: int = 200
-    occlusion_scale: float = 1.0
+    occlusion_scale: float = bounded(1.0, gt=0, le=1)
     masks: bool = True
     stability: bool = True
     settle_time: float = 1.0  # s
     stability_tolerance: float = 0.005  # m
-    timestep: float = 0.002  # s
     # Accept a layout only when every stack its instruction's ground truth builds stands upright in physics
     # (``checks.stacks_stand``); the pairs come from the caller (``SceneGenerator.generate(stacks=...)``).
     stack_check: bool = True
@@ -65,17 +67,15 @@ class GeneratorConfig:
     reach_check: bool = True
     robot: dict[str, Any] = field(default_factory=dict)
     reach_primitive: str = ""
-    placement_tries: int = 60  # positions tried per object before the layout is restarted
-    layout_tries: int = 25  # layouts (fresh samples) tried per scene before giving up
+    placement_tries: int = bounded(60, ge=1)  # positions tried per object before the layout is restarted
+    layout_tries: int = bounded(25, ge=1)  # layouts (fresh samples) tried per scene before giving up
     scene_samples: int = 200  # scene samples (of layout_tries layouts each) tried per index to suit its template
     camera_position: list[float] = field(default_factory=lambda: list(DEFAULT_POSITION))
     camera_rotation: list[float] = field(default_factory=lambda: list(DEFAULT_ROTATION_DEG))  # Blender EulerXYZ
-    image_width: int = DEFAULT_WIDTH
-    image_height: int = DEFAULT_HEIGHT
     lens_mm: float = DEFAULT_LENS_MM
-    camera_jitter_m: float = bounded(0.0, ge=0)  # m, uniform per axis
-    camera_jitter_deg: float = bounded(0.0, ge=0)  # degrees, uniform per EulerXYZ angle
-    lamp_jitter: float = bounded(0.0, ge=0)  # m per axis; energy factor in [1 - j, 1 + j]
+    camera_jitter_m: float = bounded(0.0, ge=0, hint="m, 0 = none")  # uniform per axis
+    camera_jitter_deg: float = bounded(0.0, ge=0, hint="degrees, 0 = none")  # uniform per EulerXYZ angle
+    lamp_jitter: float = bounded(0.0, ge=0, hint="m, 0 = none")  # per axis; energy factor in [1 - j, 1 + j]
     distractors: int = bounded(0, ge=0)  # objects beyond the drawn count that the instruction must not refer to
 
 

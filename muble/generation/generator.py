@@ -15,11 +15,12 @@ import time
 from typing import Any, Callable
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from muble.core.camera import CameraParams, euler_xyz_to_matrix
+from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, CameraParams, euler_xyz_to_matrix
 from muble.core.errors import ConfigError, SceneGenerationError
 from muble.core.objects import ObjectModel, ObjectSpec
+from muble.core.ranges import configured
 from muble.core.scene import SceneGraph, SceneObject
 from muble.generation import checks, ground_truth
 from muble.generation.config import GeneratorConfig
@@ -56,35 +57,27 @@ def _named(name: str, option: str) -> str:
     return name
 
 
-def _config(config: GeneratorConfig | dict | DictConfig | None) -> GeneratorConfig:
-    if isinstance(config, GeneratorConfig):
-        return config
-    try:
-        merged = OmegaConf.merge(OmegaConf.structured(GeneratorConfig), config or {})
-    except Exception as e:  # omegaconf raises several types for a bad key or value
-        valid = ", ".join(f.name for f in dataclasses.fields(GeneratorConfig))
-        raise ConfigError(f"generator config: {e}; valid options: {valid}") from e
-    return OmegaConf.to_object(merged)
-
-
 class SceneGenerator:
-    """Generates scenes by index. ``object_set`` and ``renderer`` default to registry plugins named in the config."""
+    """Generates scenes by index. ``object_set`` and ``renderer`` default to registry plugins named in the config;
+    ``image_size`` is the (width, height) of the scenes' images, the run's ``renderer.width`` and
+    ``renderer.height`` (``muble.episode.components.image_size``): the camera in each scene file, its masks and
+    the visibility checks are of that image."""
 
     def __init__(self, config: GeneratorConfig | dict | DictConfig | None = None, seed: int = 0,
                  object_set: Any = None, renderer: Any = None,
-                 reach_check: Callable[[SceneGraph, dict[int, ObjectModel]], str | None] | None = None):
-        self.config = cfg = _config(config)
+                 reach_check: Callable[[SceneGraph, dict[int, ObjectModel]], str | None] | None = None,
+                 image_size: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)):
+        from muble.sim.env import ROBOT_DEFAULTS
+
+        self.config = cfg = configured(GeneratorConfig, config, owner="generator")
         self.seed = int(seed)
-        # The robot's stage, when the run names one, is the stage everything is built on, the reach check's
-        # robot included, so the scenes stand on it too.
-        stage = (cfg.robot or {}).get("stage") or cfg.stage
-        if stage:
+        # The physics step of the robot the scenes are made for: layouts settle as its episodes will run.
+        self.timestep = float((cfg.robot or {}).get("timestep") or ROBOT_DEFAULTS["timestep"])
+        if cfg.stage:
             from muble.core.table import TABLE_X, TABLE_Y
             from muble.sim.world import stage_named
 
-            where = "robot.stage" if (cfg.robot or {}).get("stage") else "generator.stage"
-            x, y = stage_named(stage, where).top_ranges()
-            self.config = cfg = dataclasses.replace(cfg, stage=stage)
+            x, y = stage_named(cfg.stage, "generator.stage").top_ranges()
             if list(cfg.table_x) == list(TABLE_X) and list(cfg.table_y) == list(TABLE_Y):
                 self.config = cfg = dataclasses.replace(cfg, table_x=list(x), table_y=list(y))
         self._check_config(cfg)
@@ -95,7 +88,7 @@ class SceneGenerator:
                                                cfg.object_set_options)
         self.object_set = object_set
         self.camera = CameraParams(np.array(cfg.camera_position, float), euler_xyz_to_matrix(cfg.camera_rotation),
-                                   cfg.image_width, cfg.image_height, cfg.lens_mm)
+                                   int(image_size[0]), int(image_size[1]), cfg.lens_mm)
         self.check_camera = self.camera.scaled(cfg.occlusion_scale) if cfg.occlusion_scale != 1.0 else self.camera
         self._renderer = renderer
         self._mask_renderer = None
@@ -115,22 +108,15 @@ class SceneGenerator:
 
     @staticmethod
     def _check_config(cfg: GeneratorConfig) -> None:
+        """What the schema's bounds cannot say: how options relate to each other and to the table."""
         table_w = min(cfg.table_x[1] - cfg.table_x[0], cfg.table_y[1] - cfg.table_y[0])
-        if cfg.margin < 0 or cfg.margin >= table_w:
-            raise ConfigError(f"margin {cfg.margin} m must be >= 0 and narrower than the table ({table_w:.2f} m); "
+        if cfg.margin >= table_w:
+            raise ConfigError(f"margin {cfg.margin} m must be narrower than the table ({table_w:.2f} m); "
                               "lower generator.margin")
         if cfg.reach_x[0] >= cfg.reach_x[1] or cfg.reach_y[0] >= cfg.reach_y[1]:
             raise ConfigError(f"reach_x {cfg.reach_x} and reach_y {cfg.reach_y} must be [low, high] ranges")
-        if cfg.min_objects < 1 or not cfg.count_probabilities or abs(sum(cfg.count_probabilities) - 1) > 1e-6:
-            raise ConfigError("need min_objects >= 1 and count_probabilities that sum to 1, "
-                              f"got {cfg.min_objects} and {cfg.count_probabilities}")
-        if cfg.layout_tries < 1 or cfg.placement_tries < 1:
-            raise ConfigError("layout_tries and placement_tries must be >= 1")
-        if not 0 < cfg.occlusion_scale <= 1:
-            raise ConfigError(f"occlusion_scale must be in (0, 1], got {cfg.occlusion_scale}")
-        for option in ("camera_jitter_m", "camera_jitter_deg", "lamp_jitter"):
-            if not getattr(cfg, option) >= 0:
-                raise ConfigError(f"{option} must be >= 0 (0 = none), got {getattr(cfg, option)}")
+        if not cfg.count_probabilities or abs(sum(cfg.count_probabilities) - 1) > 1e-6:
+            raise ConfigError(f"count_probabilities must sum to 1, got {cfg.count_probabilities}")
 
     # --- renderers --------------------------------------------------------------------------------------------
     def _renderer_for(self, camera: CameraParams):
@@ -246,12 +232,12 @@ class SceneGenerator:
             t4 = time.perf_counter()
             self.timings["render"] += t4 - t2
             need = cfg.min_visible_pixels * (self.check_camera.width * self.check_camera.height) / (
-                self.camera.width * self.camera.height)
+                DEFAULT_WIDTH * DEFAULT_HEIGHT)
             if np.any(checks.visible_pixels(frame.segmentation, len(models)) < need):
                 reasons["occlusion"] += 1
                 continue
             if cfg.stability:
-                moved = checks.settle(models, placements, cfg.table_x, cfg.table_y, cfg.timestep, cfg.settle_time)
+                moved = checks.settle(models, placements, cfg.table_x, cfg.table_y, self.timestep, cfg.settle_time)
                 self.timings["stability"] += time.perf_counter() - t4
                 if np.any(moved > cfg.stability_tolerance):
                     reasons["stability"] += 1
@@ -260,7 +246,7 @@ class SceneGenerator:
             pairs = stacks(scene) if stacks is not None and cfg.stack_check else []
             if pairs:
                 t5 = time.perf_counter()
-                fallen = checks.stacks_stand(models, placements, pairs, cfg.table_x, cfg.table_y, cfg.timestep)
+                fallen = checks.stacks_stand(models, placements, pairs, cfg.table_x, cfg.table_y, self.timestep)
                 self.timings["stacking"] += time.perf_counter() - t5
                 if fallen:
                     reasons["stacking"] += 1

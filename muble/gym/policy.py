@@ -10,7 +10,7 @@ from typing import Any
 
 from muble.core.instructions_io import instruction_from_dict
 from muble.core.interfaces import Agent, Instruction
-from muble.core.types import Frame, Observation
+from muble.core.types import Frame, Observation, ObservationMode, Track
 from muble.episode.plain import decision_to_plain, observation_from_plain
 
 
@@ -31,7 +31,8 @@ class AgentPolicy:
 
     def reset(self, obs: dict[str, Any], info: dict[str, Any]) -> None:
         self.instruction = instruction_from_dict(info["instruction"])
-        self.agent.reset(self.instruction, observation_from_gym(obs))
+        self.agent.reset(self.instruction, observation_from_gym(obs), track=Track(info["track"]),
+                         mode=ObservationMode(info["mode"]))
 
     def __call__(self, obs: dict[str, Any]) -> str:
         if self.instruction is None:

@@ -30,7 +30,7 @@ from muble.core.errors import ConfigError, PhysicsError, SceneValidationError
 from muble.core.instructions_io import instruction_to_dict
 from muble.core.types import Outcome
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
-from muble.episode.components import benchmark_settings
+from muble.episode.components import benchmark_settings, image_size
 from muble.episode.modes import track_instruction
 from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, episode_kind
 from muble.episode.stepped import EpisodeStateError, EpisodeThread, Step, SteppedEpisode
@@ -80,7 +80,8 @@ class ShopVRB2Env(gym.Env):
     ``reset(options=...)`` picks an episode: ``{"scene_index": i, "template": t}`` (a generated scene),
     ``{"split": "val", "index": i}`` (a stored dataset episode under ``dataset.root``) or ``{"scene": {...},
     "instruction": {...}}`` (SHOP-VRB2 JSON data). ``info["instruction"]`` holds the instruction record an
-    in-process agent receives (its program included, the stored ground-truth actions left out).
+    in-process agent receives (its program included, the stored ground-truth actions left out), ``info["track"]``
+    and ``info["mode"]`` what the agent is told (``benchmark.track``, ``benchmark.mode``).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 2}
@@ -110,8 +111,8 @@ class ShopVRB2Env(gym.Env):
             "step": spaces.Box(0, np.iinfo(np.int32).max, shape=(), dtype=np.int64),
         }
         if render:
-            size = (int(self.cfg.renderer.height), int(self.cfg.renderer.width))
-            entries["images"] = spaces.Dict({c: image_space(*size) for c in self.cameras})
+            width, height = image_size(self.cfg)
+            entries["images"] = spaces.Dict({c: image_space(height, width) for c in self.cameras})
         self.observation_space = spaces.Dict(entries)
         self.action_space = text_space(MAX_ACTION)
         self.render_images = render
@@ -144,9 +145,10 @@ class ShopVRB2Env(gym.Env):
             else:
                 raise ConfigError(f"no episode of templates {self.templates} starts in {SCENE_TRIES} drawn scenes")
         self.spec_now = spec
-        told = track_instruction(spec.instruction, benchmark_settings(self.cfg)[0])  # benchmark.track
+        track, mode = benchmark_settings(self.cfg)
+        told = track_instruction(spec.instruction, track)
         info = {"instruction": instruction_to_dict(told), "source": spec.source,
-                "template": spec.instruction.template_id}
+                "template": spec.instruction.template_id, "track": track, "mode": mode}
         return self._observation(step), info
 
     def step(self, action: Any):

@@ -69,7 +69,7 @@ class TabletopGymEnv(gym.Env):
             raise ConfigError("render_mode='rgb_array' needs render=True (the image is what it shows)")
         from omegaconf import OmegaConf
 
-        from muble.episode.components import build_components, scene_generator
+        from muble.episode.components import build_components, image_size, scene_generator
         from muble.plugins.registry import get_registry
 
         self.cfg = environment_config(config, overrides, default_overrides(overrides))
@@ -81,8 +81,8 @@ class TabletopGymEnv(gym.Env):
         self.registry = get_registry()
         self.generator = scene_generator(self.cfg, self.components["object_set"])
         self.metadata = {**self.metadata, "render_fps": float(self.cfg.robot.control_freq)}
-        size = (int(self.cfg.renderer.height), int(self.cfg.renderer.width))
-        image = {"image": image_space(*size)} if self.render_images else {}
+        width, height = image_size(self.cfg)
+        image = {"image": image_space(height, width)} if self.render_images else {}
         self.observation_space = spaces.Dict({**image, **proprioception_space(arm_dof(self.robot["name"])).spaces})
         self.action_space = control_space()
         self.env = None

@@ -21,14 +21,18 @@ KINDS: dict[str, str] = {
 class PluginRecord:
     """One registered implementation.
 
-    ``factory`` is the class (or a callable) that builds it from keyword arguments; ``config`` is an optional
-    dataclass describing those arguments, used to reject mistyped keys before anything is built.
+    ``factory`` is the class (or a callable) that builds it; ``config`` is an optional dataclass describing its
+    options, the one place their defaults and bounds (``muble.bounded``) are declared: the registry merges the
+    given options onto it and rejects a mistyped key, a wrong type or a value out of range before anything is
+    built. With ``takes_config`` the factory is called with that checked instance (``factory(config)``); otherwise
+    with its fields as keyword arguments.
     """
 
     name: str
     factory: Callable[..., Any]
     description: str = ""
     config: type | None = None
+    takes_config: bool = False
 
 
 @dataclass(frozen=True)

@@ -1,15 +1,13 @@
 """The registry: every plugin record by kind and name, gathered once from the plugin manager."""
 from __future__ import annotations
 
-import dataclasses
 import functools
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
 
-from muble.core.errors import ConfigError, PluginError, unknown_name
-from muble.core.ranges import range_violations
+from muble.core.errors import PluginError, unknown_name
+from muble.core.ranges import checked_node, configured
 from muble.plugins.manager import MublePluginManager, get_plugin_manager
 from muble.plugins.records import KINDS, PluginRecord, Provided
 
@@ -62,35 +60,33 @@ class Registry:
         return [p for kind in KINDS for _, p in sorted(self._by_kind[kind].items())]
 
     def create(self, kind: str, name: str, params: dict[str, Any] | DictConfig | None = None) -> Any:
-        """Build the ``kind`` plugin called ``name`` from ``params``, checked against its config schema."""
+        """Build the ``kind`` plugin called ``name`` from ``params``, checked against its config schema: the factory
+        gets the schema instance (``PluginRecord.takes_config``) or its fields as keyword arguments."""
         record = self.get(kind, name).record
-        kwargs = validate_params(kind, record, params or {})
-        return record.factory(**kwargs)
+        if record.config is not None and record.takes_config:
+            return record.factory(validated_config(kind, record, params or {}))
+        return record.factory(**validate_params(kind, record, params or {}))
+
+
+def _options(params: dict[str, Any] | DictConfig) -> dict[str, Any]:
+    if isinstance(params, DictConfig):
+        params = OmegaConf.to_container(params, resolve=True)
+    return {k: v for k, v in dict(params).items() if k != "name"}
+
+
+def validated_config(kind: str, record: PluginRecord, params: dict[str, Any] | DictConfig) -> Any:
+    """The record's config dataclass with ``params`` on its defaults, types and ranges checked
+    (``muble.core.ranges.configured``): an unknown key is an error listing the valid ones."""
+    return configured(record.config, _options(params), owner=f"{kind} '{record.name}'")
 
 
 def validate_params(kind: str, record: PluginRecord, params: dict[str, Any] | DictConfig) -> dict[str, Any]:
-    """Merge ``params`` onto the record's config dataclass: an unknown key is an error listing the valid ones."""
-    if isinstance(params, DictConfig):
-        params = OmegaConf.to_container(params, resolve=True)
-    params = {k: v for k, v in dict(params).items() if k != "name"}
+    """``params`` merged onto the record's config dataclass and checked as ``validated_config`` checks them, as
+    keyword arguments (``params`` as given when the record declares no config)."""
+    params = _options(params)
     if record.config is None:
         return params
-    valid = [f.name for f in dataclasses.fields(record.config)]
-    unknown = sorted(set(params) - set(valid))
-    if unknown:
-        raise ConfigError(
-            f"{kind} '{record.name}' has no option(s) {unknown}; valid options: {', '.join(valid) or '(none)'}"
-        )
-    try:
-        merged = OmegaConf.merge(OmegaConf.structured(record.config), params)
-    except OmegaConfBaseException as e:
-        key = getattr(e, "full_key", None)
-        what = str(getattr(e, "msg", e)).strip().splitlines()[0]
-        raise ConfigError(f"{kind} '{record.name}': " + (f"option {key}: " if key else "") + what) from e
-    problems = range_violations(merged)
-    if problems:
-        raise ConfigError(f"{kind} '{record.name}': value out of range: {'; '.join(problems)}")
-    return OmegaConf.to_container(merged, resolve=True)
+    return OmegaConf.to_container(checked_node(record.config, params, owner=f"{kind} '{record.name}'"), resolve=True)
 
 
 @functools.cache

@@ -20,7 +20,7 @@ import numpy as np
 from muble.core.errors import MubleError
 from muble.core.instructions_io import instruction_from_dict
 from muble.core.interfaces import Agent, Instruction
-from muble.core.types import Frame, Observation
+from muble.core.types import Frame, Observation, ObservationMode, Outcome, Track
 from muble.episode.plain import decision_to_plain, observation_from_plain
 from muble.remote.wire import DEFAULT_HOST, DEFAULT_PORT, PROTOCOL
 
@@ -164,15 +164,16 @@ def run_agent(agent: Agent, client: RemoteClient, episode: dict[str, Any], image
     try:
         if not step.done:
             try:
-                agent.reset(instruction, step.observation())
+                agent.reset(instruction, step.observation(), track=Track(step.header["track"]),
+                            mode=ObservationMode(step.header["mode"]))
             except Exception as e:  # noqa: BLE001 - the agent's fault ends its episode, as in-process
-                return {**record, "outcome": "agent_error", "primitives": [], "answer": None,
+                return {**record, "outcome": Outcome.AGENT_ERROR.value, "primitives": [], "answer": None,
                         "error": f"agent.reset raised {type(e).__name__}: {e}"}
         while not step.done:
             try:
                 decision = agent.act(instruction, step.observation())
             except Exception as e:  # noqa: BLE001 - see above
-                return {**record, "outcome": "agent_error", "primitives": [], "answer": None,
+                return {**record, "outcome": Outcome.AGENT_ERROR.value, "primitives": [], "answer": None,
                         "error": f"agent.act raised {type(e).__name__}: {e}"}
             step = client.act(decision_to_plain(decision))
         h = step.header

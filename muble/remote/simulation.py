@@ -126,8 +126,9 @@ def run_job(job: dict[str, Any], factory: Any, sessions: dict[str, tuple[Any, st
                 raise
             sessions[token] = (episode, job["images"])
             header, binary = observation_reply(token, job["images"], step, root)
-            header.update(instruction=instruction_to_dict(
-                track_instruction(spec.instruction, benchmark_settings(factory.cfg)[0])), source=spec.source)
+            track, mode = benchmark_settings(factory.cfg)
+            header.update(instruction=instruction_to_dict(track_instruction(spec.instruction, track)), track=track,
+                          mode=mode, source=spec.source)
         elif kind == "act":
             episode, images = sessions[token]
             decision, stop = decision_from_plain(job["action"])

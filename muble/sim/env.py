@@ -83,7 +83,8 @@ class TabletopEnv:
     implementation of ``muble.core.environment.Environment``, the interface plugins use.
 
     ``robot`` is a ``muble.app.config.RobotConfig`` (or anything with the same attributes); keyword overrides
-    replace its fields (``TabletopEnv(scene, models, name="Sawyer", grasp="friction")``).
+    replace its fields (``TabletopEnv(scene, models, name="Sawyer", grasp="friction")``). ``stage=NAME`` builds
+    the scene on another stage than the one its file names.
     """
 
     def __init__(self, scene: SceneGraph, models: dict[int, ObjectModel], robot: Any = None,
@@ -467,7 +468,8 @@ class TabletopEnv:
         """Nothing to release (no GL context is opened here); kept for symmetry with renderers."""
 
 
-# The robot settings used where none are given: the defaults of the ``robot`` config schema (muble.app.config).
+# The robot settings used where none are given: the defaults of the ``robot`` config schema (muble.app.config), and
+# ``stage``: None builds each scene on the stage its file names (the generator's ``stage``), a name on that stage.
 ROBOT_DEFAULTS: dict[str, Any] = {"name": "Panda", "gripper": None, "controller": "IK_JOINT_SERVO",
                                   "control_freq": 20.0, "timestep": 0.002, "grasp": "weld", "stage": None}
 

@@ -90,7 +90,8 @@ def scene_stage(scene: SceneGraph, override: str | None = None) -> Stage:
     if override:
         return stage_named(override)
     return stage_named(stage_name(scene),
-                       f"scene {scene.image_index}'s '{STAGE_KEY}' key; or give robot.stage= to build it on another")
+                       f"scene {scene.image_index}'s '{STAGE_KEY}' key; or build it on another with the "
+                       "environment's robot.stage setting, TabletopEnv(..., stage=NAME)")
 
 
 def object_weld_name(obj_id: int) -> str:
@@ -172,7 +173,8 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
         fragment = object_mjcf(models[obj.id], obj.id, obj.position, obj.orientation)
         for mesh in ET.fromstring(f"<asset>{fragment.asset_xml}</asset>"):
             world.asset.append(mesh)
-        world.worldbody.append(ET.fromstring(fragment.body_xml))
+        for body in ET.fromstring(f"<worldbody>{fragment.body_xml}</worldbody>"):  # the contents' body too
+            world.worldbody.append(body)
         names.objects[obj.id] = fragment.body_name
 
     # MuJoCo cancels gravity on the robot's links (its bodies must be marked before compiling: the compiler

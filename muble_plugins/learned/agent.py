@@ -7,9 +7,9 @@ runs the program on the observed scene to find the current sub-goal, builds the 
 oracle does). When the network says stop on a query program, the answer is the program's output on what was
 measured. It is not privileged: it sees what its track and mode show.
 
-On the language track (no program given) a trained instruction parser (``agent.parser=PATH``) gives the program;
-in masks mode (no attribute words) a trained attribute recogniser (``agent.recogniser=PATH``) names the objects.
-Image mode (no object ids) is not supported.
+``reset`` tells it its track and observation mode. On the language track (no program given) a trained
+instruction parser (``agent.parser=PATH``) gives the program; in masks mode (no attribute words) a trained
+attribute recogniser (``agent.recogniser=PATH``) names the objects. Image mode (no object ids) is not supported.
 """
 from __future__ import annotations
 
@@ -17,11 +17,11 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from muble import ActionCall, Agent, Answer, Instruction, Observation
+from muble import ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, Track
 from muble.core.errors import ConfigError
 
+from muble_plugins.common.books import RETRY_LIMIT, primitive_params
 from muble_plugins.learned.planner_features import Memory, decode, observe_features
-from muble_plugins.tasks.agents import RETRY_LIMIT, primitive_params
 
 ATTRIBUTES = ("name", "colour", "material", "shape", "size", "stackable", "stack_base", "pickupable")
 
@@ -60,10 +60,11 @@ class LearnedPlannerAgent(Agent):
         self.answered = False
         self.program: list[dict] | None = None
         self.recognised: dict[int, dict[str, Any]] = {}
+        self.track, self.mode = Track.program, ObservationMode.graph
 
     # -- language track and masks mode ---------------------------------------------------------------------
     def _parse(self, instruction: Instruction) -> list[dict]:
-        if instruction.program:
+        if self.track == Track.program:
             return instruction.program
         if self.parser_path is None:
             raise ConfigError("the language track gives no program: agent=learned_planner needs a trained parser, "
@@ -75,12 +76,9 @@ class LearnedPlannerAgent(Agent):
         return self._parser.parse(instruction.instruction)
 
     def _with_attributes(self, observation: Observation) -> Observation:
-        objects = observation.scene.objects
-        if not objects:
-            raise ConfigError("agent=learned_planner needs object ids (graph or masks mode); image mode, where "
-                              "objects are named by pixels, is not supported")
-        if all(o.name is not None for o in objects):
+        if self.mode == ObservationMode.graph:
             return observation
+        objects = observation.scene.objects
         if self.recogniser_path is None:
             raise ConfigError("masks mode gives no attribute words: agent=learned_planner needs a trained "
                               "recogniser, agent.recogniser=PATH (muble train trainer=recogniser)")
@@ -94,11 +92,16 @@ class LearnedPlannerAgent(Agent):
                 self.recognised.setdefault(int(obj_id), dict(words))
         scene = dataclasses.replace(observation.scene, objects=[
             dataclasses.replace(o, **{k: v for k, v in self.recognised.get(o.id, {}).items() if k in ATTRIBUTES})
-            if o.name is None else o for o in objects])
+            for o in objects])
         return dataclasses.replace(observation, scene=scene)
 
     # -- acting ---------------------------------------------------------------------------------------------
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
+        if mode == ObservationMode.image:
+            raise ConfigError("agent=learned_planner needs object ids (graph or masks mode); image mode, where "
+                              "objects are named by pixels, is not supported")
+        self.track, self.mode = Track(track), ObservationMode(mode)
         self.memory = Memory()
         self.answered = False
         self.program = None

@@ -1,7 +1,7 @@
 """The instruction parser: instruction text to the agent-side program, a small sequence-to-sequence Transformer.
 
 Data: (instruction, program) pairs generated for the run's seed. Each scene is laid out like the synthetic
-scenes (``muble_plugins.tasks.synthetic``) and its objects are drawn from an object set through the registry
+scenes (``muble_plugins.common.synthetic``) and its objects are drawn from an object set through the registry
 (``trainer.object_set``: SHOP-VRB2's by default, the protocol's training pool when the run has one), so names, colours (``metallic`` included),
 materials, shapes and sizes are those of generated datasets. Every one of the ten SHOP-VRB2 template tasks then
 writes its instruction for the scene (``Task.generate``); the target is ``agent_program`` of its program: each
@@ -39,6 +39,7 @@ import numpy as np
 from muble.core.errors import ConfigError
 from muble.core.observation import agent_program
 from muble_plugins.learned import checkpoint as ckpt
+from muble_plugins.learned.config import TEMPLATES
 
 KIND = "parser"
 FILE_NAME = "parser.pt"
@@ -109,9 +110,7 @@ class Vocabulary:
 
 def template_names() -> list[str]:
     """The ten SHOP-VRB2 templates, in their overall order."""
-    from muble_plugins.tasks.templates import TEMPLATES
-
-    return [t.template_id for t in sorted(TEMPLATES.values(), key=lambda t: t.index)]
+    return list(TEMPLATES)
 
 
 def object_set(protocol: dict | None = None, name: str = "shopvrb2"):
@@ -132,7 +131,7 @@ def object_set(protocol: dict | None = None, name: str = "shopvrb2"):
 def sample_scene(objects, rng: np.random.Generator, index: int):
     """A symbolic scene: the synthetic layout, every object redrawn from ``objects`` (its category kept where the
     set samples it), with the set's attribute words, weights, stiffnesses and affordances."""
-    from muble_plugins.tasks import synthetic
+    from muble_plugins.common import synthetic
 
     scene = synthetic.sample_scene(rng, index, n_objects=OBJECTS_PER_SCENE)
     enabled = set(objects.categories())

@@ -1,6 +1,6 @@
 """``muble train trainer=planner``: the learned planner (NS-AP style), trained on the oracle's symbolic roll-outs.
 
-**Data.** Scenes are sampled deterministically from the run's seed (``muble_plugins.tasks.synthetic``: symbolic
+**Data.** Scenes are sampled deterministically from the run's seed (``muble_plugins.common.synthetic``: symbolic
 SHOP-VRB2 scenes, 3 to 6 objects, attributes, weights and stiffnesses of the object set's ranges); every SHOP-VRB2
 template task writes an instruction for each scene it suits (``Task.generate``), and the built-in oracle
 (``OracleAgent``, the task's ``next_actions``) plays it in the symbolic world through the core action loop. Every
@@ -35,23 +35,22 @@ from typing import Any
 
 import numpy as np
 
-from muble import ActionResult, Agent, Answer, Instruction, Observation, Outcome, SceneGraph, Task, get_registry
+from muble import (ActionResult, Agent, Answer, Instruction, Observation, ObservationMode, Outcome, SceneGraph, Task,
+                   Track, get_registry)
 from muble.core.interfaces import Trainer
 from muble.core.training import TrainingRun
 from muble.episode import run_episode
 
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.success import check
+from muble_plugins.common.symbolic import SymbolicWorld
+from muble_plugins.common.synthetic import sample_scene
+from muble_plugins.learned.config import TEMPLATES
 from muble_plugins.learned.planner_features import (CLASSES, FEATURE_DIM, Memory, encode, features, known_view,
                                                     random_call)
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.success import check
-from muble_plugins.tasks.symbolic import SymbolicWorld
-from muble_plugins.tasks.synthetic import sample_scene
 
 log = logging.getLogger(__name__)
 
-# The ten SHOP-VRB2 templates (muble.app.config.SHOPVRB2_TEMPLATES; plugins do not import muble.app).
-TEMPLATES = ("measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
-             "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order")
 MAX_STEPS = 60  # primitives per roll-out (the oracle needs at most about 30 on SHOP-VRB2)
 
 
@@ -116,8 +115,9 @@ class _Recorder(Agent):
         self.memory = Memory()
         self.samples: list[tuple[np.ndarray, int, int]] = []
 
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
-        self.oracle.reset(instruction, observation)
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
+        self.oracle.reset(instruction, observation, track=track, mode=mode)
         self.memory = Memory()
 
     def act(self, instruction: Instruction, observation: Observation):
@@ -142,7 +142,7 @@ def rollouts(seed: int, indices: range, validation: bool, explore: float, slip: 
     samples: list[tuple[np.ndarray, int, int]] = []
     episodes: list[tuple[Instruction, SceneGraph]] = []
     items = progress(indices) if progress else indices
-    quiet = logging.getLogger("muble_plugins.tasks.agents")
+    quiet = logging.getLogger(OracleAgent.__module__)
     level = quiet.level
     quiet.setLevel(logging.WARNING)  # the oracle logs every failed primitive it retries: most explored ones
     try:

@@ -27,9 +27,9 @@ from muble.core.program import execute, stack_pairs, table_parts_of
 from muble.core.symbolic import ArmState, over
 from muble.core.table import TABLE_PARTS
 
-from muble_plugins.tasks.agents import fill_known
-from muble_plugins.tasks.geometry import on_table_part, rests_on, upright
-from muble_plugins.tasks.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH  # noqa: F401
+from muble_plugins.common.books import fill_known
+from muble_plugins.common.geometry import on_table_part, rests_on, upright
+from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH  # noqa: F401
 
 STOP = "stop"  # answer (query programs) and stop
 CLASSES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE, STOP)

@@ -18,14 +18,14 @@ import re
 from pathlib import Path
 from typing import Any
 
-from muble import ActionCall, Agent, Answer, ConfigError, Instruction, Observation
+from muble import ActionCall, Agent, Answer, ConfigError, Instruction, Observation, ObservationMode, Track
 
 from muble_plugins.llm.config import ImagePolicy, SchemaForm
 from muble_plugins.llm.endpoint import Endpoint, EpisodeStats, ExchangeLog
 from muble_plugins.llm.examples import load_examples, pick_examples
-from muble_plugins.llm.prompt import (GRAPH, RETRY_FIELDS, STEP_FIELDS, SYSTEM_FIELDS, PromptTemplate, Turn,
-                                      examples_text, history_text, image_parts, object_form, primitives_text,
-                                      program_text, result_text, scene_text, view_of)
+from muble_plugins.llm.prompt import (RETRY_FIELDS, STEP_FIELDS, SYSTEM_FIELDS, PromptTemplate, Turn, examples_text,
+                                      history_text, image_parts, object_form, primitives_text, program_text,
+                                      result_text, scene_text)
 from muble_plugins.llm.reply import ReplyError, decision_schema, parse_reply
 
 log = logging.getLogger(__name__)
@@ -75,19 +75,20 @@ class LlmAgent(Agent):
         self.turns: list[Turn] = []
         self.system = ""
         self.answered = False
-        self.view = GRAPH
+        self.view = ObservationMode.graph
 
     # The episode's parts -------------------------------------------------------------------------------------
 
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
         self.episode_stats = EpisodeStats()
         self.turns = []
         self.answered = False
-        self.view = view_of(observation)
+        self.view = ObservationMode(mode)
         chosen = pick_examples(self.example_pool, instruction.template_id, self.examples)
         self.system = self.system_template.render(
             primitives=primitives_text(self.view), object_form=object_form(self.view),
-            examples=examples_text(chosen, program_track=bool(instruction.program)))
+            examples=examples_text(chosen, Track(track)))
         self.record.open(self._log_path(instruction))
         self.record.write("episode", instruction=instruction.instruction, template=instruction.template_id,
                           split=instruction.split, index=instruction.image_index, view=self.view,
@@ -147,7 +148,8 @@ class LlmAgent(Agent):
             instruction=instruction.instruction, program=program_text(instruction), scene=scene_text(observation),
             history=history_text(self.turns, self.history), last_result=result_text(observation.last_result),
             step=str(observation.step + 1))
-        send = self.images is ImagePolicy.always or (self.images is ImagePolicy.auto and self.view != GRAPH)
+        send = self.images is ImagePolicy.always or (
+            self.images is ImagePolicy.auto and self.view != ObservationMode.graph)
         if send and observation.images:
             return [{"type": "text", "text": text}, *image_parts(observation)]
         return text

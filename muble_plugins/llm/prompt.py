@@ -18,7 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
-from muble import ActionCall, ActionResult, Answer, ConfigError, Instruction, Observation, get_registry
+from muble import (ActionCall, ActionResult, Answer, ConfigError, Instruction, Observation, ObservationMode, Track,
+                   get_registry)
 from muble.core.params import Param, specs
 from muble.core.table import TABLE_PARTS
 
@@ -27,9 +28,6 @@ SYSTEM_FIELDS = ("primitives", "object_form", "examples")
 STEP_FIELDS = ("instruction", "program", "scene", "history", "last_result", "step")
 RETRY_FIELDS = ("error",)
 PLACEHOLDER = re.compile(r"\{\{\s*([A-Za-z_]+)\s*\}\}")
-# Views of the scene, as the agent can tell them apart: attribute words (graph), ids without words (masks),
-# no objects but images (image; objects are named by pixels).
-GRAPH, MASKS, IMAGE = "graph", "masks", "image"
 FLAGS = ("in_hand", "raised", "approached", "gripper_over", "touching")
 DECIMALS = 3  # positions and sizes in millimetres are as precise as the planner needs
 
@@ -58,14 +56,6 @@ class PromptTemplate:
 
     def render(self, **values: str) -> str:
         return PLACEHOLDER.sub(lambda m: str(values.get(m.group(1), "")), self.text).strip() + "\n"
-
-
-def view_of(observation: Observation) -> str:
-    """Which observation mode the scene is in, from what it holds (the agent is not told the mode by name)."""
-    objects = list(getattr(observation.scene, "objects", []) or [])
-    if not objects:
-        return IMAGE if observation.images else GRAPH
-    return MASKS if all(o.name is None for o in objects) else GRAPH
 
 
 def _round(values: Any) -> list[float]:
@@ -124,11 +114,11 @@ def program_text(instruction: Instruction) -> str:
     return "Program: " + " -> ".join(steps) + "\n"
 
 
-def _kind_text(p: Param, view: str) -> str:
+def _kind_text(p: Param, view: ObservationMode) -> str:
     bounds = ""
     if p.low is not None or p.high is not None:
         bounds = f" in [{p.low if p.low is not None else '-inf'}, {p.high if p.high is not None else 'inf'}]"
-    obj = "pixel [x, y] inside the object" if view == IMAGE else "object id"
+    obj = "pixel [x, y] inside the object" if view == ObservationMode.image else "object id"
     kind = {"object": obj, "part": f"table part ({'/'.join(TABLE_PARTS)})",
             "place": f"{obj} or table part ({'/'.join(TABLE_PARTS)})", "int": "integer", "number": "number",
             "vector": f"list of {p.length or 'some'} numbers", "any": "any value"}[p.kind]
@@ -140,8 +130,8 @@ def primitive_params(name: str) -> tuple[Param, ...]:
     return specs(get_registry().get("primitive", name).record.factory.params)
 
 
-def primitives_text(view: str) -> str:
-    """Every registered primitive, one line each: name, description, parameters in this view's terms."""
+def primitives_text(view: ObservationMode) -> str:
+    """Every registered primitive, one line each: name, description, parameters in this observation mode's terms."""
     registry = get_registry()
     lines = []
     for name in registry.names("primitive"):
@@ -151,12 +141,12 @@ def primitives_text(view: str) -> str:
     return "\n".join(lines)
 
 
-def object_form(view: str) -> str:
-    """How an action names an object in this view."""
-    if view == IMAGE:
+def object_form(view: ObservationMode) -> str:
+    """How an action names an object in this observation mode."""
+    if view == ObservationMode.image:
         return ("Objects have no ids here: name an object by a pixel [x, y] (column, row) inside it in the first "
                 "camera's image.")
-    if view == MASKS:
+    if view == ObservationMode.masks:
         return "Name an object by its id; the objects' words are not given: tell them apart in the images."
     return "Name an object by its id."
 
@@ -199,13 +189,13 @@ def history_text(turns: list[Turn], bound: int) -> str:
     return "\n".join(lines)
 
 
-def examples_text(examples: Iterable[dict[str, Any]], program_track: bool) -> str:
+def examples_text(examples: Iterable[dict[str, Any]], track: Track) -> str:
     """Worked examples as text: the instruction (and program on the program track), the objects, and the
     ground-truth decisions one JSON object per line."""
     blocks = []
     for n, ex in enumerate(examples, 1):
         lines = [f"Example {n}. Instruction: {ex['instruction']}"]
-        if program_track and ex.get("program"):
+        if track == Track.program and ex.get("program"):
             lines.append(program_text(Instruction(ex["instruction"], ex["program"], "", "")).strip())
         if ex.get("objects"):
             lines.append("Objects: " + "; ".join(ex["objects"]))

@@ -12,11 +12,11 @@ import dataclasses
 import json
 from typing import Any, Sequence
 
-from muble import ActionCall, Answer, get_registry
+from muble import ActionCall, Answer, ObservationMode, get_registry
 from muble.core.params import Param, check_call
 from muble.core.table import TABLE_PARTS
 
-from muble_plugins.llm.prompt import IMAGE, primitive_params
+from muble_plugins.llm.prompt import primitive_params
 
 FORMS = '{"name": "<primitive>", "params": {...}}, {"answer": [...]} or {"stop": true}'
 STOP = "stop"
@@ -65,14 +65,14 @@ def first_json_object(text: str) -> dict[str, Any]:
                      "no JSON object")
 
 
-def _relaxed(params: Sequence[Param], view: str) -> tuple[Param, ...]:
+def _relaxed(params: Sequence[Param], view: ObservationMode) -> tuple[Param, ...]:
     """In image mode an object is a pixel, which the action loop resolves: only names and presence are checked."""
-    if view != IMAGE:
+    if view != ObservationMode.image:
         return tuple(params)
     return tuple(dataclasses.replace(p, kind="any") if p.kind in ("object", "place") else p for p in params)
 
 
-def decision_from(obj: dict[str, Any], view: str, object_ids: Sequence[int]) -> ActionCall | Answer | None:
+def decision_from(obj: dict[str, Any], view: ObservationMode, object_ids: Sequence[int]) -> ActionCall | Answer | None:
     """The decision a parsed reply states (None: stop), checked against the registry and the scene's ids."""
     keys = set(obj)
     if STOP in keys:
@@ -99,21 +99,21 @@ def decision_from(obj: dict[str, Any], view: str, object_ids: Sequence[int]) -> 
     return ActionCall(name, dict(params))
 
 
-def parse_reply(text: str | None, view: str, object_ids: Sequence[int]) -> ActionCall | Answer | None:
+def parse_reply(text: str | None, view: ObservationMode, object_ids: Sequence[int]) -> ActionCall | Answer | None:
     """The decision in a reply's text; ``ReplyError`` when there is none or it is not valid."""
     if not text or not text.strip():
         raise ReplyError("the reply is empty", "empty reply")
     return decision_from(first_json_object(text), view, object_ids)
 
 
-def _param_schema(p: Param, view: str, object_ids: Sequence[int]) -> dict[str, Any]:
+def _param_schema(p: Param, view: ObservationMode, object_ids: Sequence[int]) -> dict[str, Any]:
     number: dict[str, Any] = {"type": "integer" if p.kind == "int" else "number"}
     if p.low is not None:
         number["minimum"] = p.low
     if p.high is not None:
         number["maximum"] = p.high
     pixel = {"type": "array", "items": {"type": "integer", "minimum": 0}, "minItems": 2, "maxItems": 2}
-    obj = pixel if view == IMAGE else ({"type": "integer", "enum": list(object_ids)} if object_ids
+    obj = pixel if view == ObservationMode.image else ({"type": "integer", "enum": list(object_ids)} if object_ids
                                        else {"type": "integer"})
     part = {"type": "string", "enum": list(TABLE_PARTS)}
     if p.kind == "object":
@@ -133,7 +133,7 @@ def _param_schema(p: Param, view: str, object_ids: Sequence[int]) -> dict[str, A
     return {}
 
 
-def decision_schema(view: str, object_ids: Sequence[int]) -> dict[str, Any]:
+def decision_schema(view: ObservationMode, object_ids: Sequence[int]) -> dict[str, Any]:
     """The JSON schema of a valid decision in this scene: one alternative per registered primitive (its typed
     parameters, object ids limited to the scene's), an answer, or a stop."""
     actions = []

@@ -14,7 +14,7 @@ def muble_register_renderers() -> list[PluginRecord]:
 
     return [
         PluginRecord("mujoco", MujocoRenderer, "MuJoCo OpenGL renderer: fast RGB, depth, segmentation",
-                     MujocoRendererConfig),
+                     MujocoRendererConfig, takes_config=True),
         PluginRecord("blender", create_blender_renderer, "Blender Cycles/EEVEE photoreal keyframes with GT passes",
-                     BlenderRendererConfig),
+                     BlenderRendererConfig, takes_config=True),
     ]

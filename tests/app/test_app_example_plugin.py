@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from muble import ActionResult, Observation, Outcome, get_registry
+from muble import ActionResult, Observation, ObservationMode, Outcome, Track, get_registry
 from muble.core.observation import agent_instruction
 from muble.episode.loop import run_episode
 
@@ -102,7 +102,7 @@ def greedy_agent(monkeypatch):
 @pytest.fixture(scope="module")
 def symbolic_episodes():
     """(template, instruction, scene) of every built-in template over a few synthetic scenes."""
-    from muble_plugins.tasks.synthetic import sample_scenes
+    from muble_plugins.common.synthetic import sample_scenes
 
     registry = get_registry()
     out = []
@@ -116,7 +116,7 @@ def symbolic_episodes():
 def test_greedy_solves_the_single_object_templates_and_stops_on_the_others(greedy_agent, symbolic_episodes):
     """In the symbolic world, on the program track: it finds its target by the program's words alone (the loop
     gives it the program without recorded outputs), and attempts nothing it cannot do."""
-    from muble_plugins.tasks.episodes import run_symbolic_episode
+    from muble_plugins.common.episodes import run_symbolic_episode
 
     solved = set()
     for name, ins, scene in symbolic_episodes:
@@ -130,12 +130,21 @@ def test_greedy_solves_the_single_object_templates_and_stops_on_the_others(greed
 
 
 def test_greedy_does_nothing_on_the_language_track(greedy_agent, symbolic_episodes):
-    from muble_plugins.tasks.success import check
-    from muble_plugins.tasks.symbolic import SymbolicWorld
+    from muble_plugins.common.success import check
+    from muble_plugins.common.symbolic import SymbolicWorld
 
     name, ins, scene = next(e for e in symbolic_episodes if e[0] == "measure_weight_single")
     result = run_episode(ins, SymbolicWorld(scene), greedy_agent(), check, track="language")
     assert result.actions == [] and result.outcome is not Outcome.SUCCESS
+
+
+def test_greedy_does_nothing_in_a_mode_it_is_told_gives_no_words(greedy_agent, symbolic_episodes):
+    name, ins, scene = next(e for e in symbolic_episodes if e[0] == "measure_weight_single")
+    agent, told = greedy_agent(), agent_instruction(ins)
+    agent.reset(told, Observation(scene=scene), track=Track.program, mode=ObservationMode.masks)
+    assert agent.act(told, Observation(scene=scene)) is None
+    agent.reset(told, Observation(scene=scene), track=Track.program, mode=ObservationMode.graph)
+    assert agent.act(told, Observation(scene=scene)).name == "move"
 
 
 def test_greedy_stops_after_a_failed_primitive(greedy_agent, symbolic_episodes):

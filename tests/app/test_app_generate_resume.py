@@ -84,6 +84,19 @@ def test_a_dataset_made_before_stages_resumes_on_the_stage_it_stands_on(tmp_path
         check_or_store_identity(stored_null, {**now, "generator": {"min_objects": 4, "stage": "original"}})
 
 
+def test_a_dataset_storing_the_generators_own_image_size_and_step_resumes_on_the_settings_that_own_them(tmp_path):
+    stored = {"seed": 0, "robot": {"name": "Panda", "timestep": 0.002}, "renderer": {"width": 848, "height": 480},
+              "generator": {"min_objects": 4, "image_width": 848, "image_height": 480, "timestep": 0.002},
+              "dataset": {}}
+    (tmp_path / IDENTITY_FILE).write_text(json.dumps(dataset_identity(stored)))
+    now = {**stored, "generator": {"min_objects": 4}}
+    check_or_store_identity(tmp_path, now)  # the same image size and physics step, named once now
+    with pytest.raises(ConfigError, match='generator.image_width: stored 848, not requested'):
+        check_or_store_identity(tmp_path, {**now, "renderer": {"width": 424, "height": 480}})
+    with pytest.raises(ConfigError, match='generator.timestep: stored 0.002, not requested'):
+        check_or_store_identity(tmp_path, {**now, "robot": {"name": "Panda", "timestep": 0.001}})
+
+
 def test_a_live_owner_is_refused_and_a_stale_lock_taken_over(tmp_path):
     root = tmp_path / "ds"
     root.mkdir()

@@ -66,7 +66,7 @@ def test_suggest_prefers_a_case_insensitive_match():
 def test_schema_ranges_reject_nonsense(override, key):
     cfg = compose("run", [override, "dataset.root=/tmp/x", "output.dir=/tmp/x"])
     problems = range_violations(cfg)
-    assert len(problems) == 1 and problems[0].startswith(f"{key}="), problems
+    assert len(problems) == 1 and problems[0].startswith(f"{key} must be "), problems
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
         check_ranges(cfg)
 

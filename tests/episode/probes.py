@@ -43,11 +43,11 @@ class Snoop(Agent):
             if step.get("input") is not None:  # the previous step's result, computed on the ground truth
                 self.found.append(f"step {k} ({step['type']}) input {step['input']}")
 
-    def reset(self, instruction, observation):
+    def reset(self, instruction, observation, **told):
         self._inspect_instruction(instruction)
         self.measured, self.last, self.step = {}, None, 0
         self._inspect(observation)
-        self.inner.reset(instruction, observation)
+        self.inner.reset(instruction, observation, **told)
 
     def act(self, instruction, observation):
         self._inspect_instruction(instruction)
@@ -66,7 +66,7 @@ class Scripted(Agent):
         self.decisions = list(decisions)
         self.results = []
 
-    def reset(self, instruction, observation):
+    def reset(self, instruction, observation, **told):
         self.queue = list(self.decisions)
         self.results = [observation.last_result]
 

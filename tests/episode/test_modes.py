@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from muble import ActionCall, Agent, Outcome, get_registry
+from muble import ActionCall, Agent, ObservationMode, Outcome, get_registry
 from muble.core.types import Frame, Observation
 from muble.episode.modes import ObservationView, resolve_pixels, visible_pixel
 
@@ -43,9 +43,11 @@ class Recorder(Agent):
 
     def __init__(self):
         self.given: list[tuple] = []
+        self.told: tuple | None = None
 
-    def reset(self, instruction, observation):
+    def reset(self, instruction, observation, *, track, mode):
         self.given = [(instruction, observation)]
+        self.told = (track, mode)
 
     def act(self, instruction, observation):
         self.given.append((instruction, observation))
@@ -143,6 +145,7 @@ def test_each_mode_gives_only_what_it_says_and_the_oracle_solves_each():
             recorder = runner.agent = Recorder()
             runner.execute(scene, instruction, task)
             assert len(recorder.given) == 3  # reset, the first act, the act after the primitive
+            assert recorder.told == (track, mode) and isinstance(recorder.told[1], ObservationMode)
             for told, observation in recorder.given:
                 assert (told.program == []) == (track == "language")
                 assert all(step.get("input") is None and "output" not in step for step in told.program)

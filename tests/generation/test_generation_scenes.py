@@ -53,7 +53,7 @@ def test_scenes_meet_every_acceptance_rule(generator, object_set):
         # rest: settle again from the file's poses, with the file's weights
         for m, o in zip(models, scene.objects):
             assert m.mass == pytest.approx(o.weight_gt / 1000)
-        moved = settle(models, placements, cfg.table_x, cfg.table_y, cfg.timestep, 1.0)
+        moved = settle(models, placements, cfg.table_x, cfg.table_y, generator.timestep, 1.0)
         assert moved.max() <= 0.005
         weights = sorted(o.weight_gt for o in scene.objects)
         assert min(np.diff(weights)) >= cfg.min_weight_gap
@@ -104,6 +104,35 @@ def test_margin_wider_than_the_table_is_refused_at_once(object_set):
 def test_mistyped_option_names_the_valid_ones(object_set):
     with pytest.raises(ConfigError, match="min_visible_pixels"):
         SceneGenerator({"min_visible_pixel": 10}, object_set=object_set)
+
+
+@pytest.mark.parametrize("option, value, words", [
+    ("occlusion_scale", 1.5, r"occlusion_scale must be > 0 and <= 1, got 1\.5"),
+    ("layout_tries", 0, "layout_tries must be >= 1, got 0"),
+    ("min_objects", 0, "min_objects must be >= 1, got 0"),
+    ("margin", -0.01, "margin must be >= 0, got -0.01"),
+    ("camera_jitter_deg", -1.0, r"camera_jitter_deg must be >= 0 \(degrees, 0 = none\), got -1\.0"),
+])
+def test_out_of_range_options_are_refused_from_the_schemas_bounds(object_set, option, value, words):
+    with pytest.raises(ConfigError, match=words):
+        SceneGenerator({**BUILTIN, option: value}, object_set=object_set)
+
+
+def test_the_images_are_the_renderers_size_and_layouts_settle_at_the_robots_step(object_set):
+    """renderer.width/height size the scene's camera and masks, robot.timestep the settling: one setting each."""
+    from muble.app.config import compose
+    from muble.episode.components import scene_generator
+
+    cfg = compose("run", ["dataset.root=/tmp", "output.dir=/tmp", "renderer.width=424", "renderer.height=240",
+                          "robot.timestep=0.001"])
+    g = scene_generator(cfg, object_set)
+    try:
+        assert g.timestep == 0.001
+        scene = g.generate(0)
+    finally:
+        g.close()
+    assert (scene.camera_params["width"], scene.camera_params["height"]) == (424, 240)
+    assert all(decode_mask(o.mask).shape == (240, 424) for o in scene.objects)
 
 
 def test_a_stage_is_written_into_the_scene_and_its_table_bounds_placement(object_set):

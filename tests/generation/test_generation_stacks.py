@@ -13,6 +13,7 @@ from muble.generation import checks
 from muble.generation.config import GeneratorConfig
 from muble.generation.placement import Placement
 from muble.sim.build import object_models
+from muble.sim.env import ROBOT_DEFAULTS
 
 DATA = Path(__file__).parent / "data"
 
@@ -24,7 +25,7 @@ def _check(name: str, chains: list[list[int]]) -> str | None:
                   for o in scene.objects]
     cfg = GeneratorConfig()
     return checks.stacks_stand([models[o.id] for o in scene.objects], placements, stack_pairs(chains),
-                               cfg.table_x, cfg.table_y, cfg.timestep)
+                               cfg.table_x, cfg.table_y, ROBOT_DEFAULTS["timestep"])
 
 
 def test_a_glass_into_a_bowl_on_a_food_box_stands():

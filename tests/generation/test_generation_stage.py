@@ -1,6 +1,7 @@
 """The stage generated scenes stand on: the original release's by default (its desk, the Panda standing on it with a
 Robotiq 85), robosuite's in protocol shopvrb2_v1 and with generator.stage=robosuite (its scene files name no stage and
-keep the bytes they had before stages could be chosen), robot.stage in the generator's place when set."""
+keep the bytes they had before stages could be chosen). generator.stage is the one setting: the robot has none, and
+an episode stands on the stage its scene file names."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,11 +28,15 @@ def test_scenes_default_to_the_original_stage_and_the_protocol_pins_robosuites()
     assert protocol.generator.stage == "robosuite"
 
 
-def test_the_robots_stage_takes_the_generators_place(object_set):
-    cfg = compose("generate", ["dataset.root=/tmp", "robot.stage=original"])
+def test_the_generator_alone_names_the_stage(object_set):
+    from hydra.errors import ConfigCompositionException
+
+    with pytest.raises(ConfigCompositionException, match="stage"):
+        compose("generate", ["dataset.root=/tmp", "robot.stage=original"])
+    cfg = compose("generate", ["dataset.root=/tmp", "generator.stage=robosuite"])
     generator = SceneGenerator(OmegaConf.to_container(cfg.generator, resolve=True), object_set=object_set)
     try:
-        assert generator.config.stage == "original" and list(generator.config.table_y) == [-0.4, 0.4]
+        assert generator.config.stage == "robosuite" and list(generator.config.table_y) == [-0.6, 0.6]
     finally:
         generator.close()
 
@@ -40,7 +45,7 @@ def test_robosuite_stage_scenes_are_the_scenes_made_before_stages(object_set):
     """A generator without a stage (as before stages could be chosen) and one on robosuite's stage write the same
     scene, naming no stage."""
     scenes = []
-    for options in ({}, {"stage": "original", "robot": {"stage": "robosuite"}}):
+    for options in ({}, {"stage": "robosuite"}):
         generator = SceneGenerator({**BUILTIN, **options}, seed=4, object_set=object_set)
         try:
             scenes.append(scene_to_dict(generator.generate(0)))
@@ -51,7 +56,7 @@ def test_robosuite_stage_scenes_are_the_scenes_made_before_stages(object_set):
 
 def test_a_scene_generated_on_the_original_stage_names_it_and_the_oracle_solves_it():
     """`muble run`'s generator with generator.stage=original: the scene file names the stage, its environment is
-    built there with the Robotiq 85 (robot.stage and robot.gripper left unset), and the oracle weighs an object on
+    built there with the Robotiq 85 (robot.gripper left unset), and the oracle weighs an object on
     it with physics."""
     from muble.episode.components import episode_runner, scene_generator
     from muble.evaluation.episodes import build_components

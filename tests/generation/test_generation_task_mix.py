@@ -9,13 +9,21 @@ import pytest
 
 from muble import ConfigError, get_registry
 from muble.core.errors import SceneGenerationError
+from muble.core.instructions_io import SHOPVRB2_TEMPLATES
 from muble.core.scene_io import scene_to_dict
 from muble.generation import SceneGenerator
 from muble.generation.task_mix import COUNT_KEY, TEMPLATE_KEY, balanced_choice, suited_scene, template_weights
 from tests.generation.builtin import BUILTIN
 
-TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
-             "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order"]
+TEMPLATES = list(SHOPVRB2_TEMPLATES)
+
+
+def test_the_tasks_plugins_data_defines_the_shopvrb2_templates_in_their_overall_order():
+    from muble_plugins.tasks.templates import TEMPLATES as DEFINED
+
+    assert [t.template_id for t in sorted(DEFINED.values(), key=lambda t: t.index)] == TEMPLATES
+    assert [DEFINED[name].index for name in TEMPLATES] == list(range(10))
+    assert set(TEMPLATES) <= set(get_registry().names("task"))
 
 
 def test_equal_weights_give_every_template_once_in_every_block_of_ten():

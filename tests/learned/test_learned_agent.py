@@ -10,18 +10,18 @@ import pytest
 
 pytest.importorskip("torch")
 
-from muble import ActionCall, ActionResult, Answer, Observation, Outcome  # noqa: E402
+from muble import ActionCall, ActionResult, Answer, Observation, ObservationMode, Outcome, Track  # noqa: E402
 from muble.core.errors import ConfigError  # noqa: E402
 from muble.episode import run_episode  # noqa: E402
 from muble.episode.modes import track_instruction  # noqa: E402
 
 import muble_plugins.learned.planner_net as planner_net  # noqa: E402
+from muble_plugins.agents.oracle import OracleAgent  # noqa: E402
+from muble_plugins.common.success import check  # noqa: E402
+from muble_plugins.common.symbolic import SymbolicWorld  # noqa: E402
 from muble_plugins.learned.agent import LearnedPlannerAgent  # noqa: E402
 from muble_plugins.learned.planner import instructions_for, scene_for  # noqa: E402
 from muble_plugins.learned.planner_features import CLASSES, IGNORE, encode  # noqa: E402
-from muble_plugins.tasks.agents import OracleAgent  # noqa: E402
-from muble_plugins.tasks.success import check  # noqa: E402
-from muble_plugins.tasks.symbolic import SymbolicWorld  # noqa: E402
 
 
 def _episode(template: str):
@@ -64,9 +64,9 @@ def _play_with_oracle_decisions(state, instruction, scene, world=None, track="pr
     agent.act = act
     agent_reset = agent.reset
 
-    def reset(told, observation):
+    def reset(told, observation, **settings):
         oracle.reset(told, observation)
-        agent_reset(told, observation)
+        agent_reset(told, observation, **settings)
 
     agent.reset = reset
     return run_episode(instruction, world or SymbolicWorld(scene), agent, check, track=track)
@@ -104,6 +104,7 @@ def test_the_language_track_needs_a_parser_and_uses_it(monkeypatch, oracle_netwo
     observation = SymbolicWorld(scene).observe(None, 0)
     told = track_instruction(instruction, "language")
     assert told.program == []
+    agent.reset(told, observation, track=Track.language)
     with pytest.raises(ConfigError, match=r"agent\.parser=PATH"):
         agent.act(told, observation)
 
@@ -121,7 +122,7 @@ def test_the_language_track_needs_a_parser_and_uses_it(monkeypatch, oracle_netwo
 
     monkeypatch.setitem(sys.modules, "muble_plugins.learned.parser", types.SimpleNamespace(InstructionParser=Parser))
     agent = LearnedPlannerAgent(network=_Stub(), parser="parser.pt")
-    agent.reset(told, observation)
+    agent.reset(told, observation, track=Track.language)
     oracle_network["next"] = (CLASSES.index("move"), 1)
     assert isinstance(agent.act(told, observation), ActionCall)
     assert parsed == [instruction.instruction]
@@ -135,8 +136,10 @@ def test_masks_mode_needs_a_recogniser_and_image_mode_is_refused(monkeypatch, or
         for o in observation.scene.objects])
     masks = Observation(scene=blank, step=0)
     told = track_instruction(instruction, "program")
+    unaided = LearnedPlannerAgent(network=_Stub())
+    unaided.reset(told, masks, mode=ObservationMode.masks)
     with pytest.raises(ConfigError, match=r"agent\.recogniser=PATH"):
-        LearnedPlannerAgent(network=_Stub()).act(told, masks)
+        unaided.act(told, masks)
 
     class Recogniser:
         @classmethod
@@ -151,11 +154,12 @@ def test_masks_mode_needs_a_recogniser_and_image_mode_is_refused(monkeypatch, or
                         types.SimpleNamespace(AttributeRecogniser=Recogniser))
     oracle_network["next"] = (CLASSES.index(OracleAgent().act(told, observation).name), 1)
     agent = LearnedPlannerAgent(network=_Stub(), recogniser="recogniser.pt")
+    agent.reset(told, masks, mode=ObservationMode.masks)
     assert isinstance(agent.act(told, masks), ActionCall)  # the program ran on the recognised words
 
     image = Observation(scene=dataclasses.replace(blank, objects=[]), step=0)
     with pytest.raises(ConfigError, match="image mode"):
-        LearnedPlannerAgent(network=_Stub()).act(told, image)
+        LearnedPlannerAgent(network=_Stub()).reset(told, image, mode=ObservationMode.image)
 
 
 def test_stop_on_a_query_answers_once_then_stops(oracle_network):

@@ -16,10 +16,10 @@ from muble import ActionCall, Agent, Answer, Outcome, get_registry
 from muble.app.config import SHOPVRB2_TEMPLATES
 from muble.episode import run_episode
 from muble.episode.plain import plain
+from muble_plugins.agents.oracle import OracleAgent
+from muble_plugins.common.success import check
+from muble_plugins.common.symbolic import SymbolicWorld
 from muble_plugins.llm.agent import LlmAgent
-from muble_plugins.tasks.agents import OracleAgent
-from muble_plugins.tasks.success import check
-from muble_plugins.tasks.symbolic import SymbolicWorld
 
 from tests.episode.test_episode_integrity import instruction_for
 from tests.llm.chat_server import Drop, Hang, Reply, ScriptedChatServer, Status
@@ -36,8 +36,8 @@ class Recorder(Agent):
         self.inner = OracleAgent()
         self.decisions: list = []
 
-    def reset(self, instruction, observation):
-        self.inner.reset(instruction, observation)
+    def reset(self, instruction, observation, **told):
+        self.inner.reset(instruction, observation, **told)
 
     def act(self, instruction, observation):
         decision = self.inner.act(instruction, observation)

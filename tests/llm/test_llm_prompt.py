@@ -9,16 +9,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from muble import ActionCall, Answer, ConfigError, Frame, Observation, Param, PluginRecord, PrimitiveAction, hookimpl
+from muble import (ActionCall, Answer, ConfigError, Frame, Observation, ObservationMode, Param, PluginRecord,
+                   PrimitiveAction, Track, hookimpl)
 from muble.episode.modes import ObservationView
 from muble.evaluation.report import OVERALL, agent_lines, summarize
 from muble.plugins.manager import make_plugin_manager
 from muble.plugins.registry import Registry
+from muble_plugins.common.symbolic import SymbolicWorld
 from muble_plugins.llm import prompt, reply
 from muble_plugins.llm.agent import LlmAgent
 from muble_plugins.llm.examples import example_from, pick_examples
 from muble_plugins.llm.reply import ReplyError, decision_schema, parse_reply
-from muble_plugins.tasks.symbolic import SymbolicWorld
 
 from tests.episode.test_episode_integrity import instruction_for
 
@@ -39,15 +40,15 @@ def test_a_plugins_primitive_is_in_the_prompt_and_the_schema(monkeypatch):
     registry = Registry(make_plugin_manager(extra_plugins=(TapPlugin(),)))
     monkeypatch.setattr(prompt, "get_registry", lambda: registry)
     monkeypatch.setattr(reply, "get_registry", lambda: registry)
-    text = prompt.primitives_text(prompt.GRAPH)
+    text = prompt.primitives_text(ObservationMode.graph)
     assert "- tap: touch an object lightly from above (target: object id; force: number in [0.0, 20.0], optional)" \
         in text
-    names = [alt["properties"]["name"]["enum"][0] for alt in decision_schema(prompt.GRAPH, [0, 1])["anyOf"][:-2]]
+    names = [alt["properties"]["name"]["enum"][0] for alt in decision_schema(ObservationMode.graph, [0, 1])["anyOf"][:-2]]
     assert "tap" in names
-    assert parse_reply('{"name": "tap", "params": {"target": 1, "force": 2.5}}', prompt.GRAPH, [0, 1]) == \
+    assert parse_reply('{"name": "tap", "params": {"target": 1, "force": 2.5}}', ObservationMode.graph, [0, 1]) == \
         ActionCall("tap", {"target": 1, "force": 2.5})
     with pytest.raises(ReplyError, match="must be <= 20.0"):
-        parse_reply('{"name": "tap", "params": {"target": 1, "force": 99}}', prompt.GRAPH, [0, 1])
+        parse_reply('{"name": "tap", "params": {"target": 1, "force": 99}}', ObservationMode.graph, [0, 1])
 
 
 def test_a_prompt_files_unknown_placeholder_and_a_missing_file_are_config_errors(tmp_path):
@@ -61,26 +62,26 @@ def test_a_prompt_files_unknown_placeholder_and_a_missing_file_are_config_errors
 
 def test_replies_read_as_decisions():
     ids = [0, 1, 2]
-    assert parse_reply('{"stop": true}', prompt.GRAPH, ids) is None
-    assert parse_reply('{"answer": [81.5]}', prompt.GRAPH, ids) == Answer([81.5])
-    assert parse_reply('Here: {"name": "lift", "params": {"height": 0.1}} done', prompt.GRAPH, ids) == \
+    assert parse_reply('{"stop": true}', ObservationMode.graph, ids) is None
+    assert parse_reply('{"answer": [81.5]}', ObservationMode.graph, ids) == Answer([81.5])
+    assert parse_reply('Here: {"name": "lift", "params": {"height": 0.1}} done', ObservationMode.graph, ids) == \
         ActionCall("lift", {"height": 0.1})
-    assert parse_reply('{"name": "lower"}', prompt.GRAPH, ids) == ActionCall("lower", {})
-    assert parse_reply('{"name": "move", "params": {"target": [10, 20]}}', prompt.IMAGE, []) == \
+    assert parse_reply('{"name": "lower"}', ObservationMode.graph, ids) == ActionCall("lower", {})
+    assert parse_reply('{"name": "move", "params": {"target": [10, 20]}}', ObservationMode.image, []) == \
         ActionCall("move", {"target": [10, 20]})
     for text, says in (("", "empty"), ('{"stop": false}', "stop"), ('{"answer": 1, "name": "lift"}', "alone"),
                        ('{"name": "lift", "params": [0.1]}', "mapping")):
         with pytest.raises(ReplyError, match=says):
-            parse_reply(text, prompt.GRAPH, ids)
+            parse_reply(text, ObservationMode.graph, ids)
 
 
 def test_the_schema_limits_objects_to_the_scene():
-    schema = decision_schema(prompt.GRAPH, [3, 5])
+    schema = decision_schema(ObservationMode.graph, [3, 5])
     move = next(a for a in schema["anyOf"] if a["properties"].get("name", {}).get("enum") == ["move"])
     target = move["properties"]["params"]["properties"]["target"]
     assert target["anyOf"][0]["enum"] == [3, 5] and target["anyOf"][1]["enum"][0] == "left"
     assert move["properties"]["params"]["required"] == ["target"]
-    pixel = decision_schema(prompt.IMAGE, [])["anyOf"][0]["properties"]["params"]["properties"]["target"]
+    pixel = decision_schema(ObservationMode.image, [])["anyOf"][0]["properties"]["params"]["properties"]["target"]
     assert pixel["minItems"] == pixel["maxItems"] == 2
 
 
@@ -94,9 +95,9 @@ def observation_in(mode: str, template: str = "stack_simple") -> tuple:
 @pytest.mark.parametrize("mode", ["graph", "masks", "image"])
 def test_each_observation_mode_is_told_in_its_own_terms(mode):
     ins, seen = observation_in(mode)
-    assert prompt.view_of(seen) == mode
     agent = LlmAgent()
-    agent.reset(ins, seen)
+    agent.reset(ins, seen, track=Track.program, mode=ObservationMode(mode))
+    assert agent.view == mode
     content = agent._step_content(ins, seen)
     if mode == "graph":
         assert isinstance(content, str) and '"colour":' in content and "Name an object by its id" in agent.system
@@ -108,13 +109,22 @@ def test_each_observation_mode_is_told_in_its_own_terms(mode):
         assert "pixel [x, y]" in agent.system and "seen only in the images: front 32x24" in content[0]["text"]
 
 
+def test_the_mode_is_the_one_the_agent_is_told_not_guessed_from_the_objects():
+    ins, seen = observation_in("masks")  # objects without words, as masks mode shows them
+    agent = LlmAgent()
+    agent.reset(ins, seen, track=Track.program, mode=ObservationMode.graph)
+    assert agent.view is ObservationMode.graph and "tell them apart in the images" not in agent.system
+    agent.reset(ins, seen, track=Track.program, mode=ObservationMode.masks)
+    assert "tell them apart in the images" in agent.system
+
+
 def test_the_language_track_shows_no_program():
     _, seen = observation_in("graph")
     ins, _ = observation_in("graph")
     agent = LlmAgent()
     told = copy.deepcopy(ins)
     told.program = []
-    agent.reset(told, seen)
+    agent.reset(told, seen, track=Track.language, mode=ObservationMode.graph)
     assert "Program:" not in agent._step_content(told, seen)
 
 
@@ -130,8 +140,9 @@ def test_worked_examples_come_from_ground_truth_sequences_own_template_first():
                                     {"name": "lift", "params": {}}, {"answer": [81.0]}, {"stop": True}]
     other = {**example, "template": "move_single"}
     assert pick_examples([other, example, other], "measure_weight_single", 2) == [example, other]
-    text = prompt.examples_text([example], program_track=True)
+    text = prompt.examples_text([example], Track.program)
     assert "Program: scene -> filter_colour(blue) -> query_weight" in text and '{"answer":[81.0]}' in text
+    assert "Program:" not in prompt.examples_text([example], Track.language)  # the track, not the data, decides
 
 
 def test_examples_are_read_from_a_dataset_split(tmp_path):

@@ -73,7 +73,7 @@ def test_a_seen_floor_keeps_its_reflection():
     from muble.app.config import compose
     from muble.episode.components import build_components, generated_env
 
-    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", "robot.stage=original"])
+    cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp", "generator.stage=original"])
     env = generated_env(cfg, build_components(cfg, renderer=False, task=False), 0)
     patch = pytest.MonkeyPatch()
     try:

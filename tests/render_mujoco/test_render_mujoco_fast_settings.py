@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from muble import SEG_ROBOT, RenderError, get_registry
+from muble import SEG_ROBOT, ConfigError, get_registry
+from muble_plugins.renderers.mujoco import MujocoRenderer
 from muble_plugins.renderers.mujoco.simplify import decimate, deviation
 
 pytestmark = pytest.mark.gl
@@ -89,7 +90,10 @@ def test_fast_settings_keep_the_masks_and_leave_the_model_as_compiled(generated_
 
 
 def test_out_of_range_settings_are_refused():
-    with pytest.raises(RenderError, match="mesh_tolerance"):
+    with pytest.raises(ConfigError, match=r"mesh_tolerance must be > 0 and <= 0\.05 .*got 0\.5"):
         get_registry().create("renderer", "mujoco", {"mesh_tolerance": 0.5})
-    with pytest.raises(RenderError, match="multisamples"):
+    with pytest.raises(ConfigError, match="multisamples must be 0..16"):
         get_registry().create("renderer", "mujoco", {"multisamples": 64})
+    # Built directly, the renderer checks the same schema.
+    with pytest.raises(ConfigError, match="multisamples must be 0..16"):
+        MujocoRenderer(multisamples=64)

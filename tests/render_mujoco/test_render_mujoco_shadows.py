@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from muble import SEG_TABLE, RenderError, get_registry
+from muble import SEG_TABLE, ConfigError, get_registry
 
 pytestmark = pytest.mark.gl
 
@@ -44,5 +44,5 @@ def test_shadow_options_change_the_rgb_only(generated_env):
 
 
 def test_shadow_size_out_of_range_is_refused():
-    with pytest.raises(RenderError, match="shadow_size must be 64..16384"):
+    with pytest.raises(ConfigError, match="shadow_size must be 64..16384"):
         get_registry().create("renderer", "mujoco", {"shadow_size": 16})

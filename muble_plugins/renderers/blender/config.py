@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from muble import bounded
+from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("CPU", "GPU", "auto")
@@ -21,8 +22,8 @@ class BlenderRendererConfig:
     adaptive sampling, 8 bounces of every kind, no fast GI, the high-quality OpenImageDenoise preset.
     """
 
-    width: int = bounded(848, ge=1)  # the SHOP-VRB2 camera's image, as the MuJoCo renderer: masks line up
-    height: int = bounded(480, ge=1)
+    width: int = bounded(DEFAULT_WIDTH, ge=1)  # the SHOP-VRB2 camera's image, as the MuJoCo renderer: masks line up
+    height: int = bounded(DEFAULT_HEIGHT, ge=1)
     engine: str = "CYCLES"  # CYCLES or BLENDER_EEVEE (EEVEE wants a GPU or a display)
     device: str = "CPU"  # CPU, GPU (CUDA/OptiX/HIP/oneAPI/Metal, first found) or auto (GPU if any)
     samples: int = bounded(8, ge=1)

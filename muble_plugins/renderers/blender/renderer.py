@@ -1,7 +1,6 @@
 """The Blender renderer: builds a scene once from the MuJoCo model, then renders keyframes with GT passes."""
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 import shutil
@@ -13,8 +12,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from muble.core.errors import ConfigError, RenderError, unknown_name
+from muble.core.errors import RenderError, unknown_name
 from muble.core.interfaces import Renderer
+from muble.core.ranges import configured
 from muble.core.types import SEG_BACKGROUND, SEG_TABLE, Frame
 
 from .config import BlenderRendererConfig
@@ -59,18 +59,15 @@ def _pass_dir() -> Path:
 class BlenderRenderer(Renderer):
     """Photoreal keyframes with Blender in-process; RGB, depth and segmentation from one render.
 
+    Built from a ``BlenderRendererConfig`` and/or keyword overrides of its fields (``BlenderRenderer(width=160,
+    samples=4)``), checked against the schema's types and bounds.
+
     Blender's data is process-global: one ``BlenderRenderer`` owns its own Blender scene, and ``setup``
     replaces whatever the previous ``setup`` built (orphan data is purged, so memory stays flat).
     """
 
-    def __init__(self, **options: Any) -> None:
-        names = {f.name for f in dataclasses.fields(BlenderRendererConfig)}
-        unknown = sorted(set(options) - names - {"name"})
-        if unknown:
-            raise ConfigError(f"unknown Blender renderer option(s) {unknown}; valid options: {sorted(names)}")
-        options.pop("name", None)
-        self.config = BlenderRendererConfig(**{k: (list(v) if isinstance(v, (tuple, list)) else v)
-                                               for k, v in options.items()})
+    def __init__(self, config: BlenderRendererConfig | None = None, **options: Any) -> None:
+        self.config = configured(BlenderRendererConfig, config, options, owner="renderer 'blender'")
         check_config(self.config)
         self._bscene = None
         self._geoms: np.ndarray = np.empty(0, dtype=int)

@@ -25,7 +25,7 @@ LIGHT_RIG = (
 
 
 def check_config(cfg: BlenderRendererConfig) -> None:
-    """Reject option values Blender would silently misread."""
+    """Reject option values Blender would silently misread (the schema's bounds are checked where it is built)."""
     if cfg.engine not in ENGINES:
         raise ConfigError(unknown_name("render engine", cfg.engine, ENGINES))
     if cfg.device not in DEVICES:
@@ -36,9 +36,6 @@ def check_config(cfg: BlenderRendererConfig) -> None:
         raise ConfigError(unknown_name("backdrop", cfg.backdrop, BACKDROPS))
     if cfg.denoiser_quality not in DENOISER_QUALITIES:
         raise ConfigError(unknown_name("denoiser quality", cfg.denoiser_quality, DENOISER_QUALITIES))
-    if cfg.width < 1 or cfg.height < 1 or cfg.samples < 1:
-        raise ConfigError(f"width, height and samples must be positive, got {cfg.width}x{cfg.height}, "
-                          f"{cfg.samples} samples")
     if cfg.engine == "BLENDER_EEVEE" and cfg.segmentation:
         raise ConfigError("EEVEE has no object-index pass for segmentation; use engine=CYCLES or "
                           "segmentation=false")

@@ -3,12 +3,15 @@ from __future__ import annotations
 
 import logging
 from contextlib import nullcontext
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from muble import Frame, RenderError, Renderer, SceneGraph, bounded
+from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 from muble.core.errors import unknown_name
+from muble.core.ranges import configured
 
 from muble_plugins.renderers.mujoco.atlas import ContextContents, MeshAtlas, atlas_compatible
 from muble_plugins.renderers.mujoco.labels import geom_labels
@@ -23,22 +26,22 @@ DEFAULT_SHADOW_SIZE = 1024
 class MujocoRendererConfig:
     """Image size and which outputs to draw (RGB is one pass; segmentation and depth share a second one)."""
 
-    width: int = bounded(848, ge=1)
-    height: int = bounded(480, ge=1)
+    width: int = bounded(DEFAULT_WIDTH, ge=1)  # the SHOP-VRB2 camera's image
+    height: int = bounded(DEFAULT_HEIGHT, ge=1)
     rgb: bool = True
     depth: bool = True
     segmentation: bool = True
     reuse_meshes: bool = True  # draw untextured models from a shared mesh atlas (no re-upload per scene)
     # Geom groups drawn: robosuite puts visual meshes in group 1 and collision shapes in group 0; object sets put
     # visual meshes in group 2 and convex collision parts in group 3. Sites are never drawn.
-    geom_groups: list[int] = field(default_factory=lambda: [1, 2])
+    geom_groups: list[int] = bounded(default_factory=lambda: [1, 2], ge=0, le=5, each=True, hint="MuJoCo geom groups")
     # Shadows of the model's shadow-casting lights (robosuite's world has three), each drawn from a square depth
     # map of ``shadow_size`` texels (None: the model's ``visual/quality/shadowsize``, MuJoCo's default 4096).
     # They are most of an RGB frame's cost on a software rasteriser; turning them off or shrinking the maps
     # changes the RGB image (depth and segmentation never carry shadows): benchmarks/keyframe_breakdown.py.
     # 1024: a quarter of the 4096² maps' cost for 0.07 % of a keyframe's pixels, along shadow edges.
     shadows: bool = True
-    shadow_size: int | None = DEFAULT_SHADOW_SIZE
+    shadow_size: int | None = bounded(DEFAULT_SHADOW_SIZE, ge=64, le=16384, hint="texels, or null for the model's own")
     # The floor's reflection (robosuite's floor reflects 1 %): drawing it draws the scene a second time.
     reflection: bool = True
     # Where the segmentation/depth pass (drawn first) shows no pixel of a reflecting plane or box (robosuite's stage
@@ -46,40 +49,25 @@ class MujocoRendererConfig:
     # less. True draws it whether seen or not (as before; only geometry below the floor could show it unseen).
     reflection_when_hidden: bool = False
     # Multisampling of the RGB pass (None: the model's ``visual/quality/offsamples``, robosuite's 4); 0 turns it off.
-    multisamples: int | None = None
+    multisamples: int | None = bounded(None, ge=0, le=16, hint="or null for the model's own")
     # Visual meshes of at least a thousand triangles drawn from decimated copies whose surface stays within this
     # many metres of every modelled vertex (None: as modelled); for small images, whose pixels are larger than the
     # tolerance (muble_plugins/renderers/mujoco/simplify.py).
-    mesh_tolerance: float | None = None
+    mesh_tolerance: float | None = bounded(None, gt=0, le=0.05, hint="m, or null for meshes as modelled")
 
 
 class MujocoRenderer(Renderer):
-    """Draws MuJoCo states with MuJoCo's own OpenGL renderer (EGL, else OSMesa)."""
+    """Draws MuJoCo states with MuJoCo's own OpenGL renderer (EGL, else OSMesa).
 
-    def __init__(self, width: int = 848, height: int = 480, rgb: bool = True, depth: bool = True,
-                 segmentation: bool = True, reuse_meshes: bool = True, geom_groups: list[int] | tuple = (1, 2),
-                 shadows: bool = True, shadow_size: int | None = DEFAULT_SHADOW_SIZE, reflection: bool = True,
-                 multisamples: int | None = None, mesh_tolerance: float | None = None,
-                 reflection_when_hidden: bool = False):
-        if width <= 0 or height <= 0:
-            raise RenderError(f"image size must be positive, got {width}x{height}; set renderer.width/height")
-        if not (rgb or depth or segmentation):
+    Built from a ``MujocoRendererConfig`` (the registry's checked instance) and/or keyword overrides of its fields
+    (``MujocoRenderer(width=320, height=240)``), checked against the schema's types and bounds.
+    """
+
+    def __init__(self, config: MujocoRendererConfig | None = None, **options: Any):
+        self.config = cfg = configured(MujocoRendererConfig, config, options, owner="renderer 'mujoco'")
+        if not (cfg.rgb or cfg.depth or cfg.segmentation):
             raise RenderError("nothing to draw: enable at least one of rgb, depth, segmentation")
-        if not all(0 <= int(g) < 6 for g in geom_groups):
-            raise RenderError(f"geom_groups must be MuJoCo groups 0..5, got {list(geom_groups)}")
-        if shadow_size is not None and not 64 <= int(shadow_size) <= 16384:
-            raise RenderError(f"shadow_size must be 64..16384 texels (or null for the model's own), got {shadow_size}")
-        if multisamples is not None and not 0 <= int(multisamples) <= 16:
-            raise RenderError(f"multisamples must be 0..16 (or null for the model's own), got {multisamples}")
-        if mesh_tolerance is not None and not 0 < float(mesh_tolerance) <= 0.05:
-            raise RenderError(f"mesh_tolerance must be 0..0.05 m (or null for meshes as modelled), got {mesh_tolerance}")
-        self.config = MujocoRendererConfig(width, height, rgb, depth, segmentation, reuse_meshes,
-                                           [int(g) for g in geom_groups], bool(shadows),
-                                           None if shadow_size is None else int(shadow_size), bool(reflection),
-                                           bool(reflection_when_hidden),
-                                           None if multisamples is None else int(multisamples),
-                                           None if mesh_tolerance is None else float(mesh_tolerance))
-        self._simplified = None if mesh_tolerance is None else SimplifiedMeshes(float(mesh_tolerance))
+        self._simplified = None if cfg.mesh_tolerance is None else SimplifiedMeshes(cfg.mesh_tolerance)
         self._gl = None
         self._context = None  # MjrContext
         self._context_model = None  # the model the context was made from, or whose meshes it was refilled with

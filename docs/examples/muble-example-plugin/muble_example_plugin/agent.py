@@ -8,8 +8,9 @@ observed objects, then runs a fixed script of registered primitives:
 - one that ends in ``pick_up``: grasp the object and lift it; where a ``filter_weight`` chooses among several
   ("Lift the lightest of all cylindrical objects.") it weighs each candidate first and lifts the extreme.
 
-Anything else (spatial filters, moves, stacks, several objects to measure, no program on the language track, no
-attribute words in masks mode) it does not attempt: it stops. It does not retry: after a failed primitive it
+Anything else (spatial filters, moves, stacks, several objects to measure; the language track, which gives no
+program; any observation mode but graph, which gives no attribute words: ``reset`` tells it both) it does not
+attempt: it stops. It does not retry: after a failed primitive it
 stops too, and the episode is judged as it stands. It sees only what every agent is given, never ground truth.
 """
 from __future__ import annotations
@@ -19,7 +20,7 @@ from collections.abc import Generator
 from dataclasses import dataclass
 
 import muble
-from muble import ActionCall, ActionResult, Answer, Instruction, Observation
+from muble import ActionCall, ActionResult, Answer, Instruction, Observation, ObservationMode, Track
 
 log = logging.getLogger(__name__)
 
@@ -47,8 +48,10 @@ class GreedyAgent(muble.Agent):
         self.script: Script | None = None
         self.last: ActionCall | Answer | None = None
 
-    def reset(self, instruction: Instruction, observation: Observation) -> None:
-        self.script = self._script(instruction.program, observation.scene)
+    def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
+              mode: ObservationMode = ObservationMode.graph) -> None:
+        attempted = track == Track.program and mode == ObservationMode.graph
+        self.script = self._script(instruction.program, observation.scene) if attempted else None
         self.last = None
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
