@@ -64,8 +64,8 @@ def summary(values: list[int]) -> dict:
 
 
 def main() -> None:
-    from muble.core.instructions_io import SHOPVRB2_TEMPLATES
     from muble.generation.task_mix import template_weights
+    from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=1000)

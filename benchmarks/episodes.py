@@ -27,9 +27,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 def setup(episodes: int):
     from muble.app.config import compose
-    from muble.core.instructions_io import SHOPVRB2_TEMPLATES
     from muble.episode.components import build_components, scene_generator
     from muble.generation.task_mix import choose_from_mix as choose_instruction
+    from muble.io.instructions_io import SHOPVRB2_TEMPLATES
     from muble.plugins.registry import get_registry
 
     cfg = compose("run", ["output.dir=/tmp", "dataset.root=/tmp"])

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from muble import Outcome
-from muble.core.scene_io import load_scenes
+from muble.io.scene_io import load_scenes
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.episodes import run_symbolic_episode
 from muble_plugins.common.synthetic import sample_scenes

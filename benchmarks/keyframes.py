@@ -33,10 +33,12 @@ import logging
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
 
 GOAL_SECONDS = 0.3
 BEFORE_PNG_LEVEL = 6  # Pillow's default, what png_bytes wrote before level 1
@@ -151,9 +153,9 @@ def main() -> int:
     import muble_plugins.renderers.mujoco.gl as gl
     from muble.app.config import compose
     from muble.app.run import build_components, scene_generator
-    from muble.core.image_likeness import ssim
     from muble.sim.build import object_models
     from muble.sim.env import TabletopEnv
+    from tests.support.image_likeness import ssim
 
     logging.basicConfig(level=logging.WARNING)
     episodes = int(sys.argv[1]) if len(sys.argv) > 1 else 3

@@ -105,7 +105,7 @@ def run_seed(args, seed: int) -> dict:
 
 
 def main() -> None:
-    from muble.core.instructions_io import SHOPVRB2_TEMPLATES
+    from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--scenes", type=int, default=10, help="scenes per template (acceptance: 30)")

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
 
 DEFAULT_REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "muble-demo"
 SCENES_FILE = "NS_AP_demo_scenes.json"
@@ -46,7 +47,7 @@ class MissingReference(Exception):
 
 def reference_scenes(folder: Path, wanted: list[int] | None) -> list[tuple[object, Path]]:
     """(scene, original frame) of each wanted scene index (default: every scene whose frame is in ``images/``)."""
-    from muble.core.scene_io import load_scenes
+    from muble.io.scene_io import load_scenes
 
     if not folder.is_dir():
         raise MissingReference(f"--reference {folder}: no such folder; it should hold {SCENES_FILE} and images/ "
@@ -86,9 +87,9 @@ def _original_frame(path: Path, size: tuple[int, int]) -> np.ndarray:
 
 def compare(scene, original: np.ndarray, rgb: np.ndarray, segmentation: np.ndarray) -> dict:
     """Scores of one rendered frame against the scene file's masks and the original frame (same size)."""
-    from muble.core.image_likeness import ciede2000, mask_iou, mean_lab, ssim
     from muble.core.types import SEG_ROBOT, SEG_TABLE
     from muble.generation.ground_truth import decode_mask
+    from tests.support.image_likeness import ciede2000, mask_iou, mean_lab, ssim
 
     size = (rgb.shape[1], rgb.shape[0])
     objects = []
@@ -172,8 +173,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from muble.app.render import renderer_options
-    from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
     from muble.core.errors import ConfigError
+    from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 
     args = _parser().parse_args(argv)
     try:
@@ -224,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.sheet:
         from PIL import Image
 
-        from muble.core.image_grid import contact_sheet
+        from muble.io.image_grid import contact_sheet
 
         Image.fromarray(contact_sheet(sheet, columns=2, width=min(424, width), labels=labels)).save(args.sheet)
     print(json.dumps({

@@ -14,14 +14,18 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 import time
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from muble.core.types import Trajectory
-from muble.sim.env import TabletopEnv
-from muble.testing import five_object_scene
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
+
+from muble.core.types import Trajectory  # noqa: E402
+from muble.sim.env import TabletopEnv  # noqa: E402
+from tests.support.scenes import five_object_scene  # noqa: E402
 
 SIM_SECONDS = 10.0
 REPEATS = 3

@@ -12,13 +12,17 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from muble import JointGoal, PlanningError, Pose, PoseGoal
-from muble_plugins.planners.ompl_planner import OmplPlanner
-from muble.sim.tabletop import build_tabletop
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
+
+from muble import JointGoal, PlanningError, Pose, PoseGoal  # noqa: E402
+from muble_plugins.planners.ompl_planner import OmplPlanner  # noqa: E402
+from tests.support.tabletop import build_tabletop  # noqa: E402
 
 
 def random_boxes(rng: np.random.Generator, table_z: float) -> list:

@@ -41,8 +41,8 @@ class Layouts:
 
     def __init__(self, count: int):
         from muble import get_registry
-        from muble.core.scene_io import scene_from_dict
         from muble.generation.reachability import ReachCheck
+        from muble.io.scene_io import scene_from_dict
         from muble.sim.build import object_models
 
         with gzip.open(FIXTURE, "rt") as f:

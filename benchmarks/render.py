@@ -19,7 +19,7 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
-from muble.testing.render_world import build_world, random_scene  # noqa: E402
+from muble_plugins.renderers.render_world import build_world, random_scene  # noqa: E402
 
 CAMERA = "frontview"
 BLOCK = 2  # keyframes per block; blocks go passes, RGB only, passes, RGB only

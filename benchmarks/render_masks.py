@@ -52,9 +52,9 @@ def main() -> int:
     from muble import get_registry
     from muble.app.config import compose
     from muble.episode.components import build_components, scene_generator
-    from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
     from muble.sim.build import object_models
     from muble.sim.env import TabletopEnv
+    from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
     from muble_plugins.renderers.blender import BlenderRenderer
 
     scenes = int(sys.argv[1]) if len(sys.argv) > 1 else 20

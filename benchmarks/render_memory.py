@@ -16,7 +16,7 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
-from muble.testing.render_world import build_world, random_scene  # noqa: E402
+from muble_plugins.renderers.render_world import build_world, random_scene  # noqa: E402
 
 SCENES, KEYFRAMES, WARM_UP = 20, 10, 3
 

@@ -136,9 +136,9 @@ def render_with(renderer, settings: dict, data, camera: str) -> tuple[np.ndarray
 def main() -> int:
     from omegaconf import OmegaConf
 
-    from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
     from muble.sim.build import object_models
     from muble.sim.env import TabletopEnv
+    from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
     from muble_plugins.renderers.blender import BlenderRenderer
     from muble_plugins.renderers.blender.config import BlenderRendererConfig
 
@@ -201,7 +201,7 @@ def main() -> int:
     if args.sheet:
         from PIL import Image
 
-        from muble.core.image_grid import contact_sheet
+        from muble.io.image_grid import contact_sheet
 
         column = names.index(chosen) + 1 if chosen else 1
         images = [im for row in sheet_rows for im in (row[column], row[0])]

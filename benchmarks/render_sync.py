@@ -9,20 +9,18 @@ import json
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
 
 from muble import SEG_ROBOT, SEG_TABLE  # noqa: E402
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
 from muble_plugins.renderers.blender.labels import geom_labels  # noqa: E402
-from muble.testing.render_world import (  # noqa: E402
-    build_world,
-    mask_iou,
-    mujoco_reference,
-    random_scene,
-)
+from muble_plugins.renderers.render_world import build_world, random_scene  # noqa: E402
+from tests.support.render_check import mask_iou, mujoco_reference  # noqa: E402
 
 SCENES, WIDTH, HEIGHT = 20, 320, 240
 CAMERAS = ("frontview", "agentview")

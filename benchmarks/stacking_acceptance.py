@@ -10,13 +10,17 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from muble import MubleError, get_registry
-from muble.sim.env import TabletopEnv
-from muble.testing import simple_scene
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
+
+from muble import MubleError, get_registry  # noqa: E402
+from muble.sim.env import TabletopEnv  # noqa: E402
+from tests.support.scenes import simple_scene  # noqa: E402
 
 A_AT, B_AT = (0.42, -0.20), (0.52, 0.12)  # m on the table top, in reach of every supported arm
 

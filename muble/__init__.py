@@ -1,5 +1,5 @@
 """MuBlE: a simulation environment and benchmark for task planning in robot manipulation."""
-from muble.core.quiet import quiet_third_party
+from muble.quiet import quiet_third_party
 
 # Before anything imports robosuite: its messages about optional parts MuBlE does not use are dropped in every
 # process that imports MuBlE, spawned workers included (MUBLE_VERBOSE=1 keeps them).

@@ -3,8 +3,8 @@
     python scripts/api_reference.py            # HTML into docs/api/ (not kept in git: it is made from the code)
     python scripts/api_reference.py --out DIR
 
-The public API is what plugins and agents use: the ``muble`` package's exports (``muble.__all__``) and the core
-modules the plugin guide (docs/plugins.md) points to. The test suite builds it too and fails on a public name
+The public API is what plugins and agents use: the ``muble`` package's exports (``muble.__all__``) and the
+modules of ``muble.core``, ``muble.stage`` and ``muble.programs`` the plugin guide (docs/plugins.md) points to. The test suite builds it too and fails on a public name
 without a docstring, so the reference cannot fall behind the code.
 """
 from __future__ import annotations
@@ -14,9 +14,9 @@ import sys
 from pathlib import Path
 
 # What docs/plugins.md sends a plugin writer to, beside the package's exports.
-API_MODULES = ("muble", "muble.core.types", "muble.core.program", "muble.core.descriptions", "muble.core.symbolic",
-               "muble.core.observation", "muble.core.footprint", "muble.core.object_physics", "muble.core.params",
-               "muble.core.training", "muble.episode.loop", "muble.episode.modes")
+API_MODULES = ("muble", "muble.core.types", "muble.programs.program", "muble.programs.descriptions",
+               "muble.core.symbolic", "muble.core.observation", "muble.stage.footprint", "muble.core.object_physics",
+               "muble.core.params", "muble.core.training", "muble.episode.loop", "muble.episode.modes")
 
 
 def undocumented(modules: tuple[str, ...] = API_MODULES) -> list[str]:

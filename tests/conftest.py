@@ -2,9 +2,15 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
+from typing import Callable, Iterator
 
 import pytest
+
+from muble.plugins.manager import make_plugin_manager
+from muble.plugins.registry import Registry
+from tests.support.plugins import clear_caches, write_distribution
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -48,3 +54,31 @@ def clear_hydra():
     GlobalHydra.instance().clear()
     yield
     GlobalHydra.instance().clear()
+
+
+@pytest.fixture
+def muble_registry() -> Iterator[Registry]:
+    """A fresh registry built from the installed entry points (no cached state)."""
+    clear_caches()
+    yield Registry(make_plugin_manager())
+    clear_caches()
+
+
+@pytest.fixture
+def fake_distribution(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[..., Path]]:
+    """A factory that writes an installed-looking distribution (dist-info with entry points, plus modules) into a
+    temporary folder on ``sys.path``, so a test exercises real entry-point discovery."""
+    added: list[str] = []
+
+    def make(name: str, entry_points: dict[str, str], modules: dict[str, str]) -> Path:
+        root = write_distribution(tmp_path / f"site-{name}", name, entry_points, modules)
+        monkeypatch.syspath_prepend(str(root))
+        added.extend(m.split(".")[0] for m in modules)
+        clear_caches()
+        return root
+
+    yield make
+    for module in set(added):
+        for key in [k for k in sys.modules if k == module or k.startswith(module + ".")]:
+            del sys.modules[key]
+    clear_caches()

@@ -74,7 +74,7 @@ def check_gl_backend() -> str | None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from muble.core.quiet import quiet_third_party
+    from muble.quiet import quiet_third_party
 
     argv = list(sys.argv[1:] if argv is None else argv)
     verbose = "--verbose" in argv

@@ -23,10 +23,10 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--out", default="compare", help="folder for compare.md, compare.json and compare.png "
                                                          "(default: ./compare; created if missing)")
     args = parser.parse_args(argv)
-    from muble.core.atomic import check_output_folder, staged_folder
     from muble.evaluation.compare import CHART, chart_groups, compare, labelled, markdown, text
     from muble.evaluation.plot import interval_chart
     from muble.evaluation.results import read_results
+    from muble.io.atomic import check_output_folder, staged_folder
 
     out = check_output_folder(Path(args.out), "--out")
     folders = [Path(r) for r in args.runs]

@@ -14,10 +14,10 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
-from muble.core.instructions_io import SHOPVRB2_TEMPLATES
 from muble.core.ranges import bounded
 from muble.core.types import ObservationMode, Track
 from muble.episode.components import GROUP_OF_KIND
+from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 from muble.plugins.registry import Registry
 
 HYDRA_VERSION_BASE = "1.3"
@@ -50,7 +50,7 @@ class OutputConfig:
 
 
 class ActionNameStyle(str, Enum):
-    """How sequence files name the primitives (``muble.core.action_names``)."""
+    """How sequence files name the primitives (``muble.io.action_names``)."""
 
     registry = "registry"
     original = "original"

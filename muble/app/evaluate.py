@@ -27,10 +27,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
-from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError
-from muble.core.layout import DatasetLayout
-from muble.core.manifest import make_manifest, sha256_file
 from muble.dataset.executors import run_all
 from muble.dataset.production import cached_components
 from muble.dataset.protocol import check_data, protocol_of, select_split, shipped_archive, shipped_root
@@ -42,6 +39,9 @@ from muble.evaluation.report import (OVERALL, bad_entry_table, failure_table, ma
 from muble.evaluation.results import RESULTS_FILE, results_document
 from muble.evaluation.resume import RECORDS, EpisodeLog, claim_folder, run_settings
 from muble.evaluation.split import SplitIndices, check_split
+from muble.io.atomic import write_bytes_atomic
+from muble.io.layout import DatasetLayout
+from muble.io.manifest import make_manifest, sha256_file
 
 log = logging.getLogger(__name__)
 

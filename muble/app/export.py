@@ -22,9 +22,9 @@ def main(argv: list[str]) -> int:
                         help="recorded as robot_type in meta/info.json (default: the dataset's robot)")
     parser.add_argument("--repo-id", default="muble/shopvrb2", help="the dataset's LeRobot repo id")
     args = parser.parse_args(argv)
-    from muble.core.atomic import check_output_folder, staged_folder
-    from muble.core.layout import check_split_name
     from muble.dataset.lerobot import check_split, require_lerobot, write_lerobot
+    from muble.io.atomic import check_output_folder, staged_folder
+    from muble.io.layout import check_split_name
 
     check_split_name(args.split, "--split")
     dataset, out = Path(args.dataset), Path(args.out)

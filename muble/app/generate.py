@@ -14,15 +14,15 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
-from muble.core.atomic import TMP_PREFIX, remove_stale_temporaries, write_bytes_atomic
 from muble.core.errors import ConfigError
-from muble.core.layout import DatasetLayout
-from muble.core.manifest import make_manifest, sha256_file
 from muble.dataset.executors import run_all
 from muble.dataset.identity import check_or_store_identity
 from muble.dataset.lock import RunLock
 from muble.dataset.production import IndexJob, produce_index, split_seed
 from muble.dataset.protocol import PROTOCOL_FILE, check_data, check_regenerates, protocol_of, select_split
+from muble.io.atomic import TMP_PREFIX, remove_stale_temporaries, write_bytes_atomic
+from muble.io.layout import DatasetLayout
+from muble.io.manifest import make_manifest, sha256_file
 
 log = logging.getLogger(__name__)
 
@@ -180,7 +180,7 @@ def _job(cfg: DictConfig, root: Path) -> dict:
 
 def check_root(cfg: DictConfig) -> None:
     """Refuse a ``dataset.root`` that is a file or cannot be written, before anything is created."""
-    from muble.core.atomic import check_output_folder
+    from muble.io.atomic import check_output_folder
 
     check_output_folder(cfg.dataset.root, "dataset.root")
 

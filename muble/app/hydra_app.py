@@ -13,8 +13,8 @@ from omegaconf import DictConfig, OmegaConf
 from muble.app.config import CONFIG_MODULE, HYDRA_VERSION_BASE, register_configs, searchpath_override
 from muble.app.usage import USAGE_EXIT_CODE, environment_error, explain_config_error, hydra_usage_errors, report
 from muble.core.errors import MubleError
-from muble.core.layout import check_split_name
 from muble.core.ranges import check_ranges
+from muble.io.layout import check_split_name
 from muble.plugins.registry import get_registry
 
 log = logging.getLogger(__name__)

@@ -4,7 +4,7 @@
                  [--object-set NAME] [--out DIR] [--set samples=16 --set width=320 …] [--passes]
 
 ``EPISODE_states.npz`` is the keyframe state file ``muble run`` writes beside an episode's keyframes
-(``keyframes/<episode>_states.npz``, see ``muble.core.keyframe_states``): ``qpos``, an array (keyframes, nq) of
+(``keyframes/<episode>_states.npz``, see ``muble.io.keyframe_states``): ``qpos``, an array (keyframes, nq) of
 MuJoCo joint positions of the scene's world, one row per keyframe, and the robot, object set and camera the
 episode used (the defaults of ``--robot``, ``--object-set`` and ``--camera``). Without it the scene's initial
 state is rendered once. The renderer, and an object set that neither the command line nor the keyframe states
@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from muble.core.errors import ConfigError
-from muble.core.image_grid import contact_sheet
 from muble.core.types import SEG_ROBOT, SEG_TABLE, Frame
+from muble.io.image_grid import contact_sheet
 
 log = logging.getLogger(__name__)
 
@@ -118,9 +118,9 @@ def _check_name(registry: Any, kind: str, name: str, flag: str) -> None:
 
 
 def main(argv: list[str]) -> int:
-    from muble.core.atomic import check_output_folder, staged_folder
-    from muble.core.keyframe_states import read_keyframe_states
-    from muble.core.scene_io import check_input_file, load_scene
+    from muble.io.atomic import check_output_folder, staged_folder
+    from muble.io.keyframe_states import read_keyframe_states
+    from muble.io.scene_io import check_input_file, load_scene
     from muble.plugins.registry import get_registry, validate_params
 
     args = _parser().parse_args(argv)

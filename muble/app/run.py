@@ -16,10 +16,10 @@ from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
 from muble.core.errors import MubleError
-from muble.core.manifest import make_manifest
-from muble.core.scene_io import write_json_atomic
 from muble.episode.components import build_components, episode_runner, scene_generator
 from muble.episode.runner import KeyframeStateRecorder
+from muble.io.manifest import make_manifest
+from muble.io.scene_io import write_json_atomic
 
 log = logging.getLogger(__name__)
 

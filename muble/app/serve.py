@@ -24,7 +24,7 @@ from muble.remote.wire import DEFAULT_HOST, DEFAULT_PORT, HARD_LIMIT_BYTES, MAX_
 log = logging.getLogger(__name__)
 
 MAX_SESSIONS_LIMIT = 64  # episodes open at once: each holds a MuJoCo world (and a renderer) in memory
-MAX_OBJECTS_LIMIT = 1000  # the scene files' own bound (muble.core.scene_io.MAX_OBJECTS)
+MAX_OBJECTS_LIMIT = 1000  # the scene files' own bound (muble.io.scene_io.MAX_OBJECTS)
 MIN_REQUEST_BYTES = 1024  # a reset of a generated scene fits; less would refuse every request
 LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s: %(message)s"
 
@@ -103,8 +103,8 @@ def episode_factory(overrides: tuple[str, ...], render: bool, verbose: bool) -> 
     """The ``EpisodeFactory`` of ``muble serve``'s config, built inside the simulation process (a fresh
     interpreter: the command line's quiet logging is set up here again)."""
     from muble.app.config import compose
-    from muble.core.quiet import quiet_third_party
     from muble.episode.sources import EpisodeFactory
+    from muble.quiet import quiet_third_party
 
     quiet_third_party(verbose)
     logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format=LOG_FORMAT)

@@ -18,10 +18,10 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
-from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError
-from muble.core.manifest import make_manifest
 from muble.core.training import TrainingRun
+from muble.io.atomic import write_bytes_atomic
+from muble.io.manifest import make_manifest
 from muble.plugins.registry import get_registry
 
 log = logging.getLogger(__name__)

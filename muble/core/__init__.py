@@ -1,1 +1,2 @@
-"""The MuBlE core: interfaces, value types, errors and the scene graph. It never imports a plugin."""
+"""The MuBlE core: the data model (value types, errors, object models, the scene graph) and the plugin interfaces.
+It never imports a plugin."""

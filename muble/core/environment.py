@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol, runtime_checkable
 
 import numpy as np
 
-from muble.core.table import TABLE_MARGIN
-from muble.core.table import part_region as _part_region
 from muble.core.types import Pose, Trajectory
+from muble.stage.table import TABLE_MARGIN
+from muble.stage.table import part_region as _part_region
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
@@ -53,7 +53,7 @@ class TableTop:
 
     def part_region(self, part: str, margin: float = TABLE_MARGIN) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) corners in x, y where a placed object's centre goes to lie in a named part of the table:
-        the part of ``muble.core.table`` (the definition tasks and success checks share), kept ``margin`` inside
+        the part of ``muble.stage.table`` (the definition tasks and success checks share), kept ``margin`` inside
         this top's edges."""
         lo, hi = self.centre - self.half, self.centre + self.half
         (x0, x1), (y0, y1) = _part_region(part, ((lo[0], hi[0]), (lo[1], hi[1])), margin)

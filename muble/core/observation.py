@@ -77,7 +77,7 @@ def agent_view(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | 
 # Keys of a program step an agent may see. The recorded ``output`` of a step is ground truth (the target ids
 # chosen on the initial scene, the true weights of a ``query_weight``), and so is the recorded ``input``: it holds
 # the previous step's output (after a ``filter_weight`` it names the lightest object), so both are left out. The
-# chain structure needs neither (``muble.core.program``: each step takes the output of the one before).
+# chain structure needs neither (``muble.programs.program``: each step takes the output of the one before).
 PROGRAM_STEP_KEYS = ("type", "input_value", "side_inputs", "value_inputs")
 
 

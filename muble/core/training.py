@@ -14,7 +14,7 @@ class TrainingRun:
     ``out_dir`` holds the run's checkpoints and figures; ``seed`` decides the data it builds and its training
     (same seed, same checkpoint); ``resume`` continues from the last checkpoint in ``out_dir`` (one recorded under
     another config is refused); ``record`` is what every checkpoint stores beside the weights: the composed
-    config, the seeds, the package versions and the code revision (``muble.core.manifest.make_manifest``);
+    config, the seeds, the package versions and the code revision (``muble.io.manifest.make_manifest``);
     ``progress`` shows a progress bar; ``protocol`` is the frozen protocol's settings for the training split
     (object pool, property ranges) or None; ``data_root`` a dataset folder written by ``muble generate`` for
     trainers that learn from rendered scenes (None: the trainer builds its own data).

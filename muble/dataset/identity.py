@@ -8,8 +8,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError
+from muble.io.atomic import write_bytes_atomic
 
 IDENTITY_FILE = "dataset_config.json"
 
@@ -101,7 +101,7 @@ def _renamed(key: str, value: Any) -> Any:
     if key == "generator.stage" and value is None:
         # A generator without a stage made robosuite's scenes (files naming none), as generator.stage=robosuite
         # (the default, and the protocol's) does: a folder made before still resumes.
-        from muble.core.table import UNNAMED_STAGE
+        from muble.stage.table import UNNAMED_STAGE
 
         return UNNAMED_STAGE
     return value

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from muble.core.errors import ConfigError, SceneValidationError
-from muble.core.layout import DatasetLayout
+from muble.io.layout import DatasetLayout
 
 IMAGE_KEY = "observation.images.front"
 STATE_NAMES = ["x", "y", "z", "qw", "qx", "qy", "qz", "gripper"]
@@ -61,7 +61,7 @@ def require_lerobot() -> None:
 def read_sequence(path: Path, split_dir: Path) -> dict[str, Any]:
     """A sequence file, checked for what the export reads: a ``SceneValidationError`` names the file and the
     missing or malformed field (a truncated or hand-edited file), a ``ConfigError`` a missing keyframe image."""
-    from muble.core.scene_io import read_json
+    from muble.io.scene_io import read_json
 
     sequence = read_json(path)
     try:

@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from muble.core.atomic import write_bytes_atomic
-from muble.core.layout import DatasetLayout
 from muble.generation.ground_truth import apply_masks
+from muble.io.atomic import write_bytes_atomic
+from muble.io.layout import DatasetLayout
 
 log = logging.getLogger(__name__)
 
@@ -77,12 +77,12 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
     ``episode.planning``, ``episode.keyframes``; ``image`` without sequences; ``writing``: encoding and files)."""
     stage = timings if timings is not None else collections.Counter()
     began = time.perf_counter()
-    from muble.core.instructions_io import instruction_to_dict
-    from muble.core.scene_io import scene_to_dict
     from muble.episode.components import image_size
     from muble.episode.runner import KeyframeStateRecorder, instruction_rng, png_bytes, write_episode
     from muble.generation.generator import SceneGenerator
     from muble.generation.task_mix import suited_scene, template_weights
+    from muble.io.instructions_io import instruction_to_dict
+    from muble.io.scene_io import scene_to_dict
     from muble.plugins.registry import get_registry
 
     from muble.dataset.protocol import split_config

@@ -30,10 +30,10 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from muble.core.atomic import check_output_folder, staged_folder
 from muble.core.errors import ConfigError, unknown_name
-from muble.core.layout import DatasetLayout
-from muble.core.manifest import sha256_file
+from muble.io.atomic import check_output_folder, staged_folder
+from muble.io.layout import DatasetLayout
+from muble.io.manifest import sha256_file
 
 DATA_FOLDERS = ("scenes", "instructions")
 ARCHIVE = "{name}.{split}.tar.xz"  # a split's shipped files, beside the protocol's config in muble_conf/protocol
@@ -266,7 +266,7 @@ def write_split(protocol: dict[str, Any], split: str, out: str | Path) -> Path:
 def _add_to_manifest(root: Path, protocol: dict[str, Any], split: str, files: dict[str, bytes]) -> None:
     """List the split's files in ``root/manifest.json`` (with their sha256, as ``muble generate`` lists what it
     wrote), keeping the entries of other splits already there, so readers find the split's indices in it."""
-    from muble.core.atomic import write_bytes_atomic
+    from muble.io.atomic import write_bytes_atomic
 
     path = root / "manifest.json"
     try:

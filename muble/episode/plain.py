@@ -16,8 +16,8 @@ import numpy as np
 
 from muble.core.errors import SceneValidationError
 from muble.core.scene import SceneGraph
-from muble.core.scene_io import scene_from_dict, scene_to_dict
 from muble.core.types import ActionCall, ActionResult, Answer, Observation
+from muble.io.scene_io import scene_from_dict, scene_to_dict
 
 
 def plain(value: Any) -> Any:

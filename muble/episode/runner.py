@@ -17,16 +17,16 @@ from typing import Any
 import numpy as np
 
 from muble.core import streams
-from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.interfaces import Instruction, MotionPlanner, Renderer, Task
 from muble.core.scene import SceneGraph
-from muble.core.scene_io import scene_to_dict
 from muble.core.types import Frame
 from muble.episode.loop import EpisodeResult, StepRecord, run_episode
 from muble.episode.physical import PhysicalWorld
 from muble.episode.sequence import sequence_dict
 from muble.generation.ground_truth import apply_masks
+from muble.io.atomic import write_bytes_atomic
+from muble.io.scene_io import scene_to_dict
 
 log = logging.getLogger(__name__)
 
@@ -159,7 +159,7 @@ class KeyframeStateRecorder(Renderer):
     def keyframe_states(self, output: "EpisodeOutput", robot: str, object_set: str, camera: str):
         """The recorded states as a ``KeyframeStates`` (one per keyframe of ``output``), or ``None`` with a
         warning when they do not match the keyframes one to one."""
-        from muble.core.keyframe_states import KeyframeStates
+        from muble.io.keyframe_states import KeyframeStates
 
         if not self.states or len(self.states) != len(output.keyframes):
             log.warning("keyframe states not written: %d states for %d keyframes", len(self.states),
@@ -259,7 +259,7 @@ def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool =
     """Write keyframes, GIF and sequence file atomically; returns {relative path: sha256}.
 
     ``action_names``: ``registry`` or ``original`` primitive names in the sequence file. ``states``: the
-    keyframes' MuJoCo states (``muble.core.keyframe_states.KeyframeStates``), written as
+    keyframes' MuJoCo states (``muble.io.keyframe_states.KeyframeStates``), written as
     ``keyframes/<stem>_states.npz`` for ``muble render --keyframes``."""
     written: dict[str, str] = {}
     paths = []
@@ -271,7 +271,7 @@ def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool =
         rel = f"keyframes/{stem}.gif"
         written[rel] = write_bytes_atomic(directory / rel, gif_bytes(output.keyframes))
     if states is not None:
-        from muble.core.keyframe_states import keyframe_states_bytes
+        from muble.io.keyframe_states import keyframe_states_bytes
 
         rel = f"keyframes/{stem}_states.npz"
         written[rel] = write_bytes_atomic(directory / rel, keyframe_states_bytes(states))

@@ -5,13 +5,13 @@ from typing import Any
 
 import numpy as np
 
-from muble.core.action_names import check_style, named
 from muble.core.interfaces import Instruction
 from muble.core.scene import SceneGraph
-from muble.core.scene_io import object_to_dict
 from muble.core.types import SEG_ROBOT, SEG_TABLE, ActionCall, Observation
 from muble.episode.loop import EpisodeResult
 from muble.generation.ground_truth import encode_mask
+from muble.io.action_names import check_style, named
+from muble.io.scene_io import object_to_dict
 
 _FLAGS = ("in_hand", "raised", "approached", "gripper_over")
 
@@ -72,7 +72,7 @@ def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths:
                   camera: str = "front", action_names: str = "registry", registry: Any = None) -> dict[str, Any]:
     """The sequence file: ``observations`` as the agent saw them, ``observations_gt`` with ground truth too.
 
-    ``action_names="original"`` writes the original release's primitive names (``muble.core.action_names``).
+    ``action_names="original"`` writes the original release's primitive names (``muble.io.action_names``).
     ``registry`` (default: the plugin registry) tells which primitives measure a weight.
     """
     if registry is None:

@@ -151,9 +151,9 @@ class EpisodeFactory:
 
     def stored(self, split: str, index: int, root: str | Path | None = None) -> EpisodeSpec:
         """The stored scene and instruction of ``split``/``index`` under ``root`` (default ``dataset.root``)."""
-        from muble.core.instructions_io import load_instruction
-        from muble.core.layout import DatasetLayout
-        from muble.core.scene_io import load_scene
+        from muble.io.instructions_io import load_instruction
+        from muble.io.layout import DatasetLayout
+        from muble.io.scene_io import load_scene
 
         if not isinstance(split, str) or not _SPLIT_NAME.match(split):
             raise ConfigError(f"split must be a plain name (letters, digits, '_', '-'), got {split!r:.40}")
@@ -172,8 +172,8 @@ class EpisodeFactory:
 
     def from_data(self, scene: Any, instruction: Any) -> EpisodeSpec:
         """A scene and an instruction given as SHOP-VRB2 JSON data (dicts); ``SceneValidationError`` if malformed."""
-        from muble.core.instructions_io import instruction_from_dict
-        from muble.core.scene_io import scene_from_dict
+        from muble.io.instructions_io import instruction_from_dict
+        from muble.io.scene_io import scene_from_dict
 
         parsed = instruction_from_dict(instruction)
         return EpisodeSpec(scene_from_dict(scene), parsed, self.task(parsed.template_id), {"kind": "data"})

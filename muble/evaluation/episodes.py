@@ -16,12 +16,12 @@ from pathlib import Path
 from typing import Any
 
 from muble.core.errors import MubleError, PhysicsError, SceneValidationError, unknown_name
-from muble.core.layout import DatasetLayout
 from muble.core.types import Outcome
 from muble.dataset.production import IndexJob, cached_components
 from muble.core.symbolic import ArmState
 from muble.episode.plain import plain
 from muble.evaluation.report import UNKNOWN
+from muble.io.layout import DatasetLayout
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +63,7 @@ def ground_truth_counts(record: dict[str, Any]) -> dict[str, int]:
     """``ground_truth_primitives`` and ``ground_truth_measurements`` of a stored instruction record: the length of
     its ground-truth action sequence (the oracle's plan, ``[name, params]`` per primitive) and how many of those
     actions measure. Names in the original release's spelling count as the primitives they stand for."""
-    from muble.core.action_names import from_original
+    from muble.io.action_names import from_original
 
     actions = record.get("ground_truth_actions", [])
     measuring = measuring_primitives()
@@ -123,8 +123,8 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     result = output.result
     written = []
     if cfg["evaluation"]["render"] and cfg["evaluation"]["keyframes"] and output.keyframes:
-        from muble.core.atomic import write_bytes_atomic
         from muble.episode.runner import png_bytes
+        from muble.io.atomic import write_bytes_atomic
 
         folder = Path(cfg["output"]["dir"]) / "keyframes" / layout.stem(job.index)
         for i, rgb in enumerate(output.keyframes):
@@ -161,7 +161,7 @@ def agent_stats(agent: Any) -> dict[str, float] | None:
 def _instruction_checked(job: EvalJob, out: dict[str, Any], record: dict[str, Any], instruction: Any,
                          instruction_file: Any, instruction_name: str) -> dict[str, Any] | None:
     """Fill the record from the instruction; a failed record when its template is not registered."""
-    from muble.core.scene_io import in_file
+    from muble.io.scene_io import in_file
     from muble.plugins.registry import get_registry
 
     out.update(task=instruction.task_id, instruction=instruction.instruction, **ground_truth_counts(record))
@@ -198,8 +198,8 @@ def _from_files(job: EvalJob, out: dict[str, Any]) -> dict[str, Any] | tuple:
 
 def _from_dataset(job: EvalJob, out: dict[str, Any], layout: DatasetLayout) -> dict[str, Any] | tuple:
     """The stored scene and instruction of ``job.index`` in a generated dataset split."""
-    from muble.core.instructions_io import load_instruction
-    from muble.core.scene_io import load_scene
+    from muble.io.instructions_io import load_instruction
+    from muble.io.scene_io import load_scene
 
     scene_file, instruction_file = (layout.split_dir / layout.scene(job.index),
                                     layout.split_dir / layout.instruction(job.index))

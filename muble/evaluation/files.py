@@ -35,7 +35,7 @@ class EpisodeFiles:
     scenes: tuple[Any, ...]
 
     def instruction(self, index: int) -> tuple[dict[str, Any], Instruction]:
-        from muble.core.instructions_io import instruction_from_dict
+        from muble.io.instructions_io import instruction_from_dict
 
         record = self.instructions[index]
         return record, instruction_from_dict(record, index)
@@ -43,7 +43,7 @@ class EpisodeFiles:
     def scene_for(self, instruction: Instruction) -> SceneGraph:
         """The scene of ``instruction``: the one with its ``image_filename``, else the one with its
         ``image_index``; ``SceneValidationError`` when neither is there or the scene record is malformed."""
-        from muble.core.scene_io import scene_from_dict
+        from muble.io.scene_io import scene_from_dict
 
         def find(key: str, value: Any) -> list[int]:
             return [i for i, s in enumerate(self.scenes) if isinstance(s, dict) and s.get(key) == value]
@@ -71,7 +71,7 @@ def split_name(instructions_file: str | Path) -> str:
 
 
 def _scene_records(path: Path) -> list[Any]:
-    from muble.core.scene_io import read_json
+    from muble.io.scene_io import read_json
 
     if path.is_dir():
         return [read_json(p) for p in sorted(path.glob("*.json"))]
@@ -86,7 +86,7 @@ def _scene_records(path: Path) -> list[Any]:
 
 @functools.lru_cache(maxsize=4)
 def _load(scenes_file: str, instructions_file: str, stamp: tuple) -> EpisodeFiles:
-    from muble.core.scene_io import read_json
+    from muble.io.scene_io import read_json
 
     data = read_json(instructions_file)
     if not isinstance(data, dict) or not isinstance(data.get("instructions"), list):
@@ -130,7 +130,7 @@ def check_files(dataset: Any) -> tuple[str, list[int], str]:
         raise ConfigError(f"cannot read the files to evaluate: {e}") from e
     if not files.instructions:
         raise ConfigError(f"{instructions_file} holds no instruction to evaluate")
-    from muble.core.scene_io import read_input_bytes
+    from muble.io.scene_io import read_input_bytes
 
     digest = hashlib.sha256()
     for path in (scenes_file, instructions_file):

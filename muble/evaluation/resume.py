@@ -16,10 +16,10 @@ import os
 from pathlib import Path
 from typing import IO, Any
 
-from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError
 from muble.core.types import Outcome
 from muble.dataset.identity import ABSENT, setting_differences
+from muble.io.atomic import write_bytes_atomic
 
 log = logging.getLogger(__name__)
 

@@ -179,14 +179,14 @@ class Truth:
         return None
 
     def scene(self, run: Run, split: str, index: int) -> dict[str, Any] | None:
-        from muble.core.layout import DatasetLayout
+        from muble.io.layout import DatasetLayout
 
         return self.file(run, split, f"{split}/{DatasetLayout(Path('.'), split).scene(index)}")
 
     def program(self, run: Run, split: str, index: int) -> list[dict[str, Any]] | None:
         """The program the agent was given on the program track (each step's type and words); None on the
         language track or where the instruction file cannot be found."""
-        from muble.core.layout import DatasetLayout
+        from muble.io.layout import DatasetLayout
 
         if run.results.get("track") != "program":
             return None
@@ -323,7 +323,7 @@ def _keyframes(run: Run, record: dict[str, Any], page_dir: Path, stem: str) -> t
 def build_site(folders: list[str | Path], out: str | Path) -> dict[str, Any]:
     """Write the site of the runs in ``folders`` into ``out`` (atomically: the whole site or nothing). Returns
     counts (runs, episode pages)."""
-    from muble.core.atomic import check_output_folder, staged_folder
+    from muble.io.atomic import check_output_folder, staged_folder
 
     if not folders:
         raise ConfigError("name at least one run folder (the output folder of a `muble eval` run)")
@@ -362,17 +362,12 @@ def build_site(folders: list[str | Path], out: str | Path) -> dict[str, Any]:
 
 def _write_run(env, stage: Path, run: Run, split: str, records: list[dict[str, Any]], summary: dict[str, Any],
                pairs: dict[tuple, list[tuple[Run, str]]], truth: Truth) -> int:
-    from muble.core.layout import DatasetLayout
+    from muble.io.layout import DatasetLayout
 
     folder = stage / "runs" / run.slug / split
     folder.mkdir(parents=True, exist_ok=True)
     outcomes = Counter(r["outcome"] for r in records)
-    failures: dict[str, Counter] = {}
-    for r in records:
-        if r["outcome"] != "success":
-            reason = r.get("error") or next((s.get("failure_reason") for s in reversed(r.get("steps") or [])
-                                             if s.get("failure_reason")), None) or "(no reason recorded)"
-            failures.setdefault(r["outcome"], Counter())[_reason_class(reason)] += 1
+    failures = failure_taxonomy(records)
     templates = [(name, s) for name, s in summary["templates"].items()]
     others = [(o, s) for o, s in pairs.get(run.pair_key(split), []) if o is not run]
     indices = {(o.slug, s): {r["index"] for r in o.records[s]} for o, s in others}
@@ -402,7 +397,22 @@ def _write_run(env, stage: Path, run: Run, split: str, records: list[dict[str, A
     return len(records)
 
 
-def _reason_class(reason: str) -> str:
+def failure_taxonomy(records: list[dict[str, Any]]) -> dict[str, Counter]:
+    """Per failure class (an episode's outcome other than success), how often each cause ended it: the record's
+    error, else its last failed decision's reason, with ids and numbers taken out (``reason_class``)."""
+    failures: dict[str, Counter] = {}
+    for r in records:
+        if r["outcome"] != "success":
+            reason = r.get("error") or next((s.get("failure_reason") for s in reversed(r.get("steps") or [])
+                                             if s.get("failure_reason")), None) or NO_REASON
+            failures.setdefault(r["outcome"], Counter())[reason_class(reason)] += 1
+    return failures
+
+
+NO_REASON = "(no failed decision: the final state or answer is wrong)"
+
+
+def reason_class(reason: str) -> str:
     """A failure reason with object ids, numbers and quoted names taken out, so like reasons count together."""
     text = re.sub(r"\d+(\.\d+)?", "N", str(reason))
     text = re.sub(r"'[^']*'", "'…'", text)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from muble.core.errors import ConfigError, MubleError
-from muble.core.layout import PREFIX, DatasetLayout
+from muble.io.layout import PREFIX, DatasetLayout
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +62,7 @@ def present_indices(layout: DatasetLayout) -> set[int]:
 
 def _says_no_template(path: Path) -> bool:
     """The instruction file is readable and records that no template applied (``"instruction": null``)."""
-    from muble.core.instructions_io import load_instruction
+    from muble.io.instructions_io import load_instruction
 
     if not path.is_file():
         return False

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from muble.core.camera import CameraParams
 from muble.core.objects import ObjectModel
 from muble.generation.placement import Placement
+from muble.stage.camera import CameraParams
 
 CAMERA_NAME = "front"
 TABLE_THICKNESS = 0.05
@@ -94,7 +94,7 @@ def settle(models: list[ObjectModel], placements: list[Placement], table_x, tabl
 
 
 # A stack the ground truth builds must stand: the upper object, let go centred over its base as ``lower`` lets it
-# go, comes to rest in contact with the base, leaning at most ``muble.core.rest.STACK_LEAN_DEG`` further.
+# go, comes to rest in contact with the base, leaning at most ``muble.stage.rest.STACK_LEAN_DEG`` further.
 STACK_DROP = 0.003  # m between the upper object's bottom and the base under it when let go
 STACK_SETTLE = 1.0  # s of physics after each put-down
 # The way down: the upper object, lowered straight onto its release pose from this far above (m), keeps at least
@@ -107,7 +107,7 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
                  table_y, timestep: float, settle_time: float = STACK_SETTLE) -> str | None:
     """``None`` when every (top, base) pair of ``pairs`` (bottom pair first, as a stack is built) stands: the top
     object, set down centred over its base from ``STACK_DROP`` above the highest point of the base under its
-    footprint, comes to rest touching the base and leaning at most ``STACK_LEAN_DEG`` (``muble.core.rest``) further
+    footprint, comes to rest touching the base and leaning at most ``STACK_LEAN_DEG`` (``muble.stage.rest``) further
     than when it was let go, and
     every object stacked before it still does; and on its way down onto that pose (``STACK_SWEEP`` straight down)
     it keeps ``STACK_CLEARANCE`` from every object outside its stack. Else why not (the first pair that fails).
@@ -118,7 +118,7 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
     """
     import mujoco
 
-    from muble.core.rest import STACK_LEAN_DEG, leaned_over, resting_height
+    from muble.stage.rest import STACK_LEAN_DEG, leaned_over, resting_height
 
     model = mujoco.MjModel.from_xml_string(physics_world_xml(models, placements, table_x, table_y, timestep))
     data = mujoco.MjData(model)

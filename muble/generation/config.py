@@ -4,9 +4,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from muble.core.camera import DEFAULT_LENS_MM, DEFAULT_POSITION, DEFAULT_ROTATION_DEG
 from muble.core.ranges import bounded
-from muble.core.table import ROBOT_CLEARANCE, TABLE_X, TABLE_Y
+from muble.stage.camera import DEFAULT_LENS_MM, DEFAULT_POSITION, DEFAULT_ROTATION_DEG
+from muble.stage.table import ROBOT_CLEARANCE, TABLE_X, TABLE_Y
 
 
 @dataclass

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from muble.core.camera import CameraParams
 from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.scene import SceneGraph
 from muble.generation import checks
 from muble.generation.placement import Placement
+from muble.stage.camera import CameraParams
 
 
 def models_from_scene(object_set, scene: SceneGraph) -> list[ObjectModel]:

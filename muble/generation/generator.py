@@ -17,7 +17,6 @@ from typing import Any, Callable
 import numpy as np
 from omegaconf import DictConfig
 
-from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, CameraParams, euler_xyz_to_matrix
 from muble.core.errors import ConfigError, SceneGenerationError
 from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.ranges import configured
@@ -28,7 +27,8 @@ from muble.generation.placement import Placement, TableLayout, shared_collision_
 from muble.core import streams
 from muble.generation.staging import LAMPS, jittered_camera, jittered_lamps
 from muble.generation.view import shared_view
-from muble.core.table import STAGE_KEY, UNNAMED_STAGE
+from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, CameraParams, euler_xyz_to_matrix
+from muble.stage.table import STAGE_KEY, UNNAMED_STAGE
 
 log = logging.getLogger(__name__)
 
@@ -74,8 +74,8 @@ class SceneGenerator:
         # The physics step of the robot the scenes are made for: layouts settle as its episodes will run.
         self.timestep = float((cfg.robot or {}).get("timestep") or ROBOT_DEFAULTS["timestep"])
         if cfg.stage:
-            from muble.core.table import TABLE_X, TABLE_Y
             from muble.sim.world import stage_named
+            from muble.stage.table import TABLE_X, TABLE_Y
 
             x, y = stage_named(cfg.stage, "generator.stage").top_ranges()
             if list(cfg.table_x) == list(TABLE_X) and list(cfg.table_y) == list(TABLE_Y):

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from muble.core.camera import CameraParams
 from muble.core.scene import RLE
+from muble.stage.camera import CameraParams
 
 
 def directions(camera: CameraParams) -> dict[str, list[float]]:

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from muble.core.geometry import hull_2d, yaw_matrix, yaw_quat
 from muble.core.objects import ObjectModel
 from muble.generation.mesh_keys import mesh_key
+from muble.stage.geometry import hull_2d, yaw_matrix, yaw_quat
 
 
 @dataclass

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from muble.core.camera import CameraParams, euler_xyz_to_matrix
+from muble.stage.camera import CameraParams, euler_xyz_to_matrix
 
 # Key, back and fill lamps (metres, robot frame) that the Blender renderer lights the table with.
 LAMPS = {"Lamp_Key": [3.2, -2.1, 2.2], "Lamp_Back": [-1.8, 2.0, 2.3], "Lamp_Fill": [-2.4, -3.0, 2.5]}

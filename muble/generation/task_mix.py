@@ -24,8 +24,8 @@ import numpy as np
 from muble.core import streams
 from muble.core.errors import ConfigError, PlanningError, SceneGenerationError
 from muble.core.interfaces import Instruction, Task
-from muble.core.program import stacked_pairs
 from muble.core.scene import SceneGraph
+from muble.programs.program import stacked_pairs
 
 TEMPLATE_KEY, COUNT_KEY = streams.TEMPLATE_MIX, streams.COUNT_MIX  # the purposes of balanced_choice's draws
 

@@ -8,10 +8,10 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from muble.core.instructions_io import instruction_from_dict
 from muble.core.interfaces import Agent, Instruction
 from muble.core.types import Frame, Observation, ObservationMode, Track
 from muble.episode.plain import decision_to_plain, observation_from_plain
+from muble.io.instructions_io import instruction_from_dict
 
 
 def observation_from_gym(obs: dict[str, Any]) -> Observation:

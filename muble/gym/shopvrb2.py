@@ -27,7 +27,6 @@ import numpy as np
 from gymnasium import spaces
 
 from muble.core.errors import ConfigError, PhysicsError, SceneValidationError
-from muble.core.instructions_io import instruction_to_dict
 from muble.core.types import Outcome
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
 from muble.episode.components import benchmark_settings, image_size
@@ -36,6 +35,7 @@ from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, ep
 from muble.episode.stepped import EpisodeStateError, EpisodeThread, Step, SteppedEpisode
 from muble.gym.config import environment_config
 from muble.gym.spaces import as_text, image_space, json_text, text_space
+from muble.io.instructions_io import instruction_to_dict
 
 log = logging.getLogger(__name__)
 

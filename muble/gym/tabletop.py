@@ -97,7 +97,7 @@ class TabletopGymEnv(gym.Env):
         if unknown:
             raise ConfigError(f"unknown reset option(s) {unknown}; valid: scene_index, scene")
         if "scene" in options:
-            from muble.core.scene_io import scene_from_dict
+            from muble.io.scene_io import scene_from_dict
 
             scene = scene_from_dict(options["scene"])
             self._build(scene)

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from muble.core.errors import MubleError
-from muble.core.instructions_io import instruction_from_dict
 from muble.core.interfaces import Agent, Instruction
 from muble.core.types import Frame, Observation, ObservationMode, Outcome, Track
 from muble.episode.plain import decision_to_plain, observation_from_plain
+from muble.io.instructions_io import instruction_from_dict
 from muble.remote.wire import DEFAULT_HOST, DEFAULT_PORT, PROTOCOL
 
 log = logging.getLogger(__name__)

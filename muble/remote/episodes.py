@@ -17,11 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from muble.core.errors import MubleError
-from muble.core.layout import DatasetLayout
 from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, episode_kind
+from muble.io.layout import DatasetLayout
 from muble.remote.wire import ProtocolError
 
-# A split the server may name: one folder name (muble.core.layout.SPLIT_NAME) without dots.
+# A split the server may name: one folder name (muble.io.layout.SPLIT_NAME) without dots.
 _SPLIT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 # An absolute path of two or more parts, not inside a word ("val/3" and "1/2" are left alone).
 _ABSOLUTE_PATH = re.compile(r"(?<![\w.~-])/(?:[^\s/'\"():,;]+/)+([^\s/'\"():,;]*)")
@@ -127,8 +127,8 @@ def _stored_exists(split: Any, index: Any, root: Path | None) -> None:
 
 
 def _check_data(scene: Any, instruction: Any, templates: list[str], max_objects: int) -> None:
-    from muble.core.instructions_io import instruction_from_dict
-    from muble.core.scene_io import scene_from_dict
+    from muble.io.instructions_io import instruction_from_dict
+    from muble.io.scene_io import scene_from_dict
 
     if not isinstance(scene, dict) or not isinstance(scene.get("objects"), list):
         raise ProtocolError("bad_request", "'scene' must be a SHOP-VRB2 scene object with an 'objects' list")

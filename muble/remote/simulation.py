@@ -101,11 +101,11 @@ def run_job(job: dict[str, Any], factory: Any, sessions: dict[str, tuple[Any, st
             setup: SimulationSetup) -> tuple[dict[str, Any], list[bytes]]:
     """One job's result (``ok``, ``header`` or ``error`` (code, message), ``ended``: the session is gone) and
     binary frames; never raises."""
-    from muble.core.instructions_io import instruction_to_dict
     from muble.episode.components import benchmark_settings
     from muble.episode.plain import decision_from_plain
     from muble.episode.modes import track_instruction
     from muble.episode.stepped import SteppedEpisode
+    from muble.io.instructions_io import instruction_to_dict
     from muble.remote.episodes import EpisodeRequest, public_text
     from muble.remote.wire import ProtocolError
 

@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 
 from muble.core.errors import PhysicsError
-from muble.core.table import BELOW_TABLE
+from muble.stage.table import BELOW_TABLE
 
 MAX_SPEED = 50.0  # m/s or rad/s in any degree of freedom: nothing on a tabletop moves this fast
 

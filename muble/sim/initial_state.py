@@ -23,8 +23,8 @@ import mujoco
 import numpy as np
 
 from muble.core.errors import InitialStateError, PhysicsError
-from muble.core.table import BELOW_TABLE
 from muble.sim.world import TABLE_GEOM
+from muble.stage.table import BELOW_TABLE
 
 SETTLE_TIME = 0.5  # s of physics before the check: a 5 cm drop lands in 0.1 s, a tipping object is well under way
 MAX_DISPLACEMENT = 0.005  # m an object's origin or centre of mass may move while settling (generator: same figure)

@@ -6,9 +6,9 @@ import copy
 import mujoco
 import numpy as np
 
-from muble.core.geometry import tilt_deg
 from muble.core.observation import TOUCHING_TABLE
 from muble.core.scene import SceneGraph
+from muble.stage.geometry import tilt_deg
 
 RAISED_HEIGHT = 0.01  # m above its resting height counts as raised
 

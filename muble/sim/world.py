@@ -15,12 +15,12 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from muble.core.camera import CameraParams
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
-from muble.core.table import DESK_CENTRE_X, DESK_SIZE, STAGE_KEY, TABLE_X, TABLE_Y, UNNAMED_STAGE, stage_name
 from muble.sim.object_mjcf import object_mjcf
+from muble.stage.camera import CameraParams
+from muble.stage.table import DESK_CENTRE_X, DESK_SIZE, STAGE_KEY, TABLE_X, TABLE_Y, UNNAMED_STAGE, stage_name
 
 logger = logging.getLogger(__name__)
 
@@ -70,7 +70,7 @@ STAGES = {
                       gripper="Robotiq85Gripper",
                       start_qpos={"Panda": (0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi)}),
 }
-# A scene file that names no stage stands on robosuite's (``muble.core.table.UNNAMED_STAGE``), on which every scene
+# A scene file that names no stage stands on robosuite's (``muble.stage.table.UNNAMED_STAGE``), on which every scene
 # was generated before stages could be chosen, protocol shopvrb2_v1's included. The generator writes the key
 # (``STAGE_KEY``) for any other stage only, so a file made on robosuite's keeps its old bytes whatever stage the
 # generator defaults to (muble_conf/generator/shopvrb2.yaml).

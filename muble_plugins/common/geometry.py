@@ -1,5 +1,5 @@
 """Table geometry the tasks need: room on a table part, resting-on and upright tests (object sizes and the
-symbolic world's free spot: ``muble.core.footprint``)."""
+symbolic world's free spot: ``muble.stage.footprint``)."""
 from __future__ import annotations
 
 import functools
@@ -8,15 +8,15 @@ import math
 import numpy as np
 
 from muble import SceneGraph, SceneObject
-from muble.core.footprint import extents, footprint_radius
-from muble.core.geometry import tilt_deg
 from muble.core.observation import TOUCHING_TABLE
-from muble.core.program import table_parts_of
-from muble.core.rest import UPRIGHT_DEG, at_rest
-from muble.core.table import BELOW_TABLE, part_region, scene_top
+from muble.programs.program import table_parts_of
+from muble.stage.footprint import extents, footprint_radius
+from muble.stage.geometry import tilt_deg
+from muble.stage.rest import UPRIGHT_DEG, at_rest
+from muble.stage.table import BELOW_TABLE, part_region, scene_top
 
 # Where SHOP-VRB2 scenes stand objects (world x, y in metres; synthetic scenes sample it). The table parts and
-# where the robot places objects are defined in muble.core.table.
+# where the robot places objects are defined in muble.stage.table.
 TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
 # How much higher than its base a stacked object's origin (its bottom) stands at least where the world records
 # no contacts: a plate or tray holds what is put on it only its bottom's thickness (a few mm) above the table,
@@ -25,7 +25,7 @@ TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
 # and not the table is held up by the base at any height (``rests_on``).
 RAISED_BY_BASE = 0.002
 # Judging the end state (docs/tasks.md): a put-down object counts only when it rests upright (the limits:
-# ``muble.core.rest``).
+# ``muble.stage.rest``).
 # Room on a table part for an object to be put there: the placing primitives keep 15 mm between real footprints
 # on a 1 cm grid; here bboxes (centred on the object's origin, so a mug's handle side may reach a little past
 # them) stand in for footprints, with a wider gap.
@@ -60,7 +60,7 @@ def _separating_axes(mover, obstacles: list, gap: float) -> tuple[np.ndarray, np
 @functools.lru_cache(maxsize=None)
 def _grid(part: str, spacing: float, top) -> tuple[np.ndarray, tuple[tuple[float, float], tuple[float, float]]]:
     """The part's candidate centres on a ``spacing`` grid, nearest its middle first, and its ranges (kept inside the
-    table top ``top``, see ``muble.core.table.part_region``)."""
+    table top ``top``, see ``muble.stage.table.part_region``)."""
     (x0, x1), (y0, y1) = region = part_region(part, top)
     gx, gy = np.meshgrid(np.arange(x0, x1 + 1e-9, spacing), np.arange(y0, y1 + 1e-9, spacing), indexing="ij")
     points = np.stack([gx.ravel(), gy.ravel()], axis=1)
@@ -111,7 +111,7 @@ def tilt(obj: SceneObject) -> float:
 
 
 def upright(obj: SceneObject) -> bool:
-    """``obj`` stands upright (its recorded tilt within ``muble.core.rest.UPRIGHT_DEG``)."""
+    """``obj`` stands upright (its recorded tilt within ``muble.stage.rest.UPRIGHT_DEG``)."""
     return tilt(obj) <= UPRIGHT_DEG
 
 

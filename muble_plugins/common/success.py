@@ -10,7 +10,7 @@ import math
 from typing import Any
 
 from muble import Answer, ConfigError, Instruction, Outcome, PlanningError, SceneGraph
-from muble.core.program import execute, stack_pairs
+from muble.programs.program import execute, stack_pairs
 
 from muble_plugins.common.geometry import broken, on_table_part, rests_on
 

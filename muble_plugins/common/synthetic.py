@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from muble import SceneGraph, SceneObject
-from muble.core.geometry import yaw_quat
+from muble.stage.geometry import yaw_quat
 
 from muble_plugins.common.geometry import TABLE_REGION
 from muble_plugins.common.materials import STIFFNESS_RANGE

@@ -13,8 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from muble import ActionCall, Answer, PlanningError, SceneGraph
-from muble.core.program import execute, stack_pairs, table_parts_of
 from muble.core.symbolic import ArmState, over
+from muble.programs.program import execute, stack_pairs, table_parts_of
 
 from muble_plugins.common.geometry import on_table_part, rests_on, upright
 from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH

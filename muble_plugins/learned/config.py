@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from muble.core.instructions_io import SHOPVRB2_TEMPLATES
 from muble.core.ranges import bounded
+from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 
 # The templates the trainers write instructions for: the ten SHOP-VRB2 templates, in their overall order.
 TEMPLATES = SHOPVRB2_TEMPLATES

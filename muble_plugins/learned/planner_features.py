@@ -3,12 +3,12 @@ sub-goal, and the action vocabulary it chooses from. No PyTorch here (NumPy only
 training data and the agent share one featuriser.
 
 A decision is made over a token sequence: one goal token (the sub-goal's kind and the arm's state), one token per
-object in scene order, one per table part (``muble.core.table.TABLE_PARTS``) and a "none" token (``lower``
+object in scene order, one per table part (``muble.stage.table.TABLE_PARTS``) and a "none" token (``lower``
 without a target: put the held object down where it is). The network outputs a primitive class and a pointer to
 one token; primitives without a target ignore the pointer.
 
 The sub-goal comes from running the program on the observed scene with what was measured so far
-(``muble.core.program.execute`` in ``"measured"`` mode): objects still to weigh or squeeze, an answer, an object
+(``muble.programs.program.execute`` in ``"measured"`` mode): objects still to weigh or squeeze, an answer, an object
 to hold up, objects to put on a table part, or stack pairs. The features mark which objects the sub-goal is
 about and which of them already meet it; which primitive to call on which token is the network's choice.
 """
@@ -23,9 +23,9 @@ import numpy as np
 from muble import ActionCall, Answer, Observation, SceneGraph
 from muble.core.errors import PlanningError
 from muble.core.observation import MEASURED_STIFFNESS
-from muble.core.program import execute, stack_pairs, table_parts_of
 from muble.core.symbolic import ArmState, over
-from muble.core.table import TABLE_PARTS
+from muble.programs.program import execute, stack_pairs, table_parts_of
+from muble.stage.table import TABLE_PARTS
 
 from muble_plugins.common.books import fill_known
 from muble_plugins.common.geometry import on_table_part, rests_on, upright

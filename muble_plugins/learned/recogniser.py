@@ -40,9 +40,9 @@ import numpy as np
 
 from muble import Trainer
 from muble.core.errors import ConfigError
-from muble.core.layout import DatasetLayout
-from muble.core.scene_io import load_scene
 from muble.core.training import TrainingRun
+from muble.io.layout import DatasetLayout
+from muble.io.scene_io import load_scene
 
 from muble_plugins.learned import checkpoint as ck
 from muble_plugins.learned.config import RecogniserTrainerConfig

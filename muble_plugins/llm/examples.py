@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from muble import ConfigError
-from muble.core.action_names import from_original
-from muble.core.layout import DatasetLayout
+from muble.io.action_names import from_original
+from muble.io.layout import DatasetLayout
 
 log = logging.getLogger(__name__)
 

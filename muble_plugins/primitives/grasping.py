@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from muble import Pose
-from muble.core.geometry import yaw_quat
+from muble.stage.geometry import yaw_quat
 
 TABLE_CLEARANCE = 0.004  # m the lowest fingertip stays above the table top in a grasp pose
 PRE_GRASP = 0.10  # m back along the approach from the grasp pose where the straight move in starts

@@ -8,12 +8,12 @@ import logging
 import numpy as np
 
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
-from muble.core.footprint import free_spot, height
-from muble.core.geometry import tilt_deg
-from muble.core.rest import at_rest, leaned_over
 from muble.core.observation import TOUCHING_TABLE
 from muble.core.symbolic import CARRIED_TO, RAISE_HEIGHT, ArmState, over, set_flag
-from muble.core.table import parts_at
+from muble.stage.footprint import free_spot, height
+from muble.stage.geometry import tilt_deg
+from muble.stage.rest import at_rest, leaned_over
+from muble.stage.table import parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
 from muble_plugins.primitives import tolerances as tol
@@ -219,7 +219,7 @@ def misplaced(env, held: int, held_body: int, target, support_body: int, others:
               tilt_at_release: float | None = None) -> str | None:
     """Why the put-down of ``held`` did not end as asked, from the physics after it came to rest, or ``None``:
     it must touch its target (an object, or the table for a table part) and lean at most ``LEAN_DEG``
-    (``muble.core.rest``) further than
+    (``muble.stage.rest``) further than
     when it was let go (``tilt_at_release``, degrees), and no other object may have moved more than
     ``DISTURBED``. Put back without a target, it need not touch anything in particular, but it must not lean or
     fall over either."""
@@ -332,7 +332,7 @@ REST_WAIT = 1.5
 
 
 def wait_for_rest(env, body: int, waited: float) -> float:
-    """Hold on in ``tol.REST_CHECK`` s steps while ``body`` is not at rest (``muble.core.rest.at_rest``), until
+    """Hold on in ``tol.REST_CHECK`` s steps while ``body`` is not at rest (``muble.stage.rest.at_rest``), until
     ``REST_WAIT`` has passed since the release (``waited`` of it already has); its last speed (m/s)."""
     speed = float(np.linalg.norm(env.data.cvel[body][3:]))
     while not at_rest(speed) and waited < REST_WAIT:

@@ -7,8 +7,8 @@ import logging
 import numpy as np
 
 from muble import ActionResult, JointGoal, PlanningError, PoseGoal, PrimitiveAction, SceneGraph
-from muble.core.footprint import free_spot
 from muble.core.symbolic import CARRIED_TO, ArmState, set_flag
+from muble.stage.footprint import free_spot
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
 from muble_plugins.primitives.common import ATTEMPT, CARRY_TURNS, RELEASE_GAPS, TARGET_PLACE, checked_result, rotated

@@ -2,7 +2,7 @@
 place that are checked (reachable, continuous, collision-free) before anything moves.
 
 A footprint is the convex hull, seen from above, of a body's collision geometry in its current pose. Which
-centres are free is decided by the one rule of ``muble.core.free_place`` (the held object's footprint, grown by
+centres are free is decided by the one rule of ``muble.stage.free_place`` (the held object's footprint, grown by
 the gap, must not meet another's), which the symbolic world applies to the scene graph's bounding boxes.
 """
 from __future__ import annotations
@@ -13,10 +13,10 @@ import mujoco
 import numpy as np
 
 from muble import PlanningError, Pose, PoseGoal, Trajectory
-from muble.core import free_place
-from muble.core.free_place import DISC, PLACE_GAP, PLACE_SPACING
-from muble.core.geometry import hull_2d, yaw_quat
-from muble.core.rest import resting_height
+from muble.stage import free_place
+from muble.stage.free_place import DISC, PLACE_GAP, PLACE_SPACING
+from muble.stage.geometry import hull_2d, yaw_quat
+from muble.stage.rest import resting_height
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import PART_OPEN, release_command
@@ -209,7 +209,7 @@ def free_places(env, lo: np.ndarray, hi: np.ndarray, held: int, prefer: np.ndarr
                 gap: float = PLACE_GAP, spacing: float = PLACE_SPACING, yaw: float = 0.0) -> list[np.ndarray]:
     """Centres in the box ``lo``-``hi`` where the held object, as it is turned now and then by ``yaw`` about the
     vertical, keeps ``gap`` from every other object's footprint; nearest ``prefer`` (default: the box's centre)
-    first (the rule of ``muble.core.free_place``, on the bodies' collision geometry)."""
+    first (the rule of ``muble.stage.free_place``, on the bodies' collision geometry)."""
     return free_place.free_places(lo, hi, held_outline(env, held), obstacles(env, held), prefer, gap, spacing, yaw)
 
 

@@ -12,9 +12,9 @@ from typing import Any, Callable
 import numpy as np
 
 from muble import ConfigError, Instruction, SceneGraph
-from muble.core.descriptions import SceneIndex
 from muble.core.errors import unknown_name
-from muble.core.program import execute
+from muble.programs.descriptions import SceneIndex
+from muble.programs.program import execute
 
 from muble_plugins.tasks.templates import ALL_TEMPLATES, TEMPLATES, OptionContext, Template
 

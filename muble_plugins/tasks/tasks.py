@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from muble import ActionCall, Answer, Instruction, Observation, Outcome, PlanningError, SceneGraph, Task
-from muble.core.descriptions import SceneIndex
+from muble.programs.descriptions import SceneIndex
 
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.episodes import run_symbolic_episode

@@ -41,11 +41,11 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from muble import ConfigError
-from muble.core.descriptions import ATTRIBUTE_STEP, describe
 from muble.core.errors import unknown_name
-from muble.core.instructions_io import program_step
-from muble.core.program import RELATIONS, STIFFNESS_SUPERLATIVES, WEIGHT_SUPERLATIVES, related
-from muble.core.table import OPPOSITE_PART
+from muble.io.instructions_io import program_step
+from muble.programs.descriptions import ATTRIBUTE_STEP, describe
+from muble.programs.program import RELATIONS, STIFFNESS_SUPERLATIVES, WEIGHT_SUPERLATIVES, related
+from muble.stage.table import OPPOSITE_PART
 
 # Templates name the four sides of the table, never "centre".
 WORD_DOMAINS = {"table_part": tuple(OPPOSITE_PART), "weight_superlative": WEIGHT_SUPERLATIVES,

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-from muble.core.descriptions import SceneIndex
-from muble.core.program import table_parts_of
+from muble.programs.descriptions import SceneIndex
+from muble.programs.program import table_parts_of
 
 from muble_plugins.common.geometry import room_on_part
 from muble_plugins.tasks.template_data import DataTemplate, read_template_file

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from muble.core.errors import ConfigError
-from muble.core.keyframe_states import KeyframeStates, keyframe_states_bytes, read_keyframe_states
-from muble.core.atomic import staged_folder, write_bytes_atomic
-from muble.core.layout import DatasetLayout, check_split_name
+from muble.io.atomic import staged_folder, write_bytes_atomic
+from muble.io.keyframe_states import KeyframeStates, keyframe_states_bytes, read_keyframe_states
+from muble.io.layout import DatasetLayout, check_split_name
 from tests.app.usage_probe import run_many
 
 SCENE = Path(__file__).resolve().parents[1] / "planning" / "data" / "glass_beside_a_tall_thermos.json"

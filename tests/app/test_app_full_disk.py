@@ -19,8 +19,8 @@ import pytest
 from PIL import Image
 
 from muble.app.usage import environment_error
-from muble.core.atomic import TMP_PREFIX, write_bytes_atomic
-from muble.core.manifest import sha256_file
+from muble.io.atomic import TMP_PREFIX, write_bytes_atomic
+from muble.io.manifest import sha256_file
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="mounts a tmpfs")
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from muble.core.atomic import TMP_PREFIX
+from muble.io.atomic import TMP_PREFIX
 
 pytestmark = pytest.mark.slow
 

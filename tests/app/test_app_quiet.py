@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-IMPORT_ROBOSUITE = "from muble.core.quiet import quiet_third_party; quiet_third_party({verbose}); import robosuite"
+IMPORT_ROBOSUITE = "from muble.quiet import quiet_third_party; quiet_third_party({verbose}); import robosuite"
 
 
 @pytest.mark.parametrize("verbose", [False, True])

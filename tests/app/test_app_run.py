@@ -58,7 +58,7 @@ def test_main_job_writes_gif_keyframes_and_sequence(episode):
 
 
 def test_main_job_writes_keyframe_states_that_render_reads(episode):
-    from muble.core.keyframe_states import read_keyframe_states
+    from muble.io.keyframe_states import read_keyframe_states
 
     _, out = episode
     manifest = json.loads((out / "manifest.json").read_text())
@@ -81,8 +81,8 @@ def test_main_job_writes_keyframe_states_that_render_reads(episode):
 
 
 def test_scene_file_masks_come_from_the_camera_view(episode):
-    from muble.core.scene_io import load_scene
     from muble.generation.ground_truth import decode_mask
+    from muble.io.scene_io import load_scene
 
     _, out = episode
     (scene_path,) = (out / "scenes").glob("*.json")

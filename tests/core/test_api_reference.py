@@ -36,4 +36,4 @@ def test_the_reference_builds_with_the_interfaces_and_the_core_modules(tmp_path)
     page = (tmp_path / "api" / "muble.html").read_text()
     for name in ("Trainer", "TrainingRun", "PrimitiveAction", "symbolic_effect", "Agent", "SceneGraph"):
         assert f'id="{name}' in page or f'id="PrimitiveAction.{name}' in page, name
-    assert (tmp_path / "api" / "muble" / "core" / "program.html").is_file()
+    assert (tmp_path / "api" / "muble" / "programs" / "program.html").is_file()

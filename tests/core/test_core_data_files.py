@@ -7,9 +7,9 @@ import json
 import pytest
 
 from muble.core.errors import SceneValidationError
-from muble.core.instructions_io import instruction_to_dict, load_instruction, program_step
 from muble.core.interfaces import Instruction
-from muble.core.scene_io import load_scene, read_json, scene_from_dict, scene_to_dict
+from muble.io.instructions_io import instruction_to_dict, load_instruction, program_step
+from muble.io.scene_io import load_scene, read_json, scene_from_dict, scene_to_dict
 
 SCENE = {"objects": [{"file": "mug1", "name": "mug", "shape": "cylindrical", "size": "small",
                       "material": "ceramic", "colour": "red", "3d_coords": [0.1, 0.2, 0.8],

@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 
-from muble.core.camera import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_quat
-from muble.core.geometry import hull_2d, tilt_deg, yaw_matrix, yaw_quat
+from muble.stage.camera import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_quat
+from muble.stage.geometry import hull_2d, tilt_deg, yaw_matrix, yaw_quat
 
 
 def _old_euler_xyz_to_matrix(angles_deg):

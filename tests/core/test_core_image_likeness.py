@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from muble.core.image_likeness import ciede2000, mask_iou, mean_lab, srgb_to_lab, ssim
+from tests.support.image_likeness import ciede2000, mask_iou, mean_lab, srgb_to_lab, ssim
 
 # Pairs and differences from Sharma, Wu and Dalal (2005), "The CIEDE2000 color-difference formula", table 1:
 # they exercise the hue wrap-around, the neutral axis and the blue-region rotation term.

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from muble.core.errors import ConfigError, SceneValidationError
-from muble.core.scene_io import (DEFAULT_MAX_INPUT_BYTES, MAX_COORDINATE_M, MAX_INPUT_BYTES_ENV, MAX_OBJECTS,
+from muble.io.scene_io import (DEFAULT_MAX_INPUT_BYTES, MAX_COORDINATE_M, MAX_INPUT_BYTES_ENV, MAX_OBJECTS,
                                  load_scene, read_json, scene_from_dict)
 
 REPO = Path(__file__).resolve().parents[2]

@@ -19,14 +19,18 @@ ROOT = Path(__file__).resolve().parents[2]
 
 # Package -> layer. A module may import its own layer and the ones below it, never one above.
 LAYERS = {
-    "muble.app": 6, "muble.gym": 6,  # entry points: the CLI, the Gymnasium environments
-    "muble.dataset": 5, "muble.evaluation": 5, "muble.remote": 5,
-    "muble.episode": 4,
-    "muble.generation": 3,
-    "muble.sim": 2,
-    "muble.plugins": 1, "muble.testing": 1, "muble": 1,  # the plugin machinery and the public API plugins use
-    "muble.core": 0,
+    "muble.app": 7, "muble.gym": 7,  # entry points: the CLI, the Gymnasium environments
+    "muble.dataset": 6, "muble.evaluation": 6, "muble.remote": 6,
+    "muble.episode": 5,
+    "muble.generation": 4,
+    "muble.sim": 3,
+    "muble.plugins": 2, "muble": 2, "muble.quiet": 2,  # the plugin machinery, the public API, its log filters
+    "muble.programs": 1, "muble.io": 1,  # task programs and object descriptions; the files MuBlE reads and writes
+    # The data model and the plugin interfaces, and the tabletop they are stated on (the table's parts).
+    "muble.core": 0, "muble.stage": 0,
 }
+# The most modules ``muble/core`` holds (``__init__.py`` counted): the data model and the plugin interfaces only.
+CORE_MODULES_MAX = 15
 
 # The built-in plugin packages (the ``muble`` entry points), and the one package beside them that every plugin may
 # import: it registers nothing and imports no plugin.
@@ -53,10 +57,10 @@ EXCEPTIONS: dict[tuple[str, str], str] = {}
 
 # Plugin names that ``muble/`` may write as plugin names: (file, name) -> why.
 _ORIGINAL = ("the original MuBlE sequence files name these built-in primitives differently; the mapping is part of "
-             "that file format (muble.core.action_names), and any other primitive keeps its registry name")
+             "that file format (muble.io.action_names), and any other primitive keeps its registry name")
 NAME_EXCEPTIONS: dict[tuple[str, str], str] = {
-    **{("muble/core/action_names.py", n): _ORIGINAL for n in ("approach", "close_gripper", "lift", "lower",
-                                                              "open_gripper")},
+    **{("muble/io/action_names.py", n): _ORIGINAL for n in ("approach", "close_gripper", "lift", "lower",
+                                                            "open_gripper")},
 }
 
 
@@ -352,6 +356,21 @@ def test_every_package_of_muble_has_a_layer():
     assert packages <= LAYERS.keys(), f"give these a layer in LAYERS: {sorted(packages - LAYERS.keys())}"
 
 
+def test_the_core_holds_the_data_model_and_the_interfaces_only():
+    modules = sorted(p.name for p in (ROOT / "muble" / "core").glob("*.py"))
+    assert {"__init__.py", "interfaces.py", "scene.py", "types.py"} <= set(modules)
+    assert len(modules) <= CORE_MODULES_MAX, \
+        f"muble/core holds {len(modules)} modules (at most {CORE_MODULES_MAX}): move what is not the data model " \
+        f"or a plugin interface to the package of its concern (muble.io, muble.programs, muble.stage ...): {modules}"
+
+
+def test_plugins_may_import_the_public_packages():
+    # What plugins build on: the data model and interfaces, the tabletop, the files, task programs.
+    public = ("muble.core", "muble.stage", "muble.io", "muble.programs")
+    assert not [(who, what) for who, what, _ in FORBIDDEN for p in public if who == "muble_plugins" and _under(p, what)]
+    assert all(LAYERS[p] < LAYERS["muble.sim"] for p in public)
+
+
 def findings(files: list[Path]) -> list:
     """Everything the import checks report for ``files`` (layers, plugin rules, private names, circles)."""
     mine = [p for p in files if _under(_module(p), "muble")]
@@ -404,7 +423,7 @@ def tree(tmp_path, monkeypatch):
 def test_an_upward_import_inside_a_function_is_found(tree):
     path = tree("muble/sim/bad.py", "def f():\n    from muble.app.run import job\n")
     assert layer_violations([path]) == [
-        "muble/sim/bad.py:2: muble.sim.bad (muble.sim, layer 2) imports muble.app.run (muble.app, layer 6): "
+        "muble/sim/bad.py:2: muble.sim.bad (muble.sim, layer 3) imports muble.app.run (muble.app, layer 7): "
         "imports run from higher layers to lower ones"]
     assert layer_violations([tree("muble/app/ok.py", "from muble.sim import env\n")]) == []
 

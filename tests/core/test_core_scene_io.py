@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from muble import SceneValidationError
-from muble.core.scene_io import load_scene, load_scenes, save_scene, save_scenes, scene_from_dict, scene_to_dict
+from muble.io.scene_io import load_scene, load_scenes, save_scene, save_scenes, scene_from_dict, scene_to_dict
 
 
 def make_scene_dict(n: int = 3) -> dict:

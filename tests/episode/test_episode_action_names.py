@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from muble import ActionCall, ConfigError, get_registry
-from muble.core.action_names import ORIGINAL_NAMES, call_from_original, from_original, named, to_original
 from muble.episode.sequence import sequence_dict
+from muble.io.action_names import ORIGINAL_NAMES, call_from_original, from_original, named, to_original
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.episodes import run_symbolic_episode
 from muble_plugins.common.synthetic import sample_scene

@@ -9,9 +9,9 @@ from muble import Instruction, Outcome, get_registry
 from muble.episode import run_episode
 from muble.episode.physical import PhysicalWorld
 from muble.sim.env import TabletopEnv
-from muble.testing import simple_object_model, simple_scene
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.success import check
+from tests.support.scenes import simple_object_model, simple_scene
 
 from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted
 
@@ -74,8 +74,8 @@ def test_invalid_actions_are_the_agents_fault_with_physics(physical_world, call)
 
 
 def test_the_oracle_recovers_from_a_forced_approach_failure_with_physics():
+    from muble.io.scene_io import load_scene
     from muble.sim.build import env_from_object_set
-    from muble.core.scene_io import load_scene
     from pathlib import Path
 
     scene = load_scene(Path(__file__).parents[1] / "planning" / "data" / "can_into_a_bowl_on_a_bowl.json")

@@ -171,9 +171,9 @@ def test_the_instruction_told_on_either_track_holds_no_ground_truth_record():
     """A stored instruction's records beside its text and program (the ground-truth actions, the task's target,
     the scene samples drawn) reach no agent, on either track: one function (``track_instruction`` on
     ``muble.core.observation.agent_instruction``) makes what the loop, Gymnasium and the remote server hand out."""
-    from muble.core.instructions_io import instruction_from_dict
     from muble.dataset.protocol import load_protocol, shipped_files
     from muble.episode.modes import track_instruction
+    from muble.io.instructions_io import instruction_from_dict
 
     files = shipped_files(load_protocol("shopvrb2_v2"), "mini")
     rel = next(k for k in sorted(files) if "/instructions/" in k)

@@ -9,10 +9,10 @@ import sys
 import pytest
 
 from muble.core.errors import ConfigError, SceneValidationError
-from muble.core.instructions_io import instruction_from_dict
 from muble.evaluation.episodes import evaluate_index
 from muble.evaluation.files import EpisodeFiles, check_files, split_name
 from muble.dataset.production import IndexJob
+from muble.io.instructions_io import instruction_from_dict
 
 
 def _scene(index: int, filename: str | None = None) -> dict:

@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 
 from muble.core.errors import ConfigError, PhysicsError, SceneValidationError
-from muble.core.layout import DatasetLayout
 from muble.evaluation.report import bad_entry_table, markdown, summarize
 from muble.evaluation.resume import RUN_FILE, EpisodeLog, claim_folder, differences, run_settings
 from muble.evaluation.split import check_split, split_indices
+from muble.io.layout import DatasetLayout
 
 
 def _record(index: int, outcome: str = "success", **extra) -> dict:

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from muble import get_registry
-from muble.core.scene_io import load_scene
 from muble.generation.reachability import ReachCheck
+from muble.io.scene_io import load_scene
 from muble.sim.build import env_from_object_set, object_models
 
 pytestmark = pytest.mark.slow

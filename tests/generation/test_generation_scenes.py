@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from muble import ConfigError
-from muble.core.scene_io import scene_from_dict, scene_to_dict, validate_scene
 from muble.generation import SceneGenerator
 from muble.generation.checks import settle
 from muble.generation.ground_truth import decode_mask
 from muble.generation.placement import CollisionMesh, Placement, min_pairwise_distance
+from muble.io.scene_io import scene_from_dict, scene_to_dict, validate_scene
 from tests.generation.builtin import BUILTIN
 
 pytestmark = pytest.mark.gl

@@ -10,8 +10,8 @@ from omegaconf import OmegaConf
 
 from muble import Outcome, get_registry
 from muble.app.config import compose
-from muble.core.scene_io import scene_to_dict
 from muble.generation import SceneGenerator
+from muble.io.scene_io import scene_to_dict
 from tests.generation.builtin import BUILTIN
 
 pytestmark = pytest.mark.gl

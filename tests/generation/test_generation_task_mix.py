@@ -9,10 +9,10 @@ import pytest
 
 from muble import ConfigError, get_registry
 from muble.core.errors import SceneGenerationError
-from muble.core.instructions_io import SHOPVRB2_TEMPLATES
-from muble.core.scene_io import scene_to_dict
 from muble.generation import SceneGenerator
 from muble.generation.task_mix import COUNT_KEY, TEMPLATE_KEY, balanced_choice, suited_scene, template_weights
+from muble.io.instructions_io import SHOPVRB2_TEMPLATES
+from muble.io.scene_io import scene_to_dict
 from tests.generation.builtin import BUILTIN
 
 TEMPLATES = list(SHOPVRB2_TEMPLATES)

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from muble import ConfigError, get_registry
-from muble.core.camera import CameraParams, matrix_to_euler_xyz
-from muble.core.scene_io import scene_to_dict
 from muble.generation import SceneGenerator, checks, ground_truth
 from muble.generation.contact_sheet import models_from_scene, placements_from_scene
 from muble.generation.ground_truth import decode_mask
 from muble.generation.staging import LAMPS
+from muble.io.scene_io import scene_to_dict
+from muble.stage.camera import CameraParams, matrix_to_euler_xyz
 from muble_plugins.common.materials import STIFFNESS_RANGE
 from muble_plugins.objects.catalogue import FRICTION, SIZE_SCALES, CatalogueObjectSet
 from muble_plugins.objects.heldout import finish_name

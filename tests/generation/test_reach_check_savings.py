@@ -14,8 +14,8 @@ import pytest
 from muble import JointGoal, PlanningError, Pose, PoseGoal, get_registry
 from muble.sim.collision_world import MujocoCollisionWorld
 from muble.sim.ik import LIMIT_MARGIN, _solve, _solve_errors
-from muble.sim.tabletop import build_tabletop
 from muble_plugins.planners.ompl_planner import OmplPlanner
+from tests.support.tabletop import build_tabletop
 
 WALL = ((0.0, 0.0, 0.95), (0.04, 0.15, 0.15))
 OBJECT = ((-0.2, 0.15, 0.83), (0.02, 0.02, 0.03))
@@ -273,7 +273,7 @@ def test_inverse_kinematics_on_the_robot_alone_gives_the_same_iterates_and_leave
     from pathlib import Path
 
     from muble.core.scene import SceneGraph
-    from muble.core.scene_io import scene_from_dict
+    from muble.io.scene_io import scene_from_dict
     from muble.sim.build import object_models
     from muble.sim.env import TabletopEnv
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 from muble import get_registry
-from muble.core.scene_io import scene_from_dict
 from muble.generation.reachability import ReachCheck, same_decision
+from muble.io.scene_io import scene_from_dict
 from muble.sim.build import object_models
 
 FIXTURE = Path(__file__).parent / "data" / "reach_decisions.json.gz"

@@ -53,9 +53,9 @@ def _masks_observation(data_root):
     """A masks-mode observation of the dataset's first scene, as `muble eval` would show it."""
     from PIL import Image
 
-    from muble.core.scene_io import load_scene
     from muble.core.types import SEG_BACKGROUND, Frame, Observation
     from muble.episode.modes import ObservationView
+    from muble.io.scene_io import load_scene
     from muble_plugins.learned.recogniser import decode_mask
 
     scene_path = sorted((data_root / "train" / "scenes").glob("*.json"))[0]

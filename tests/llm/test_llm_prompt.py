@@ -146,7 +146,7 @@ def test_worked_examples_come_from_ground_truth_sequences_own_template_first():
 
 
 def test_examples_are_read_from_a_dataset_split(tmp_path):
-    from muble.core.layout import DatasetLayout
+    from muble.io.layout import DatasetLayout
 
     layout = DatasetLayout(tmp_path, "train")
     record = {"instruction": "Pick up the red mug.", "template_id": "move_single", "program": [],

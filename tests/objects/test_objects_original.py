@@ -9,13 +9,13 @@ import pytest
 
 from muble.core.errors import SceneValidationError
 from muble.core.scene import SceneGraph, SceneObject
-from muble.core.scene_io import load_scenes
+from muble.io.scene_io import load_scenes
 from muble.sim.build import object_models
 from muble_plugins.objects.catalogue import FRICTION, default_stiffness
-from muble.sim.object_checks import drop
 from muble_plugins.objects.original import ORIGINAL_MODELS
 from muble_plugins.objects.shopvrb2 import CATALOGUE
 from muble_plugins.objects.testing import spec_of
+from tests.support.object_checks import drop
 
 
 def original_object(obj_id=0, **fields) -> SceneObject:

@@ -9,11 +9,11 @@ import statistics
 import numpy as np
 import pytest
 
-from muble.core.scene_io import load_scenes
-from muble.sim.object_checks import drop
+from muble.io.scene_io import load_scenes
 from muble_plugins.objects.original import ORIGINAL_MODELS, ORIGINAL_MODEL_PARAM, original_fit
 from muble_plugins.objects.original_models import ORIGINAL_GEOMETRY
 from muble_plugins.objects.shopvrb2 import CATALOGUE
+from tests.support.object_checks import drop
 
 from tests.objects.test_objects_original import original_object, spec
 
@@ -98,10 +98,10 @@ def test_this_catalogues_objects_are_built_as_before(shopvrb2):
 
 @pytest.mark.gl
 def test_masks_match_the_originals_demo_scenes(shopvrb2, reference_dir):
-    from muble.core.image_likeness import mask_iou
     from muble.generation.ground_truth import decode_mask
     from muble.plugins.registry import get_registry
     from muble.sim.build import env_from_object_set
+    from tests.support.image_likeness import mask_iou
 
     _, scenes = load_scenes(reference_dir / "NS_AP_demo_scenes.json")
     ious = {}

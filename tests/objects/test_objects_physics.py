@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from muble.sim.object_checks import drop, settle, stack
 from muble_plugins.objects.shopvrb2 import CATALOGUE
 from muble_plugins.objects.ycb import CATALOGUE as YCB
+from tests.support.object_checks import drop, settle, stack
 
 from muble_plugins.objects.testing import spec_of
 

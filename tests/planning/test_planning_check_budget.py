@@ -9,7 +9,7 @@ import pytest
 
 from muble import JointGoal, PlanningError, Pose, PoseGoal
 from muble_plugins.planners.ompl_planner import OmplPlanner
-from muble.sim.tabletop import build_tabletop
+from tests.support.tabletop import build_tabletop
 
 WALL = ((0.0, 0.0, 0.95), (0.04, 0.15, 0.15))
 

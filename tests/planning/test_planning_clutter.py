@@ -15,7 +15,7 @@ DATA = Path(__file__).parent / "data"
 
 
 def _run(scene_file: str, steps: list[tuple[str, dict]]):
-    from muble.core.scene_io import load_scene
+    from muble.io.scene_io import load_scene
     from muble.sim.build import env_from_object_set
 
     scene = load_scene(DATA / scene_file)
@@ -83,8 +83,8 @@ def test_planning_a_can_held_by_its_rim_is_let_go_into_a_bowl_stacked_on_a_bowl(
     """The soda can is held by its top rim, one finger inside it. Let go with the hand fully open, that finger
     reaches across the can and catches the far side of the rim on the way up, tipping the upper bowl off; opened
     only part way, the hand leaves the three-object stack standing."""
+    from muble.io.scene_io import load_scene
     from muble_plugins.common.geometry import rests_on
-    from muble.core.scene_io import load_scene
 
     steps = []
     for top, base in ((2, 0), (4, 2)):
@@ -107,7 +107,7 @@ def test_planning_a_second_bowl_goes_right_with_the_hand_turned_past_a_tall_ther
     every free place left there is one the forearm, carrying the second bowl as it was lifted, meets the 25 cm
     thermos on the way down. ``move`` turns the hand (and the bowl with it) about the vertical, and ``lower``
     sets the bowl down on the right part from there."""
-    from muble.core.table import parts_at
+    from muble.stage.table import parts_at
 
     steps = []
     for bowl in (4, 6):

@@ -101,7 +101,7 @@ def test_planning_pick_and_weigh_wine_glasses_mugs_and_glasses_in_a_generated_sc
 @pytest.mark.parametrize("robot", sorted(OPEN_GAPS))
 def test_planning_grip_geometry_comes_from_the_mounted_gripper(robot):
     from muble.sim.env import TabletopEnv
-    from muble.testing import five_object_scene
+    from tests.support.scenes import five_object_scene
 
     scene, models = five_object_scene()
     env = TabletopEnv(scene, models, name=robot)
@@ -126,7 +126,7 @@ def test_planning_grip_geometry_is_the_same_whatever_state_or_scene_it_is_measur
     import dataclasses
 
     from muble.sim.env import TabletopEnv
-    from muble.testing import five_object_scene, simple_scene
+    from tests.support.scenes import five_object_scene, simple_scene
 
     scene, models = five_object_scene()
     first = TabletopEnv(scene, models)
@@ -143,7 +143,7 @@ def test_planning_grip_geometry_is_the_same_whatever_state_or_scene_it_is_measur
 @pytest.mark.slow
 def test_planning_ur5e_with_its_robotiq_gripper_picks_and_weighs_a_can_a_thermos_and_a_bowl(objects):
     from muble.sim.env import TabletopEnv
-    from muble.testing import simple_scene
+    from tests.support.scenes import simple_scene
 
     rng = np.random.default_rng(0)
     models = [objects.build(objects.sample(rng, category=c)) for c in ("soda can", "thermos", "bowl")]
@@ -169,7 +169,7 @@ def test_planning_mug_hemmed_in_by_wine_glasses_is_grasped_from_above_it_with_th
     the fully open hand touches a glass or the mug's own handle; the hand opened part way fits and holds it."""
     from pathlib import Path
 
-    from muble.core.scene_io import load_scene
+    from muble.io.scene_io import load_scene
     from muble.sim.build import env_from_object_set
 
     scene = load_scene(Path(__file__).parent / "data" / "mug_handle_between_wine_glasses.json")

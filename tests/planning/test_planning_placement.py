@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from muble import get_registry
-from muble.core.table import parts_at
 from muble.sim.env import TabletopEnv
-from muble.testing import simple_object_model, simple_scene
+from muble.stage.table import parts_at
 from muble_plugins.primitives import placement
+from tests.support.scenes import simple_object_model, simple_scene
 
 HELD = 0
 BOARDS = [(0.36, -0.22), (0.66, -0.22)]  # leave a 10 cm slot (x 0.46-0.56) across the left part
@@ -92,7 +92,7 @@ def test_lower_without_target_puts_the_object_back_in_its_parts(env):
 
 def test_the_symbolic_world_puts_down_by_the_same_rule_in_the_same_slot(env):
     """Bounding boxes contain the collision geometry, so the symbolic world's spot is free in physics too."""
-    from muble.core.footprint import free_spot
+    from muble.stage.footprint import free_spot
 
     env.reset()
     scene = env.sync_scene_graph()
@@ -103,7 +103,7 @@ def test_the_symbolic_world_puts_down_by_the_same_rule_in_the_same_slot(env):
 
 
 def test_a_part_without_room_fails_alike_in_the_symbolic_world(env):
-    from muble.core.footprint import free_spot
+    from muble.stage.footprint import free_spot
 
     env.reset()
     scene = env.sync_scene_graph()

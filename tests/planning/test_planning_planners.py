@@ -12,8 +12,8 @@ from muble import ConfigError, JointGoal, PlanningError, Pose, PoseGoal, get_reg
 from muble.plugins.registry import validate_params
 from muble_plugins.planners.ompl_planner import OmplPlanner
 from muble_plugins.planners.straight_line import StraightLinePlanner
-from muble.sim.tabletop import build_tabletop
 from muble_plugins.planners.timing import time_parameterise
+from tests.support.tabletop import build_tabletop
 
 WALL = ((0.0, 0.0, 0.95), (0.04, 0.15, 0.15))  # a wall on the table between the hand's home and the far side
 PILLAR = ((0.0, 0.25, 0.9), (0.02, 0.02, 0.1))

@@ -13,8 +13,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from muble.core.rest import resting_height
 from muble.dataset.protocol import load_protocol, shipped_files
+from muble.stage.rest import resting_height
 from muble_plugins.primitives import placement
 
 from tests.app.test_app_protocol import muble
@@ -32,7 +32,7 @@ def _write_episode(root, index: str = "_000020.json") -> None:
 
 @pytest.fixture(scope="module")
 def env(tmp_path_factory):
-    from muble.core.scene_io import load_scene
+    from muble.io.scene_io import load_scene
     from muble.sim.build import env_from_object_set
 
     root = tmp_path_factory.mktemp("data")

@@ -7,7 +7,7 @@ import pytest
 
 from muble import JointGoal, PlanningError, Pose, PoseGoal
 from muble_plugins.planners.ompl_planner import OmplPlanner
-from muble.sim.tabletop import build_tabletop
+from tests.support.tabletop import build_tabletop
 
 TOP = 0.8 + 0.025  # table top (table_height + half its thickness)
 HALF = (0.02, 0.02, 0.02)

@@ -10,7 +10,7 @@ import pytest
 
 from muble import get_registry
 from muble.sim.env import TabletopEnv
-from muble.testing import simple_scene
+from tests.support.scenes import simple_scene
 
 
 def act(env, name, **params):
@@ -77,7 +77,7 @@ def _stack_in_scene(scene_file: str, top: int, base: int, under: int | None = No
     unintended contact and ``top`` must end resting on ``base`` alone (and ``base`` still on ``under``, where it
     stands on another object; with ``build``, ``base`` is first stacked on ``under`` the same way). Returns the
     hand's orientation before and after the last move over a base."""
-    from muble.core.scene_io import load_scene
+    from muble.io.scene_io import load_scene
     from muble.sim.build import env_from_object_set
 
     env = env_from_object_set(load_scene(DATA / scene_file), "shopvrb2")
@@ -143,7 +143,7 @@ def test_planning_the_hand_follows_a_can_that_slid_in_a_bowl_before_rising():
 def test_planning_a_put_down_that_moved_another_object_or_missed_its_target_is_reported(objects):
     """``lower``'s check after the object came to rest: it must touch its target, stand as it was let go (with a
     target or without) and leave the others where they were; each way of failing is named."""
-    from muble.core.geometry import tilt_deg
+    from muble.stage.geometry import tilt_deg
     from muble_plugins.primitives.lower import misplaced
 
     rng = np.random.default_rng(0)
@@ -190,9 +190,9 @@ def test_planning_a_hand_closed_on_a_glass_it_did_not_take_opens_before_the_next
     (only one pad touches), and the closed hand stays round the glass. The next move starts in contact with it:
     rising closed lifted the glass along, so every move failed with its start in collision; the hand opens first,
     rises off it and moves, and the glass stays standing where it was."""
-    from muble.core.geometry import tilt_deg
-    from muble.core.scene_io import load_scene
+    from muble.io.scene_io import load_scene
     from muble.sim.build import env_from_object_set
+    from muble.stage.geometry import tilt_deg
 
     env = env_from_object_set(load_scene(DATA / "glass_the_fingers_close_on_without_taking.json"), "shopvrb2")
     try:

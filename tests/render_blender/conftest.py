@@ -7,7 +7,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 @pytest.fixture(name="mujoco_reference")
 def mujoco_reference_fixture():
-    from muble.testing.render_world import mujoco_reference
+    from tests.support.render_check import mujoco_reference
 
     return mujoco_reference
 

@@ -5,8 +5,8 @@ from PIL import Image
 
 from muble import ConfigError, SceneGraph, SceneObject, get_registry
 from muble.app.render import main, renderer_options
-from muble.core.image_grid import contact_sheet
-from muble.core.scene_io import save_scene
+from muble.io.image_grid import contact_sheet
+from muble.io.scene_io import save_scene
 
 
 def test_renderer_options_parse_yaml_values():
@@ -41,8 +41,8 @@ def _scene(rng) -> SceneGraph:
 def test_render_command_writes_keyframes_gif_and_sheet(tmp_path):
     scene_file = tmp_path / "scene.json"
     save_scene(scene_file, _scene(np.random.default_rng(3)))
+    from muble.io.scene_io import load_scene
     from muble.sim.build import env_from_object_set
-    from muble.core.scene_io import load_scene
 
     env = env_from_object_set(load_scene(scene_file), "shopvrb2")
     env.reset()

@@ -10,8 +10,8 @@ import pytest
 from PIL import Image
 
 from muble.app.render import main as render
-from muble.core.keyframe_states import read_keyframe_states
-from muble.core.scene_io import load_scene
+from muble.io.keyframe_states import read_keyframe_states
+from muble.io.scene_io import load_scene
 
 pytestmark = [pytest.mark.blender, pytest.mark.slow]
 

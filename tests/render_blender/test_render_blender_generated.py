@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from muble import SEG_ROBOT, SEG_TABLE, get_registry
-from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
+from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 
 pytestmark = pytest.mark.blender
 

@@ -7,7 +7,7 @@ import pytest
 from muble import ConfigError
 from muble_plugins.renderers.blender import BlenderRenderer
 from muble_plugins.renderers.blender.appearance import appearance, appearance_distance, luma
-from muble.testing.render_world import MATERIALS, build_world, glass_slab_rig, material_rig, random_scene
+from muble_plugins.renderers.render_world import MATERIALS, build_world, glass_slab_rig, material_rig, random_scene
 
 pytestmark = pytest.mark.blender
 

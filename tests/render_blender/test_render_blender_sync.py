@@ -4,7 +4,7 @@ import pytest
 
 from muble import SEG_ROBOT, SEG_TABLE, Frame, RenderError
 from muble_plugins.renderers.blender.labels import geom_labels
-from muble.testing.render_world import build_world, random_scene
+from muble_plugins.renderers.render_world import build_world, random_scene
 
 pytestmark = pytest.mark.blender
 

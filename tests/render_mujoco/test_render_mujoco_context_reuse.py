@@ -6,7 +6,7 @@ import pytest
 
 import muble_plugins.renderers.mujoco.gl as gl
 from muble import get_registry
-from muble.testing.render_world import build_world, random_scene
+from muble_plugins.renderers.render_world import build_world, random_scene
 
 pytestmark = pytest.mark.gl
 

@@ -2,12 +2,12 @@
 where the original's stood (its stage), so their masks agree with the files' (table and robot IoU)."""
 import pytest
 
-from muble.core.image_likeness import mask_iou
-from muble.core.scene_io import load_scenes
 from muble.core.types import SEG_ROBOT, SEG_TABLE
 from muble.generation.ground_truth import decode_mask
+from muble.io.scene_io import load_scenes
 from muble.plugins.registry import get_registry
 from muble.sim.build import env_from_object_set
+from tests.support.image_likeness import mask_iou
 
 pytestmark = pytest.mark.gl
 

@@ -9,9 +9,9 @@ import pytest
 from PIL import Image, ImageDraw
 
 from muble import SEG_BACKGROUND, SEG_TABLE, RenderError, get_registry
-from muble.core.camera import CameraParams
 from muble.generation.checks import CAMERA_NAME, view_model
 from muble.generation.placement import Placement
+from muble.stage.camera import CameraParams
 
 pytestmark = pytest.mark.gl
 

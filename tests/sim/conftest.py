@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from muble.sim.env import TabletopEnv
-from muble.testing import five_object_scene
+from tests.support.scenes import five_object_scene
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import sys
 SCRIPT = r"""
 import hashlib, numpy as np
 from muble.sim.env import TabletopEnv
-from muble.testing import five_object_scene
+from tests.support.scenes import five_object_scene
 scene, models = five_object_scene()
 env = TabletopEnv(scene, models)
 rng = np.random.default_rng(7)

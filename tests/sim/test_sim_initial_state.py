@@ -12,12 +12,12 @@ import pytest
 
 import muble
 from muble import Agent, InitialStateError, Instruction, Outcome, PhysicsError, SceneValidationError, Task
-from muble.core.scene_io import load_scene
 from muble.episode.runner import EpisodeRunner
+from muble.io.scene_io import load_scene
 from muble.sim import build
 from muble.sim.build import env_from_object_set, object_models
-from muble.testing import five_object_scene
 from muble.sim.initial_state import MAX_DISPLACEMENT, MAX_PENETRATION, MAX_ROTATION, settle_and_check
+from tests.support.scenes import five_object_scene
 
 DATA = Path(__file__).resolve().parents[1] / "planning" / "data"
 SCENES = sorted(p.name for p in DATA.glob("*.json"))

@@ -61,7 +61,7 @@ def test_sim_squeeze_reads_narrow_parts_too(stiffness, gripper):
     """A 6 mm rod (a stem, a handle): the Panda's fingers stop ~3.3 mm short of closed, where the
     finger servos' own pull is below the squeeze's force levels; the levels must still be reached. The Robotiq 85
     touches it near the fingertips, away from the pad centre, where its linkage's give tilts the pad."""
-    from muble.testing import simple_object_model, simple_scene
+    from tests.support.scenes import simple_object_model, simple_scene
 
     model = simple_object_model("cylinder", (0.006, 0.006, 0.10), 120.0, stiffness)
     scene = simple_scene([(0.5, 0.0)], [model])
@@ -93,7 +93,7 @@ def test_sim_squeeze_reads_stiff_mesh_objects_with_the_robotiq_85():
     the pieces beside the one they face, whose contacts push across the closing axis, and its linkage tilts the
     pads. Before the jaw law counted contacts along the closing axis these read -42 to +19 %."""
     from muble import get_registry
-    from muble.testing import simple_scene
+    from tests.support.scenes import simple_scene
 
     objects = get_registry().create("object_set", "shopvrb2", {"cache_dir": None})
     picks = [("mug", 2), ("mug", 11), ("mug", 12), ("glass", 11), ("glass", 19)]

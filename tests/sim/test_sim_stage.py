@@ -9,7 +9,7 @@ import pytest
 from muble.core.errors import ConfigError
 from muble.sim.env import TabletopEnv
 from muble.sim.world import STAGES, scene_stage
-from muble.testing import five_object_scene
+from tests.support.scenes import five_object_scene
 
 ORIGINAL_REST = [0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi]
 
@@ -106,8 +106,8 @@ def test_both_worlds_place_within_the_same_table_top_on_every_stage(scene_models
     """The symbolic world (scene graph only) and the physical one (the compiled table) keep a part's places inside
     the same top: on the original release's narrower desk a place the symbolic world chose off its left edge was
     one the arm could never put an object on, and episodes asking for it failed."""
-    from muble.core.footprint import free_spot
-    from muble.core.table import STAGE_TOPS, TABLE_PARTS, part_region, scene_top
+    from muble.stage.footprint import free_spot
+    from muble.stage.table import STAGE_TOPS, TABLE_PARTS, part_region, scene_top
 
     scene, models = scene_models
     scene = copy.deepcopy(scene)
@@ -130,7 +130,7 @@ def test_both_worlds_place_within_the_same_table_top_on_every_stage(scene_models
 
 
 def test_the_original_desk_narrows_the_left_part_and_robosuite_table_leaves_the_parts_as_they_were():
-    from muble.core.table import STAGE_TOPS, TABLE_PARTS, part_region
+    from muble.stage.table import STAGE_TOPS, TABLE_PARTS, part_region
 
     for part in TABLE_PARTS:
         assert part_region(part, STAGE_TOPS["robosuite"]) == part_region(part)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from muble import get_registry
-from muble.core.scene_io import load_scene
+from muble.io.scene_io import load_scene
 from muble.sim.build import env_from_object_set
 from muble.sim.initial_state import settle_and_check
 

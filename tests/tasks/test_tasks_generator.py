@@ -4,13 +4,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from muble.core.program import execute, outputs_match
-from muble.core.descriptions import SceneIndex
+from muble.programs.descriptions import SceneIndex
+from muble.programs.descriptions import ATTRIBUTE_STEP, describe
+from muble.programs.program import execute, outputs_match
 from muble_plugins.common.geometry import room_on_part
 from muble_plugins.common.synthetic import sample_scenes
 from muble_plugins.tasks.generator import generate_for_template, generate_instructions
 from muble_plugins.tasks.templates import TEMPLATES, OptionContext
-from muble.core.descriptions import ATTRIBUTE_STEP, describe
 
 STEP_ATTRIBUTE = {step: attr for attr, step in ATTRIBUTE_STEP.items()}
 
@@ -95,7 +95,7 @@ def test_objects_are_only_sent_to_table_parts_with_room_for_them():
     primitives find no free place for it either), but it has on the front part; instructions only use the latter."""
     from pathlib import Path
 
-    from muble.core.scene_io import load_scene
+    from muble.io.scene_io import load_scene
 
     scene = load_scene(Path(__file__).parent / "data" / "left_part_full.json")
     mug, large_plate, small_plate = scene.object(3), scene.object(0), scene.object(1)

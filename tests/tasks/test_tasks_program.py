@@ -6,9 +6,9 @@ import json
 import pytest
 
 from muble import ConfigError, PlanningError
-from muble.core.instructions_io import instruction_to_dict, load_instructions, save_instructions
-from muble.core.program import execute, outputs_match
-from muble.core.scene_io import load_scenes
+from muble.io.instructions_io import instruction_to_dict, load_instructions, save_instructions
+from muble.io.scene_io import load_scenes
+from muble.programs.program import execute, outputs_match
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from muble import PlanningError, SceneGraph, SceneObject
-from muble.core.instructions_io import program_step
-from muble.core.program import RELATIONS, execute, related
-from muble.core.scene_io import load_scenes
+from muble.io.instructions_io import program_step
+from muble.io.scene_io import load_scenes
+from muble.programs.program import RELATIONS, execute, related
 
 
 def _scene(*xy) -> SceneGraph:

@@ -11,7 +11,7 @@ import pytest
 
 from muble import ActionCall, Answer, Outcome, PlanningError, get_registry
 from muble.core.observation import MEASURED_STIFFNESS, leaks
-from muble.core.program import STIFFNESS_STEPS, execute
+from muble.programs.program import STIFFNESS_STEPS, execute
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.episodes import run_symbolic_episode
 from muble_plugins.common.symbolic import SymbolicWorld

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from muble import ConfigError, Outcome, get_registry
-from muble.core.instructions_io import instruction_to_dict
+from muble.io.instructions_io import instruction_to_dict
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.episodes import run_symbolic_episode
 from muble_plugins.common.synthetic import sample_scenes
 from muble_plugins.tasks.generator import generate_instructions
 from muble_plugins.tasks.template_data import expand_optional_words, read_template_file
 from muble_plugins.tasks.tasks import template_file_tasks
-from muble.testing import clear_caches
+from tests.support.plugins import clear_caches
 
 # What the ten templates written in Python generated on scenes 0-199 of sample_scenes(14, 200) (instruction i of
 # scene s drawn with default_rng([14, s])): the instructions, programs and outputs of one instruction per
@@ -148,7 +148,7 @@ INSTRUCTIONS_RECORDED = "dd5b71834c127993fe68f28ce2fb350808f210f75f60f5e5e8ac94a
 
 
 def _template_records(tmp_path) -> tuple[dict[str, tuple[int, str]], str]:
-    from muble.core.descriptions import SceneIndex
+    from muble.programs.descriptions import SceneIndex
     from muble_plugins.tasks.generator import generate_for_template
     from muble_plugins.tasks.template_data import DataTemplate
     from muble_plugins.tasks.templates import BUILTIN_FILE, STIFFNESS_FILE, OptionContext, load_templates

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from muble import bounded
-from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
+from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("CPU", "GPU", "auto")

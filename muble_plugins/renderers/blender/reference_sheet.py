@@ -18,10 +18,10 @@ def render_sheet(path: Path, width: int = 640, height: int = 480, samples: int =
     import mujoco
     from PIL import Image
 
-    from muble.core.image_grid import contact_sheet
+    from muble.io.image_grid import contact_sheet
+    from muble_plugins.renderers.render_world import build_world, material_rig, random_scene
 
     from .renderer import BlenderRenderer
-    from muble.testing.render_world import build_world, material_rig, random_scene
 
     images, captions = [], []
     renderer = BlenderRenderer(width=width, height=height, samples=samples)

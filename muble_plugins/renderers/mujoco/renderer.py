@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 
 from muble import Frame, RenderError, Renderer, SceneGraph, bounded
-from muble.core.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 from muble.core.errors import unknown_name
 from muble.core.ranges import configured
+from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 
 from muble_plugins.renderers.mujoco.atlas import ContextContents, MeshAtlas, atlas_compatible
 from muble_plugins.renderers.mujoco.labels import geom_labels

@@ -19,9 +19,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from muble import get_registry  # noqa: E402
 from muble.core.errors import SceneGenerationError  # noqa: E402
-from muble.core.scene_io import scene_from_dict, scene_to_dict  # noqa: E402
 from muble.generation import SceneGenerator  # noqa: E402
 from muble.generation.reachability import ReachCheck  # noqa: E402
+from muble.io.scene_io import scene_from_dict, scene_to_dict  # noqa: E402
 from muble.sim.build import object_models  # noqa: E402
 from muble_conf import group_defaults  # noqa: E402
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from muble.core.geometry import tilt_deg
+from muble.stage.geometry import tilt_deg
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco

@@ -11,9 +11,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from muble.core.atomic import write_bytes_atomic
 from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.scene import RLE, SceneGraph, SceneObject
+from muble.io.atomic import write_bytes_atomic
 
 # Bounds on what an input file may hold, checked before the work they bound. A SHOP-VRB2 scene has at most 10
 # objects and MuBlE's generator places 3-7, so 1,000 leaves room for any hand-made scene while a scene of

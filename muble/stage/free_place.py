@@ -7,14 +7,14 @@ box are searched on a grid and given nearest a preferred point first.
 
 The rule is the same for the physical and the symbolic world; only the footprints differ. Physics takes them
 from the bodies' collision geometry in their current pose (``muble_plugins.primitives.placement``), the symbolic
-world from the scene graph's bounding boxes (``muble.core.footprint.free_spot``), which contain the geometry, so
+world from the scene graph's bounding boxes (``muble.stage.footprint.free_spot``), which contain the geometry, so
 a place the symbolic world calls free is free in physics too.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from muble.core.geometry import hull_2d
+from muble.stage.geometry import hull_2d
 
 PLACE_GAP = 0.015  # m kept between a placed object's footprint and the others'
 PLACE_SPACING = 0.01  # m between the places searched

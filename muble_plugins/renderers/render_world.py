@@ -1,8 +1,9 @@
-"""A self-contained tabletop world for testing renderers: a robosuite Panda, a table and primitive objects.
+"""Self-contained worlds for renderers: a robosuite Panda, a table and primitive objects, and small rigs of the
+material classes.
 
-Renderer authors use it to compare their frames with MuJoCo's own renderer on real robot meshes without the
-full environment. Object bodies are named ``obj<id>...`` like the environment's, so the usual geom-to-label
-mapping applies.
+The reference sheet (``muble_plugins.renderers.blender.reference_sheet``) renders them, and renderer tests and
+benchmarks compare renderers on them, on real robot meshes without the full environment. Object bodies are named
+``obj<id>...`` like the environment's, so the usual geom-to-label mapping applies.
 """
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from muble.core.geometry import yaw_quat
 from muble.core.scene import SceneGraph, SceneObject
+from muble.stage.geometry import yaw_quat
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
@@ -148,39 +149,3 @@ def _compiled(xml: str) -> tuple["mujoco.MjModel", "mujoco.MjData"]:
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     return model, data
-
-
-def mujoco_reference(model: "mujoco.MjModel", data: "mujoco.MjData", camera: str, width: int, height: int,
-                     labels: np.ndarray, groups: tuple[int, ...] = (1,)) -> tuple[np.ndarray, np.ndarray]:
-    """Segmentation labels and depth of the same state from MuJoCo's own renderer, drawing ``groups`` only
-    (needs a GL context: ``MUJOCO_GL=egl`` headless)."""
-    import mujoco
-
-    from muble.core.types import SEG_BACKGROUND
-
-    renderer = mujoco.Renderer(model, height, width)
-    try:
-        option = mujoco.MjvOption()
-        option.geomgroup[:] = 0
-        option.sitegroup[:] = 0  # sites (grip markers) are not scenery; Blender draws none
-        for group in groups:
-            option.geomgroup[group] = 1
-        renderer.update_scene(data, camera, scene_option=option)
-        renderer.enable_segmentation_rendering()
-        seg = renderer.render().copy()
-        renderer.disable_segmentation_rendering()
-        renderer.enable_depth_rendering()
-        depth = renderer.render().copy()
-        renderer.disable_depth_rendering()
-    finally:
-        renderer.close()
-    ids, types = seg[..., 0], seg[..., 1]
-    ref = np.full(ids.shape, SEG_BACKGROUND, dtype=np.int32)
-    hit = (types == mujoco.mjtObj.mjOBJ_GEOM) & (ids >= 0)
-    ref[hit] = labels[ids[hit]]
-    return ref, depth
-
-
-def mask_iou(a: np.ndarray, b: np.ndarray) -> float:
-    union = (a | b).sum()
-    return float((a & b).sum() / union) if union else 1.0

@@ -19,7 +19,7 @@ from typing import Any, Callable
 from muble.core.errors import ConfigError, PlanningError, unknown_name
 from muble.core.observation import MEASURED_STIFFNESS  # extra key of a stiffness the agent measured (N/m)
 from muble.core.scene import SceneGraph, SceneObject
-from muble.core.table import TABLE_PARTS, parts_at
+from muble.stage.table import TABLE_PARTS, parts_at
 
 WEIGHT_MODES = ("measured", "ground_truth")
 # Attribute filters: step type -> SceneObject field.
@@ -36,7 +36,7 @@ STIFFNESS_SUPERLATIVES = ("hardest", "softest")
 STIFFNESS_ORDERS = WEIGHT_ORDERS  # ascending: softest first
 # Spatial relations of ``filter_relate`` (the original SHOP-VRB2 words) and the scene direction each one follows
 # (sign, direction name) when the scene has ``directions``; without them left is -y and front is +x, as the table
-# parts are named (``muble.core.table``).
+# parts are named (``muble.stage.table``).
 RELATIONS = {"left": (1.0, "left"), "right": (-1.0, "left"), "front": (1.0, "front"), "behind": (-1.0, "front")}
 _DEFAULT_DIRECTIONS = {"left": (0.0, -1.0), "front": (1.0, 0.0)}
 
@@ -56,7 +56,7 @@ def related(scene: SceneGraph, anchor: int, relation: str) -> list[int]:
 
 
 def table_parts_of(obj: SceneObject, scene: SceneGraph | None = None) -> frozenset[str]:
-    """The named table parts an object stands in (``muble.core.table.parts_at`` of its position).
+    """The named table parts an object stands in (``muble.stage.table.parts_at`` of its position).
 
     The scene's ``directions`` (unit vectors for left/front) orient the split when present.
     """

@@ -12,7 +12,7 @@ from typing import Any
 
 from muble.core.errors import SceneValidationError
 from muble.core.interfaces import Instruction
-from muble.core.scene_io import in_file, read_json, write_json_atomic
+from muble.io.scene_io import in_file, read_json, write_json_atomic
 
 # The ten SHOP-VRB2 task templates, in their overall order (``template_overall_idx`` 0..9): the benchmark's default
 # template mix (``dataset.templates``). The tasks plugin's templates data defines each one under this id and index.

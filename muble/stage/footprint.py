@@ -2,15 +2,15 @@
 
 No physics reads these: they serve worlds and checks that know objects only by their scene-graph records (the
 symbolic world's ``move`` and ``lower``, the tasks' success checks). Where the symbolic world puts an object down
-is the physical world's rule (``muble.core.free_place``) applied to bounding boxes.
+is the physical world's rule (``muble.stage.free_place``) applied to bounding boxes.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from muble.core.free_place import free_places
 from muble.core.scene import SceneGraph, SceneObject
-from muble.core.table import part_region, scene_top
+from muble.stage.free_place import free_places
+from muble.stage.table import part_region, scene_top
 
 # Sizes (m) assumed for an object whose record has no bbox.
 DEFAULT_RADIUS = 0.04
@@ -50,7 +50,7 @@ def outline(obj: SceneObject) -> np.ndarray:
 
 def free_spot(scene: SceneGraph, obj: SceneObject, part: str) -> list[float] | None:
     """Where ``obj`` is put down on ``part``: the first free place of the one free-place rule
-    (``muble.core.free_place``, nearest the part's centre) with bounding boxes as footprints; None when the part
+    (``muble.stage.free_place``, nearest the part's centre) with bounding boxes as footprints; None when the part
     has no room for it."""
     (x0, x1), (y0, y1) = part_region(part, scene_top(scene))
     held = outline(obj) - np.asarray(obj.position[:2], dtype=float)

@@ -1,0 +1,1 @@
+"""Task programs: the CLEVR-IEP program executor over a scene graph, and objects described in words."""
