@@ -80,7 +80,7 @@ def test_render_bad_inputs_exit_2_and_write_nothing(tmp_path, bad_files):
         (["render", scene, "--out", str(out), "--keyframes", str(bad_files["nan"])], "NaN"),
         (["render", scene, "--out", str(out), "--renderer", "mujocoo"], "did you mean 'mujoco'"),
         (["render", scene, "--out", str(out), "--object-set", "YCB"], "'ycb'"),
-        (["render", scene, "--out", str(out), "--renderer", "mujoco", "--set", "width=0"], "width=0"),
+        (["render", scene, "--out", str(out), "--renderer", "mujoco", "--set", "width=0"], "width must be >= 1, got 0"),
         (["render", scene, "--out", str(out), "--renderer", "mujoco", "--set", "widht=10"], "widht"),
         (["render", scene, "--out", str(out), "--renderer", "mujoco", "--set", "width"], "KEY=VALUE"),
         (["render", scene, "--out", str(out), "--renderer", "mujoco", "--camera", "Front"], "'front'"),
