@@ -15,8 +15,9 @@ from pathlib import Path
 
 # What docs/plugins.md sends a plugin writer to, beside the package's exports.
 API_MODULES = ("muble", "muble.core.types", "muble.programs.program", "muble.programs.descriptions",
-               "muble.core.symbolic", "muble.core.observation", "muble.stage.footprint", "muble.core.object_physics",
-               "muble.core.params", "muble.core.training", "muble.episode.loop", "muble.episode.modes")
+               "muble.core.symbolic", "muble.core.observation", "muble.stage.footprint", "muble.stage.table",
+               "muble.core.object_physics", "muble.core.params", "muble.core.training", "muble.episode.loop",
+               "muble.episode.modes")
 
 
 def undocumented(modules: tuple[str, ...] = API_MODULES) -> list[str]:

@@ -13,8 +13,6 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol, runtime_checkable
 import numpy as np
 
 from muble.core.types import Pose, Trajectory
-from muble.stage.table import TABLE_MARGIN
-from muble.stage.table import part_region as _part_region
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
@@ -36,6 +34,7 @@ class EnvironmentNames(Protocol):
     left_pads: list[str]  # finger pad geoms
     right_pads: list[str]
     table_geom: str  # the table top's collision geom
+    stage: str  # the name of the stage the world stands on (``muble.stage.table.STAGES``)
     objects: dict[int, str]  # scene id -> body name
     cameras: dict[str, str]  # role -> MuJoCo camera name
     init_qpos: np.ndarray  # the arm's rest configuration
@@ -44,20 +43,13 @@ class EnvironmentNames(Protocol):
 
 @dataclass
 class TableTop:
-    """The table top in the world frame: centre (x, y), half extents (hx, hy), top height and its body id."""
+    """The table top in the world frame: centre (x, y), half extents (hx, hy), top height and its body id (where a
+    named part of it lies: ``muble.stage.table.part_box``)."""
 
     centre: np.ndarray
     half: np.ndarray
     top_z: float
     body: int
-
-    def part_region(self, part: str, margin: float = TABLE_MARGIN) -> tuple[np.ndarray, np.ndarray]:
-        """(low, high) corners in x, y where a placed object's centre goes to lie in a named part of the table:
-        the part of ``muble.stage.table`` (the definition tasks and success checks share), kept ``margin`` inside
-        this top's edges."""
-        lo, hi = self.centre - self.half, self.centre + self.half
-        (x0, x1), (y0, y1) = _part_region(part, ((lo[0], hi[0]), (lo[1], hi[1])), margin)
-        return np.array([x0, y0]), np.array([x1, y1])
 
 
 @runtime_checkable
@@ -69,7 +61,8 @@ class Environment(Protocol):
     data: "mujoco.MjData"
     names: EnvironmentNames
     object_models: dict[int, "ObjectModel"]
-    # Measured values per scene id, written by the measuring operations ({"weight": g, "stiffness": N/m}).
+    # Measured values per scene id, written by the measuring operations ({"weight": g, "stiffness": N/m,
+    # "friction", "com_offset": [x, y] mm, "rattles": bool}).
     measurements: dict[int, dict[str, float]]
     # The run's motion planner for long moves, or None (primitives then take a registered one by name).
     planner: "MotionPlanner | None"
@@ -170,6 +163,22 @@ class Environment(Protocol):
 
     def squeeze(self) -> float:
         """Stiffness (N/m) of the object between the fingers, from force against finger displacement."""
+
+    def push(self, strokes: Any, steady: tuple[float, float]) -> Any:
+        """Push the held object, standing on the table, along it: ``strokes`` are ``(trajectory, direction)``
+        pairs (straight hand moves, their unit horizontal directions), ``steady`` the travel (m) within each
+        stroke over which the wrist force is read; needs the object's measured weight. Returns a reading with
+        ``friction`` (the coefficient, NaN without a steady stretch), ``normal`` (N) and ``samples``."""
+
+    def balance(self, tilts: Any = ()) -> np.ndarray:
+        """Horizontal offset (m, (2,), object frame) of the lifted object's centre of mass from its origin, from
+        the wrist torque held still where it is and after each of ``tilts`` (trajectories tilting the hand in
+        place: an object held leaning needs a second reading)."""
+
+    def shake(self, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) -> Any:
+        """Shake the lifted object: ``cycles`` swings of ``period`` s between the arm configurations ``ends``;
+        returns a reading with ``rattles`` (loose contents inside) and ``peak`` (N, the wrist force its rigid
+        motion does not explain)."""
 
     # ---- snapshots and the scene graph
     def snapshot(self) -> Any: ...

@@ -19,6 +19,13 @@ CONTACT_SOLMIX = 1.0e6
 # Time constant floor of 2 physics steps (2 ms each, robosuite's default), MuJoCo's stability rule of thumb.
 MIN_TIME_CONSTANT = 0.004
 MAX_ACCEL_STIFFNESS = 1.0 / MIN_TIME_CONSTANT**2
+# Geom priority of an object with its own friction coefficient: MuJoCo takes the friction of the geom with the
+# higher priority (robosuite's table and fingers have 0), so the object's coefficient decides its contacts.
+FRICTION_PRIORITY = 1
+# contype and conaffinity of a closed container's inner walls and of the loose contents inside them: they meet
+# each other only (the world's geoms use bit 1), so the contents rattle between the walls inside the container's
+# solid collision parts. Nothing outside the container ever touches them, so planning leaves them out.
+CONTENTS_COLLISION_CLASS = 2
 
 _NAME_RE = re.compile(r"^obj(\d+)(?:_|$)")
 

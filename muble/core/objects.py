@@ -61,6 +61,15 @@ class ObjectModel:
     ``collision_parts`` are convex and follow the real shape (a bowl is many parts so it can hold things).
     ``uv`` gives per-vertex texture coordinates of ``visual`` (or ``None`` for generated coordinates).
     ``inertia`` is the full 3×3 tensor about ``com`` in object coordinates (kg·m²).
+
+    Hidden physical properties (docs/physical_properties.md); their defaults leave the simulated object as it
+    is without them (the same MJCF):
+    ``friction_coefficient`` is the object's own Coulomb coefficient, which then decides its contacts (with the
+    table, the fingers, other objects whose own is lower); ``None``: ``friction`` is MuJoCo's geom friction,
+    mixed with the other geom's by the maximum. ``com_offset`` (m, object frame, 2 or 3 values) puts the centre
+    of mass off the geometric centre: horizontally off the origin (the centre of the base), vertically off
+    ``com``. ``contents_mass`` (kg, part of ``mass``) is a loose body inside a closed container (``closed``): it
+    rattles when the container is shaken.
     """
 
     spec: ObjectSpec
@@ -81,3 +90,19 @@ class ObjectModel:
     stack_base: bool
     extents: np.ndarray  # (3,) full size of the axis-aligned bounding box in object coordinates
     uv: np.ndarray | None = None
+    friction_coefficient: float | None = None  # the object's own sliding friction, deciding its contacts
+    com_offset: np.ndarray | None = None  # (2,) or (3,) m, object frame: the centre of mass off the geometric centre
+    contents_mass: float = 0.0  # kg of loose contents inside (part of ``mass``); 0: none
+    closed: bool = False  # a closed container, which can hold loose contents
+
+    @property
+    def centre_of_mass(self) -> np.ndarray:
+        """The body's centre of mass (3,) in object coordinates: ``com``, or with ``com_offset`` (x, y) off the
+        origin and (z) off ``com``'s height."""
+        com = np.asarray(self.com, dtype=float)
+        if self.com_offset is None:
+            return com.copy()
+        given = np.asarray(self.com_offset, dtype=float).reshape(-1)
+        if len(given) not in (2, 3):
+            raise ValueError(f"com_offset has {len(given)} values; give (x, y) or (x, y, z) in metres")
+        return np.array([given[0], given[1], com[2] + (given[2] if len(given) == 3 else 0.0)])

@@ -18,7 +18,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from muble.core.errors import PlanningError
-from muble.stage.table import TABLE_PARTS, canonical_part
+from muble.core.types import TABLE_PARTS, canonical_part
 
 KINDS = ("object", "part", "place", "int", "number", "vector", "any")
 

@@ -45,7 +45,7 @@ class SceneObject:
     rotation: float | None = None  # yaw in degrees
     pixel_coords: list | None = None
     movability: str | None = None
-    bbox: dict[str, float] | list | None = None  # extents {x, y, z} or eight corners
+    bbox: dict[str, float] | list | None = None  # extents {x, y, z} in its own frame, or eight corners
     scale_factor: float | None = None
     mask: RLE | None = None
     stiffness: float | None = None  # ground-truth contact stiffness, N/m

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from muble.core.errors import PlanningError, unknown_name
+
 # Segmentation labels besides object ids (objects use their scene id, >= 0).
 SEG_BACKGROUND = -1
 """Segmentation label of pixels that show no object, table or robot (objects are labelled with their id, >= 0)."""
@@ -14,6 +16,17 @@ SEG_TABLE = -2
 """Segmentation label of the table's pixels."""
 SEG_ROBOT = -3
 """Segmentation label of the robot's pixels (arm, gripper and mount)."""
+TABLE_PARTS = ("left", "right", "front", "back", "centre")
+"""The table's named parts, as seen from the scene camera (where each lies on a stage: ``muble.stage.table``)."""
+_PART_ALIASES = {"center": "centre"}
+
+
+def canonical_part(part: str) -> str:
+    """The part's name (``center`` is ``centre``); an unknown name raises ``PlanningError`` listing the valid ones."""
+    name = _PART_ALIASES.get(part, part)
+    if name not in TABLE_PARTS:
+        raise PlanningError(unknown_name("table part", str(part), TABLE_PARTS))
+    return name
 
 
 @dataclass

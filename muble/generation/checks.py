@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from muble.core.objects import ObjectModel
-from muble.generation.placement import Placement
 from muble.stage.camera import CameraParams
+from muble.stage.layout import Placement
 
 CAMERA_NAME = "front"
 TABLE_THICKNESS = 0.05

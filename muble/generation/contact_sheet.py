@@ -9,8 +9,8 @@ import numpy as np
 from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.scene import SceneGraph
 from muble.generation import checks
-from muble.generation.placement import Placement
 from muble.stage.camera import CameraParams
+from muble.stage.layout import Placement
 
 
 def models_from_scene(object_set, scene: SceneGraph) -> list[ObjectModel]:

@@ -22,12 +22,14 @@ from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.ranges import configured
 from muble.core.scene import SceneGraph, SceneObject
 from muble.generation import checks, ground_truth
-from muble.generation.config import GeneratorConfig
-from muble.generation.placement import Placement, TableLayout, shared_collision_meshes
+from muble.generation.config import GeneratorConfig, on_stage
+from muble.generation.placement import mesh_distance, shared_collision_meshes
 from muble.core import streams
 from muble.generation.staging import LAMPS, jittered_camera, jittered_lamps
 from muble.generation.view import shared_view
 from muble.stage.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, CameraParams, euler_xyz_to_matrix
+from muble.stage.layout import Placement, TableLayout
+from muble.stage.rest import settled
 from muble.stage.table import STAGE_KEY, UNNAMED_STAGE
 
 log = logging.getLogger(__name__)
@@ -69,17 +71,11 @@ class SceneGenerator:
                  image_size: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)):
         from muble.sim.env import ROBOT_DEFAULTS
 
-        self.config = cfg = configured(GeneratorConfig, config, owner="generator")
+        # The options left at their defaults take the stage's values (``muble.generation.config.on_stage``).
+        self.config = cfg = on_stage(configured(GeneratorConfig, config, owner="generator"))
         self.seed = int(seed)
         # The physics step of the robot the scenes are made for: layouts settle as its episodes will run.
         self.timestep = float((cfg.robot or {}).get("timestep") or ROBOT_DEFAULTS["timestep"])
-        if cfg.stage:
-            from muble.sim.world import stage_named
-            from muble.stage.table import TABLE_X, TABLE_Y
-
-            x, y = stage_named(cfg.stage, "generator.stage").top_ranges()
-            if list(cfg.table_x) == list(TABLE_X) and list(cfg.table_y) == list(TABLE_Y):
-                self.config = cfg = dataclasses.replace(cfg, table_x=list(x), table_y=list(y))
         self._check_config(cfg)
         if object_set is None:
             from muble.plugins.registry import get_registry
@@ -183,7 +179,8 @@ class SceneGenerator:
 
     def _layout(self, models: list[ObjectModel], rng: np.random.Generator) -> list[Placement] | None:
         cfg = self.config
-        layout = TableLayout(cfg.reach_x, cfg.reach_y, cfg.table_x, cfg.table_y, cfg.margin, cfg.robot_clearance)
+        layout = TableLayout(cfg.reach_x, cfg.reach_y, cfg.table_x, cfg.table_y, cfg.margin, cfg.robot_clearance,
+                             distance=mesh_distance)
         meshes = [self._collision_meshes.get(m) for m in models]
         placements: list[Placement | None] = [None] * len(models)
         for i in sorted(range(len(models)), key=lambda k: -meshes[k].radius):  # big footprints first pack best
@@ -239,7 +236,7 @@ class SceneGenerator:
             if cfg.stability:
                 moved = checks.settle(models, placements, cfg.table_x, cfg.table_y, self.timestep, cfg.settle_time)
                 self.timings["stability"] += time.perf_counter() - t4
-                if np.any(moved > cfg.stability_tolerance):
+                if not all(settled(m, limit=cfg.stability_tolerance) for m in moved):
                     reasons["stability"] += 1
                     continue
             scene = self._scene(index, specs, models, placements, None, staging)

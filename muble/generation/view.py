@@ -20,8 +20,8 @@ import numpy as np
 from muble.core.objects import ObjectModel
 from muble.generation.checks import CAMERA_NAME, _table_geom_args
 from muble.generation.mesh_keys import mesh_key
-from muble.generation.placement import Placement
 from muble.stage.camera import CameraParams
+from muble.stage.layout import Placement
 
 OBJECT_GROUP = 2  # drawn by the mujoco renderer (groups 1 and 2)
 HIDDEN_GROUP = 5  # never drawn

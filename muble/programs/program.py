@@ -19,7 +19,8 @@ from typing import Any, Callable
 from muble.core.errors import ConfigError, PlanningError, unknown_name
 from muble.core.observation import MEASURED_STIFFNESS  # extra key of a stiffness the agent measured (N/m)
 from muble.core.scene import SceneGraph, SceneObject
-from muble.stage.table import TABLE_PARTS, parts_at
+from muble.core.types import TABLE_PARTS
+from muble.stage.table import parts_at
 
 WEIGHT_MODES = ("measured", "ground_truth")
 # Attribute filters: step type -> SceneObject field.

@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import Any, Iterable
 
 from muble.core.params import Param, specs
-from muble.stage.table import TABLE_PARTS
+from muble.core.types import TABLE_PARTS
 
 JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 

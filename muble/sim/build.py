@@ -3,8 +3,9 @@
 Physical properties are checked on the way: a scene object's ``weight_gt`` (the body mass, g) must be a positive
 finite number and its ``stiffness`` (N/m) too, or missing; a missing stiffness takes the object set's default for
 the object's material (``ObjectSet.default_stiffness``), logged once per object set and material. The built
-model's mass and inertia are checked as well. Anything else is a ``SceneValidationError`` naming the object and
-the field; nothing becomes 0.
+model's mass and inertia are checked as well. The hidden properties a scene object's ``extra`` may give (friction
+coefficient, centre of mass, loose contents: ``muble.core.physical_properties``) are checked and built into its
+model. Anything else is a ``SceneValidationError`` naming the object and the field; nothing becomes 0.
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from muble.core import physical_properties
 from muble.core.errors import SceneValidationError
 from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.scene import SceneGraph, SceneObject
@@ -93,6 +95,19 @@ def check_model(obj_id: int, model: ObjectModel) -> None:
         raise SceneValidationError(f"the built model's stiffness is {stiffness} N/m", obj=obj_id, field="stiffness")
 
 
+def with_physical_properties(obj: SceneObject, model: ObjectModel) -> ObjectModel:
+    """``model`` with the friction, centre of mass and loose contents the scene object's ``extra`` gives
+    (``muble.core.physical_properties``); the model itself where it gives none. Loose contents need a closed
+    container (``ObjectModel.closed``)."""
+    properties = physical_properties.checked(obj)
+    if not properties:
+        return model
+    if properties.get("contents_mass") and not model.closed:
+        raise SceneValidationError(f"a {obj.name} is no closed container: it cannot hold loose contents", obj=obj.id,
+                                   field=physical_properties.CONTENTS)
+    return dataclasses.replace(model, **properties)
+
+
 def object_models(scene: SceneGraph, object_set: Any, set_name: str = "") -> dict[int, ObjectModel]:
     """One built ``ObjectModel`` per scene object, after checking each object's mass and stiffness."""
     to_spec = getattr(object_set, "spec_from_scene_object", None)
@@ -104,7 +119,7 @@ def object_models(scene: SceneGraph, object_set: Any, set_name: str = "") -> dic
         if obj.stiffness is None:
             obj = dataclasses.replace(obj, stiffness=stiffness)
         spec = to_spec(obj) if to_spec is not None else spec_from_scene_object(obj, set_name)
-        models[obj.id] = object_set.build(spec)
+        models[obj.id] = with_physical_properties(obj, object_set.build(spec))
         check_model(obj.id, models[obj.id])
     return models
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from muble.core.errors import PlanningError
 from muble.core.interfaces import CollisionWorld
+from muble.core.object_physics import CONTENTS_COLLISION_CLASS
 from muble.core.types import Pose, PoseGoal
 from muble.sim.ik import ArmKinematics
 
@@ -128,6 +129,10 @@ class MujocoCollisionWorld(CollisionWorld):
         self.robot_bodies = _subtree_bodies(m, m.body(robot_root).id)
         self.gripper_bodies = _subtree_bodies(m, m.body(gripper_root).id)
         self._geom_body = m.geom_bodyid.copy()
+        # A closed container's inner walls and loose contents lie inside its solid parts: nothing reaches them.
+        inside = (m.geom_contype == CONTENTS_COLLISION_CLASS) & (m.geom_conaffinity == CONTENTS_COLLISION_CLASS)
+        m.geom_contype[inside] = 0
+        m.geom_conaffinity[inside] = 0
         collidable = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
         self._robot_geoms = np.array([collidable[g] and m.geom_bodyid[g] in self.robot_bodies for g in range(m.ngeom)])
         self._gripper_geoms = np.array([m.geom_bodyid[g] in self.gripper_bodies for g in range(m.ngeom)])
@@ -179,7 +184,7 @@ class MujocoCollisionWorld(CollisionWorld):
         """From now on, solve inverse kinematics on ``model``, a model of this robot without the objects (the
         same world built with no objects on the table), when the robot in it is this world's bit for bit: the same
         iterates, bit for bit, in less time, since MuJoCo's kinematics then skip every object's geoms and sites.
-        Whether it is used (``False``: this world's own model, as before; the robot differs in some number).
+        Whether it is used (``False``: this world's own model; the robot differs in some number).
 
         Every step of the solver reads only the robot's own tree: ``mj_kinematics`` places each body from its
         parent's frame, ``mj_comPos`` builds the com-based frames of a body from its own tree (summed over that
@@ -255,7 +260,7 @@ class MujocoCollisionWorld(CollisionWorld):
         fingers against each other, neighbouring links): two thirds of a check's collision detection, spent on
         contacts thrown away. Each robot geom gets a bit of its own in its ``contype`` and its counted partners'
         bits in its ``conaffinity``; the world and held-object classes keep theirs, so every other pair is
-        detected as before, in the same order, with the same distances. Left as it is for a robot with more
+        detected as without the bits, in the same order, with the same distances. Left as it is for a robot with more
         collision geoms than bits."""
         m = self.model
         robot = np.flatnonzero(self._robot_geoms)
@@ -268,7 +273,7 @@ class MujocoCollisionWorld(CollisionWorld):
                 if i != j and not self._self_ignore[i, j]:
                     partners |= bits[int(j)]
             # World geoms (contype _WORLD_CLASS, conaffinity 1) and a held object (contype _ROBOT_CLASS,
-            # conaffinity 1) meet the robot's _ROBOT_CLASS bit as before; robot geoms meet only through the bits.
+            # conaffinity 1) meet the robot's _ROBOT_CLASS bit; robot geoms meet only through the bits.
             m.geom_contype[i] = _ROBOT_CLASS | bits[int(i)]
             m.geom_conaffinity[i] = _WORLD_CLASS | partners
 

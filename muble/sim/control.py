@@ -5,7 +5,7 @@ MuJoCo gravity compensation, so the joint impedance runs inside ``mj_step`` at e
 computes a new joint set-point once per control period; the physics then advances ``k`` substeps in one
 ``mj_step(model, data, nstep=k)`` call. This is what keeps Python out of the physics loop.
 
-The end-effector controller (``IK_JOINT_SERVO``, formerly ``OSC_POSE``) is inverse kinematics evaluated at the
+The end-effector controller (``IK_JOINT_SERVO``; ``OSC_POSE`` in configs names it too) is inverse kinematics evaluated at the
 control rate, not an operational-space torque law: the task error (position and rotation vector) is mapped to joint
 space through the dynamically consistent inverse of the Jacobian, ``J̄ = M⁻¹Jᵀ(JM⁻¹Jᵀ + λI)⁻¹``, with a null-space
 pull towards the rest posture; the joint servos realise that displacement.

@@ -13,24 +13,26 @@ import numpy as np
 from muble.core.errors import ConfigError, PhysicsError, unknown_name
 from muble.core.environment import TableTop
 from muble.core.interfaces import MotionPlanner, Sensor
+from muble.core.object_physics import CONTENTS_COLLISION_CLASS
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
 from muble.core.types import Outcome, Pose, Trajectory
-from muble.sim import measure, sync
+from muble.sim import measure, probing, sync
 from muble.sim.collision_world import MujocoCollisionWorld
 from muble.sim.control import OSC_OUTPUT_MAX, ArmServos, OperationalSpace, gripper_endpoints
 from muble.sim.faults import FaultDetector
 from muble.sim.grasp import GRASP_MODES, GraspModel
 from muble.sim.spaces import control_space
-from muble.sim.world import STAGES, build_world
+from muble.sim.world import build_world
+from muble.stage.table import STAGES
 
 logger = logging.getLogger(__name__)
 
 # ``IK_JOINT_SERVO``: an end-effector delta pose is solved to a joint set-point (inverse kinematics through the
 # dynamically consistent Jacobian inverse) and the joint servos track it; robosuite's delta-pose action.
 CONTROLLERS = ("IK_JOINT_SERVO",)
-# Former names still accepted in configs, mapped to the controller they named: ``OSC_POSE`` (the old name, after
-# robosuite's action, though no operational-space torque law runs).
+# Other names accepted in configs, mapped to the controller they name: ``OSC_POSE`` (after robosuite's action of
+# that name, though no operational-space torque law runs).
 CONTROLLER_ALIASES = {"OSC_POSE": "IK_JOINT_SERVO"}
 
 
@@ -133,7 +135,8 @@ class TabletopEnv:
         self.action_space = control_space()
         self.gripper_command = -1.0
         self.tare_force: np.ndarray | None = None
-        # Measured values per scene id ({"weight": g, "stiffness": N/m}), filled by muble.sim.measure.
+        # Measured values per scene id ({"weight": g, "stiffness": N/m, "friction", "com_offset": [x, y] mm,
+        # "rattles": bool}), filled by muble.sim.measure and muble.sim.probing.
         self.measurements: dict[int, dict[str, float]] = {}
         self.planner: MotionPlanner | None = None  # the run's planner for long moves (the episode runner sets it)
         self.cache: dict[str, Any] = {}  # what plugins compute once per environment (Environment.cache)
@@ -353,6 +356,8 @@ class TabletopEnv:
         for g in np.flatnonzero(m.geom_bodyid == b):
             if m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0:
                 continue
+            if m.geom_contype[g] == CONTENTS_COLLISION_CLASS:
+                continue  # the walls of a cavity inside it (loose contents)
             tops.append(d.geom_xpos[g][2] + m.geom_rbound[g])
             if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
                 mesh = m.geom_dataid[g]
@@ -407,6 +412,21 @@ class TabletopEnv:
     def squeeze(self) -> float:
         """Stiffness (N/m) of the object between the fingers (``muble.sim.measure.squeeze``)."""
         return measure.squeeze(self)
+
+    def push(self, strokes, steady: tuple[float, float]) -> probing.PushReading:
+        """Friction coefficient of the held object on the table, pushed along it by the ``(trajectory,
+        direction)`` strokes (``muble.sim.probing.push``); needs its measured weight."""
+        return probing.push(self, strokes, steady)
+
+    def balance(self, tilts=()) -> np.ndarray:
+        """Horizontal offset (m, object frame) of the lifted object's centre of mass from its origin, read held
+        still and after each of ``tilts`` (``muble.sim.probing.balance``)."""
+        return probing.balance(self, tilts)
+
+    def shake(self, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) -> probing.ShakeReading:
+        """Shake the lifted object between two arm configurations; whether it rattles
+        (``muble.sim.probing.shake``)."""
+        return probing.shake(self, ends, period, cycles)
 
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
         """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame."""

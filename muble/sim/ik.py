@@ -175,7 +175,7 @@ class ArmKinematics:
         # The loop runs thousands of times per scene in planning: buffers are reused and numpy's per-call wrappers
         # avoided where the same operation gives the same numbers (norms as sqrt(x·x), as np.linalg.norm computes;
         # quat_error's steps on preallocated quaternions; the linear solve's error state set once per solve; the
-        # weighted rows multiplied straight into their buffer, x * 0.2 as before; the sum with the damping, the
+        # weighted rows multiplied straight into their buffer, x * 0.2; the sum with the damping, the
         # step's size and the clamped update written in place: the same elementwise operations in the same order).
         m, d, site = self.model, self.data, self.site_id
         qpos, qpos_index, dof_index = d.qpos, self._qpos_index, self._dof_index

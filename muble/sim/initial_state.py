@@ -6,8 +6,9 @@
    table top, no contact deeper than ``MAX_PENETRATION`` with the table, the robot or another object, and a support
    (the table or another object) within ``SUPPORT_GAP``;
 2. the physics then runs for ``SETTLE_TIME`` with the arm holding its rest pose and the gripper open;
-3. afterwards no object may have moved more than ``MAX_DISPLACEMENT`` (its origin or its centre of mass) or turned
-   more than ``MAX_ROTATION``, sunk deeper than ``MAX_PENETRATION`` into anything, or be touching no support.
+3. afterwards every object must have settled (``muble.stage.rest.settled``: moved at most ``SETTLED_DISPLACEMENT``,
+   its origin or its centre of mass, and turned at most ``SETTLED_TURN``), sunk no deeper than ``MAX_PENETRATION``
+   into anything, and touch a support.
 
 The first failure raises ``InitialStateError`` naming the object and the check; the episode is then a broken scene
 (the data's fault) and the agent never acts. On success the environment is left settled, its step counter where
@@ -16,7 +17,6 @@ against are in docs/environment.md ("Initial state").
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import mujoco
@@ -24,16 +24,15 @@ import numpy as np
 
 from muble.core.errors import InitialStateError, PhysicsError
 from muble.sim.world import TABLE_GEOM
+from muble.stage.geometry import turn_deg
+from muble.stage.rest import SETTLED_DISPLACEMENT, SETTLED_TURN, settled
 from muble.stage.table import BELOW_TABLE
 
 SETTLE_TIME = 0.5  # s of physics before the check: a 5 cm drop lands in 0.1 s, a tipping object is well under way
-MAX_DISPLACEMENT = 0.005  # m an object's origin or centre of mass may move while settling (generator: same figure)
-MAX_ROTATION = 3.0  # degrees an object may turn while settling
 MAX_PENETRATION = 0.003  # m of contact depth (before and after settling); resting contacts are ~0.2 mm deep
 SUPPORT_GAP = 0.002  # m between an object and its support that still counts as resting on it
 FLOATING_SEARCH = 0.2  # m: how far below an unsupported object its support is looked for, to say how high it floats
 MASS_RANGE_G = (1.0, 10_000.0)  # g: a tabletop household object the arm works with weighs between these
-
 
 
 @dataclass
@@ -218,11 +217,6 @@ def check_supported(env, parties: _Parties) -> None:
                                 obj=obj, check="floating", other="table")
 
 
-def _rotation_degrees(q0: np.ndarray, q1: np.ndarray) -> float:
-    dot = min(1.0, abs(float(np.dot(q0, q1))))
-    return math.degrees(2.0 * math.acos(dot))
-
-
 def _resting_on(env, parties: _Parties, obj: int) -> int | str | None:
     """The table or object this object touches now (contacts within ``SUPPORT_GAP``), or None."""
     d = env.data
@@ -275,13 +269,13 @@ def settle_and_check(env, settle_time: float = SETTLE_TIME) -> InitialStateRepor
     report = InitialStateReport(settle_time)
     moved = np.maximum(np.linalg.norm(d.xpos[bodies] - origin0, axis=1), np.linalg.norm(d.xipos[bodies] - com0, axis=1))
     for k, obj in enumerate(ids):
-        turned = _rotation_degrees(quat0[k], d.xquat[bodies[k]])
-        if moved[k] > MAX_DISPLACEMENT or turned > MAX_ROTATION:
+        turned = turn_deg(quat0[k], d.xquat[bodies[k]])
+        if not settled(moved[k], turned):
             drop = origin0[k][2] - d.xpos[bodies[k]][2]
             raise InitialStateError(
                 f"does not rest: in {settle_time:g} s of settling it moved {moved[k] * 1000:.1f} mm (dropped "
-                f"{drop * 1000:.1f} mm) and turned {turned:.1f} degrees (at most {MAX_DISPLACEMENT * 1000:.0f} mm "
-                f"and {MAX_ROTATION:g} degrees); place it stably in the scene", obj=obj, check="moved")
+                f"{drop * 1000:.1f} mm) and turned {turned:.1f} degrees (at most {SETTLED_DISPLACEMENT * 1000:.0f} mm "
+                f"and {SETTLED_TURN:g} degrees); place it stably in the scene", obj=obj, check="moved")
         report.objects[obj] = ObjectRest(obj, float(moved[k]), turned, 0.0, None)
     depths = check_penetration(env, parties, f"after {settle_time:g} s of settling")
     for obj in ids:

@@ -24,11 +24,17 @@ Naming convention (object ``i``)
 - collision geoms ``obj{i}_col{k}`` (k = 0 … n-1, one per convex part), meshes ``obj{i}_col{k}_mesh``
 - visual geom ``obj{i}_visual``, mesh ``obj{i}_visual_mesh``
 - grasp sites ``obj{i}_grasp{k}`` in the order of ``ObjectModel.grasp_frames``
+- a closed container with loose contents (``ObjectModel.contents_mass``): cavity walls ``obj{i}_wall{k}``
+  (k = 0 … 5) on its body, and a world body ``obj{i}_contents`` (free joint ``obj{i}_contents_joint``, ball geom
+  ``obj{i}_contents_col``), which ``body_xml`` holds after the object's body
 Every name starts with ``obj{i}`` followed by ``_`` or the end, so segmentation (geom id → name → object id)
 and contact reports map back to the scene graph by ``object_id_from_name``.
 
 Groups: collision geoms are in geom group 3 (hidden by default, they collide: ``contype=conaffinity=1``);
 the visual geom is in group 2 and collides with nothing (``contype=conaffinity=0``); grasp sites are group 4.
+Cavity walls and contents are in group 3 too and meet each other only (``contype=conaffinity=2``,
+``CONTENTS_COLLISION_CLASS``). An object with its own ``friction_coefficient`` has collision geoms of
+``priority`` 1 (``FRICTION_PRIORITY``); see docs/physical_properties.md.
 
 Contact stiffness
 -----------------
@@ -65,6 +71,8 @@ import numpy as np
 from muble.core.object_physics import (  # noqa: F401  (re-exported: the names and contact law live in the core)
     CONTACT_IMPEDANCE,
     CONTACT_SOLMIX,
+    CONTENTS_COLLISION_CLASS,
+    FRICTION_PRIORITY,
     MAX_ACCEL_STIFFNESS,
     MIN_TIME_CONSTANT,
     contact_solref,
@@ -121,11 +129,25 @@ def object_mjcf(model: ObjectModel, object_id: int, pos=(0.0, 0.0, 0.0), quat=(1
                 damping_ratio: float = 1.0) -> ObjectMjcf:
     """The MJCF of ``model`` as object ``object_id`` at ``pos`` with orientation ``quat`` (w, x, y, z).
 
-    The body's mass is ``model.mass`` exactly and its inertia ``model.inertia`` about ``model.com``.
+    The body's mass is ``model.mass`` exactly and its inertia ``model.inertia`` about ``model.com`` (moved by
+    ``model.com_offset``). A container with loose contents (``model.contents_mass``) is two bodies: its own,
+    ``mass - contents_mass`` heavy with walls round a cavity (``contents_cavity``), and the contents ball
+    (``contents_mjcf``), which ``body_xml`` holds too.
     """
     body = object_body_name(object_id)
-    solref, solimp = contact_solref(model.stiffness, damping_ratio, model.mass)
-    friction = f"{model.friction:.6g} 0.005 0.0001"
+    contents = float(model.contents_mass) > 0.0
+    if contents and not model.closed:
+        raise ValueError(f"{model.spec.model} is no closed container: it cannot hold loose contents "
+                         f"(contents_mass {model.contents_mass:g} kg)")
+    mass = model.mass - model.contents_mass if contents else model.mass
+    if not mass > 0.0:
+        raise ValueError(f"{model.spec.model}: loose contents of {model.contents_mass:g} kg leave the container "
+                         f"{mass:g} kg")
+    # The jaw law reads the stiffness back from the solref and the body's own mass (``muble.sim.jaw_contact``).
+    solref, solimp = contact_solref(model.stiffness, damping_ratio, mass)
+    own = model.friction_coefficient
+    friction = f"{model.friction if own is None else own:.6g} 0.005 0.0001"
+    priority = "" if own is None else f' priority="{FRICTION_PRIORITY}"'
     assets: list[str] = []
     geoms: list[str] = []
     names: list[str] = []
@@ -134,10 +156,15 @@ def object_mjcf(model: ObjectModel, object_id: int, pos=(0.0, 0.0, 0.0), quat=(1
         assets.append(_mesh_xml(f"{geom}_mesh", part.vertices, part.faces))
         geoms.append(
             f'<geom name="{geom}" type="mesh" mesh="{geom}_mesh" group="{COLLISION_GROUP}" contype="1" '
-            f'conaffinity="1" condim="4" friction="{friction}" solref="{solref[0]:.9g} {solref[1]:.9g}" '
+            f'conaffinity="1" condim="4"{priority} friction="{friction}" solref="{solref[0]:.9g} {solref[1]:.9g}" '
             f'solimp="{_floats(solimp)}" solmix="{CONTACT_SOLMIX:.6g}" rgba="{_rgba(model.rgba)}"/>'
         )
         names.append(geom)
+    extra_bodies = ""
+    if contents:
+        walls, extra_bodies = contents_mjcf(model, body, pos, quat)
+        geoms.extend(walls)
+        names.extend(f"{body}_wall{k}" for k in range(len(walls)))
     visual = f"{body}_visual"
     assets.append(_mesh_xml(f"{visual}_mesh", model.visual.vertices, model.visual.faces))
     geoms.append(
@@ -152,16 +179,119 @@ def object_mjcf(model: ObjectModel, object_id: int, pos=(0.0, 0.0, 0.0), quat=(1
             f'size="0.004" group="{SITE_GROUP}" rgba="0 1 0 0.5"/>'
         )
     inertia = np.asarray(model.inertia, dtype=float)
+    if contents:
+        inertia = inertia * (mass / model.mass)  # the same mass distribution, less the contents
     full = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
     inertial = (
-        f'<inertial pos="{_floats(model.com)}" mass="{model.mass:.17g}" '
+        f'<inertial pos="{_floats(model.centre_of_mass)}" mass="{mass:.17g}" '
         f'fullinertia="{" ".join(f"{v:.10g}" for v in full)}"/>'
     )
     body_xml = (
         f'<body name="{body}" pos="{_floats(pos)}" quat="{_floats(quat)}">'
-        f'<freejoint name="{body}_joint"/>{inertial}{"".join(geoms)}{"".join(sites)}</body>'
+        f'<freejoint name="{body}_joint"/>{inertial}{"".join(geoms)}{"".join(sites)}</body>{extra_bodies}'
     )
     return ObjectMjcf(asset_xml="".join(assets), body_xml=body_xml, body_name=body, geom_names=names)
+
+
+# Loose contents: a ball that rolls in a box-shaped cavity inside the container's largest convex collision part,
+# walled by thin boxes. The walls and the ball meet each other only (``CONTENTS_COLLISION_CLASS``), so the solid
+# part round them, which the table, the fingers and other objects touch, is unchanged.
+CONTENTS_WALL = 0.003  # m: thickness of the cavity's walls, all inside the container's solid part
+CONTENTS_RADIUS = 0.01  # m: the ball's radius at most; smaller in a narrow cavity (``CONTENTS_FILL``)
+CONTENTS_FILL = 0.4  # the ball's radius at most this share of the cavity's smallest half extent
+# Crisp contacts (2.5 steps' time constant, critically damped) between the ball and the walls: each impact is a
+# short force spike on the container, which the wrist sensor sees while shaking (``muble.sim.probing.shake``).
+CONTENTS_SOLREF = (0.005, 1.0)
+
+
+def _halfspaces(part) -> tuple[np.ndarray, np.ndarray]:
+    """Outward unit normals (F, 3) and offsets (F,) of a convex part's faces: inside is ``normals @ p <= offsets``."""
+    v = np.asarray(part.vertices, dtype=float)
+    f = np.asarray(part.faces, dtype=int)
+    normals = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    length = np.linalg.norm(normals, axis=1)
+    keep = length > 1e-12
+    normals = normals[keep] / length[keep, None]
+    offsets = np.einsum("ij,ij->i", normals, v[f[keep, 0]])
+    flip = normals @ v.mean(axis=0) > offsets  # face winding either way: the centroid is inside
+    normals[flip], offsets[flip] = -normals[flip], -offsets[flip]
+    return normals, offsets
+
+
+def contents_cavity(model: ObjectModel) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (3,) and half extents (3,) in object coordinates of the cavity the loose contents roll in: the
+    largest box, centred in the largest (by bounding box) convex collision part, 0.85 of its height, whose walls
+    (``CONTENTS_WALL`` thick) still lie inside that part. Raises ``ValueError`` where no cavity fits."""
+    def box_volume(part):
+        return float(np.prod(np.ptp(np.asarray(part.vertices, dtype=float), axis=0)))
+
+    part = max(model.collision_parts, key=box_volume)
+    v = np.asarray(part.vertices, dtype=float)
+    low, high = v.min(axis=0), v.max(axis=0)
+    centre, half = 0.5 * (low + high), 0.5 * (high - low)
+    normals, offsets = _halfspaces(part)
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
+    margin = CONTENTS_WALL + 1e-4
+
+    def fits(scale_xy: float, half_z: float) -> bool:
+        outer = np.array([half[0] * scale_xy + margin, half[1] * scale_xy + margin, half_z + margin])
+        corners = centre + signs * outer
+        return bool(np.all(corners @ normals.T <= offsets + 1e-9))
+
+    half_z = 0.85 * half[2] - margin
+    lo, hi = 0.0, 1.0
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if fits(mid, half_z) else (lo, mid)
+    cavity = np.array([half[0] * lo, half[1] * lo, half_z])
+    if half_z <= 0 or cavity[:2].min() < 2 * CONTENTS_WALL:
+        raise ValueError(f"{model.spec.model}: no cavity for loose contents fits inside its collision parts")
+    return centre, cavity
+
+
+def contents_radius(cavity_half: np.ndarray) -> float:
+    """The loose ball's radius (m) in a cavity of ``cavity_half`` half extents."""
+    return float(min(CONTENTS_RADIUS, CONTENTS_FILL * float(np.min(cavity_half))))
+
+
+def _quat_matrix(quat) -> np.ndarray:
+    w, x, y, z = np.asarray(quat, dtype=float) / np.linalg.norm(quat)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def contents_mjcf(model: ObjectModel, body: str, pos, quat) -> tuple[list[str], str]:
+    """The cavity's wall geoms (``{body}_wall0`` … ``5``, for the container's body) and the contents body
+    ``{body}_contents`` (free joint ``{body}_contents_joint``, ball geom ``{body}_contents_col``), a world body of
+    its own resting on the cavity's floor: MuJoCo never lets a body touch its parent, so the ball cannot be a
+    child of the container it rattles in. All of them collide in ``CONTENTS_COLLISION_CLASS`` only and sit in
+    the collision geoms' group (never drawn)."""
+    centre, half = contents_cavity(model)
+    t = CONTENTS_WALL
+    hx, hy, hz = half
+    walls = [  # (centre offset, half size): floor, ceiling, -x, +x, -y, +y
+        ((0, 0, -hz - t / 2), (hx + t, hy + t, t / 2)), ((0, 0, hz + t / 2), (hx + t, hy + t, t / 2)),
+        ((-hx - t / 2, 0, 0), (t / 2, hy + t, hz)), ((hx + t / 2, 0, 0), (t / 2, hy + t, hz)),
+        ((0, -hy - t / 2, 0), (hx, t / 2, hz)), ((0, hy + t / 2, 0), (hx, t / 2, hz)),
+    ]
+    contact = (f'group="{COLLISION_GROUP}" contype="{CONTENTS_COLLISION_CLASS}" '
+               f'conaffinity="{CONTENTS_COLLISION_CLASS}" solref="{_floats(CONTENTS_SOLREF)}" '
+               f'rgba="{_rgba(model.rgba)}"')
+    geoms = [f'<geom name="{body}_wall{k}" type="box" pos="{_floats(centre + np.asarray(offset))}" '
+             f'size="{_floats(size)}" condim="3" {contact}/>' for k, (offset, size) in enumerate(walls)]
+    radius = contents_radius(half)
+    mass = float(model.contents_mass)
+    rest = centre - np.array([0.0, 0.0, hz - radius])  # on the cavity's floor, in object coordinates
+    world = np.asarray(pos, dtype=float) + _quat_matrix(quat) @ rest
+    moment = 0.4 * mass * radius**2
+    ball = (
+        f'<body name="{body}_contents" pos="{_floats(world)}" quat="{_floats(quat)}">'
+        f'<freejoint name="{body}_contents_joint"/>'
+        f'<inertial pos="0 0 0" mass="{mass:.17g}" diaginertia="{moment:.10g} {moment:.10g} {moment:.10g}"/>'
+        f'<geom name="{body}_contents_col" type="sphere" size="{radius:.6g}" condim="3" {contact}/></body>'
+    )
+    return geoms, ball
 
 
 def test_world_xml(placements, table_height: float = 0.0, table_half_size=(0.5, 0.5),

@@ -1,26 +1,30 @@
-"""Reading the scene graph back from MuJoCo: poses, world bounding boxes, flags and measured values."""
+"""Reading the scene graph back from MuJoCo: poses, bounding boxes, flags and measured values."""
 from __future__ import annotations
 
 import copy
 
-import mujoco
 import numpy as np
 
 from muble.core.observation import TOUCHING_TABLE
 from muble.core.scene import SceneGraph
+from muble.stage.footprint import world_extents
 from muble.stage.geometry import tilt_deg
 
 RAISED_HEIGHT = 0.01  # m above its resting height counts as raised
 
 
+def object_bbox(env, obj_id: int) -> dict[str, float]:
+    """The object's bbox as a scene graph records it: the extents (x, y, z) of its model's bounding box in its own
+    frame (``muble.stage.footprint``)."""
+    ext = np.asarray(env.object_models[obj_id].extents, dtype=float)
+    return {"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])}
+
+
 def world_bbox(env, obj_id: int) -> dict[str, float]:
-    """Extents (x, y, z) of the object's axis-aligned bounding box in the world frame."""
-    model = env.object_models[obj_id]
-    pose = env.object_pose(obj_id)
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, pose.quat)
-    verts = np.asarray(model.visual.vertices) @ rot.reshape(3, 3).T
-    ext = verts.max(axis=0) - verts.min(axis=0)
+    """Extents (x, y, z) of the world-axis-aligned box that holds the object's bbox as it stands now
+    (``muble.stage.footprint.world_extents``)."""
+    bbox = object_bbox(env, obj_id)
+    ext = world_extents((bbox["x"], bbox["y"], bbox["z"]), env.object_pose(obj_id).quat)
     return {"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])}
 
 
@@ -90,7 +94,7 @@ def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
         obj.position = pose.pos
         obj.orientation = pose.quat
         obj.rotation = float(np.degrees(obj.yaw))
-        obj.bbox = world_bbox(env, obj.id)
+        obj.bbox = object_bbox(env, obj.id)
         in_hand = env.held_object == obj.id
         obj.extra["in_hand"] = in_hand
         obj.extra["raised"] = is_raised(env, obj.id)

@@ -20,67 +20,17 @@ from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
 from muble.sim.object_mjcf import object_mjcf
 from muble.stage.camera import CameraParams
-from muble.stage.table import DESK_CENTRE_X, DESK_SIZE, STAGE_KEY, TABLE_X, TABLE_Y, UNNAMED_STAGE, stage_name
+from muble.stage.table import STAGE_KEY, UNNAMED_STAGE, Stage, stage_name, stage_named
 
 logger = logging.getLogger(__name__)
 
 ROBOTS = ("Panda", "Sawyer", "UR5e", "Kinova3", "IIWA")
 TABLE_HEIGHT = 0.8  # m, robosuite's table; the floor lies this far below the table top
-TABLE_SIZE = (0.9, 1.2, 0.05)  # m, full x/y/z size of the robosuite stage's table
 FRONT_CAMERA = "front"
 WRIST_CAMERA = "wrist"
 
 
 TABLE_GEOM = "table_collision"  # robosuite's TableArena names its top's collision geom so
-
-
-@dataclass(frozen=True)
-class Stage:
-    """Where the table and the robot stand: the world a scene is built on, apart from its objects, camera and lamps.
-
-    ``table_size`` is the table's full x/y/z size; ``table_centre_x`` puts its centre on the robot's axis (``None``:
-    robosuite's placement for the robot, the table's near edge just in front of the robot's mount). ``mount``
-    keeps the robot's robosuite pedestal (``False``: the arm's base stands on the table top at the origin).
-    ``gripper`` is the stage's default gripper (``None``: the robot's own; ``robot.gripper`` overrides either) and
-    ``start_qpos`` the arm's rest configuration per robot (robots not named start at robosuite's)."""
-
-    name: str
-    table_size: tuple[float, float, float]
-    table_centre_x: float | None = None
-    mount: bool = True
-    gripper: str | None = None
-    start_qpos: dict[str, tuple[float, ...]] = field(default_factory=dict)
-
-    def top_ranges(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """The table top's (x0, x1), (y0, y1) in the scene frame (robosuite's placement: as for the Panda)."""
-        if self.table_centre_x is None:
-            return tuple(TABLE_X), tuple(TABLE_Y)
-        hx, hy = self.table_size[0] / 2.0, self.table_size[1] / 2.0
-        return (self.table_centre_x - hx, self.table_centre_x + hx), (-hy, hy)
-
-
-STAGES = {
-    # robosuite's table stage, on which every scene of protocol shopvrb2_v1 was generated: a 0.9 x 1.2 m table,
-    # the robot on its pedestal behind the near edge.
-    "robosuite": Stage("robosuite", TABLE_SIZE),
-    # The original MuBlE release's stage (michaal94/MuBlE environment/tabletop_env.py): a 1.36 x 0.8 m desk top
-    # 2.6 cm thick, the Panda standing on it without a mount, its base 0.23 m in from the back edge, a Robotiq 85
-    # gripper, and the arm bent over the table towards the camera at rest. Its scene files were made on it.
-    "original": Stage("original", (*DESK_SIZE, 0.026), table_centre_x=DESK_CENTRE_X, mount=False,
-                      gripper="Robotiq85Gripper",
-                      start_qpos={"Panda": (0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi)}),
-}
-# A scene file that names no stage stands on robosuite's (``muble.stage.table.UNNAMED_STAGE``), on which every scene
-# was generated before stages could be chosen, protocol shopvrb2_v1's included. The generator writes the key
-# (``STAGE_KEY``) for any other stage only, so a file made on robosuite's keeps its old bytes whatever stage the
-# generator defaults to (muble_conf/generator/shopvrb2.yaml).
-
-
-def stage_named(name: str, where: str = "robot.stage") -> Stage:
-    """The stage called ``name`` (given by ``where``); an unknown name raises ``ConfigError`` listing the stages."""
-    if name not in STAGES:
-        raise ConfigError(f"{unknown_name('stage', str(name), STAGES)} (from {where})")
-    return STAGES[name]
 
 
 def scene_stage(scene: SceneGraph, override: str | None = None) -> Stage:
@@ -120,7 +70,7 @@ class WorldNames:
     cameras: dict[str, str] = field(default_factory=dict)  # role -> MuJoCo camera name
     init_qpos: np.ndarray | None = None
     gripper_format: object = None  # the robosuite gripper model (its ``format_action`` maps -1..1)
-    stage: str = UNNAMED_STAGE  # the ``STAGES`` entry the world stands on
+    stage: str = UNNAMED_STAGE  # the ``muble.stage.table.STAGES`` entry the world stands on
 
 
 def _fmt(values) -> str:
@@ -151,7 +101,8 @@ def build_world(scene: SceneGraph, models: dict[int, ObjectModel], robot: str = 
     ``visual=False`` leaves out what only a renderer sees (MuJoCo's ``discardvisual``: geoms that collide with
     nothing and weigh nothing, their meshes, materials and textures): the physics, contacts, rays on collision
     geoms and kinematics are the same, the model compiles in about half the time, and nothing can be drawn.
-    ``stage`` names the ``STAGES`` entry to stand on (``None``: the scene's own, ``scene_stage``)."""
+    ``stage`` names the ``muble.stage.table.STAGES`` entry to stand on (``None``: the scene's own,
+    ``scene_stage``)."""
     if robot not in ROBOTS:
         raise ConfigError(unknown_name("robot", robot, ROBOTS))
     stage = scene_stage(scene, stage)

@@ -1,2 +1,2 @@
-"""The tabletop: the table's named parts and the stages it stands on, free places and objects' footprints on it,
-objects at rest, planar geometry and the scene camera."""
+"""The tabletop: the stages and where the table's named parts lie on them, the layout sampler of new scenes, free
+places and objects' footprints on the table, objects settled and at rest, planar geometry and the scene camera."""

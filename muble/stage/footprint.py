@@ -1,8 +1,15 @@
-"""Objects' sizes on the table as a scene graph gives them (bbox extents), and the symbolic world's free spot.
+"""Objects' sizes as a scene graph gives them (bbox extents), their footprints on the table, and the symbolic
+world's free spot.
+
+A scene object's ``bbox`` is its bounding box in its own frame: the full extents {x, y, z} along its own axes,
+centred on its origin (the centre of its base) across and rising from it, or the eight corners of that box.
+Where the box lies in the world follows from the object's pose: ``world_extents`` gives the world-axis-aligned box
+that holds it, ``outline`` its footprint on the table.
 
 No physics reads these: they serve worlds and checks that know objects only by their scene-graph records (the
-symbolic world's ``move`` and ``lower``, the tasks' success checks). Where the symbolic world puts an object down
-is the physical world's rule (``muble.stage.free_place``) applied to bounding boxes.
+symbolic world's ``move`` and ``lower``, the tasks' success checks and room checks). Where the symbolic world
+puts an object down is the physical world's rule (``muble.stage.free_place``) applied to footprints of the boxes
+(``free_spot``).
 """
 from __future__ import annotations
 
@@ -10,15 +17,18 @@ import numpy as np
 
 from muble.core.scene import SceneGraph, SceneObject
 from muble.stage.free_place import free_places
-from muble.stage.table import part_region, scene_top
+from muble.stage.geometry import hull_2d, quat_matrix
+from muble.stage.table import scene_part_region
 
 # Sizes (m) assumed for an object whose record has no bbox.
 DEFAULT_RADIUS = 0.04
 DEFAULT_HEIGHT = 0.06
+# The corners of a unit box centred on the origin across and rising from it (an object's bbox about its origin).
+_UNIT_BOX = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (0.0, 1.0)])
 
 
 def extents(obj: SceneObject) -> tuple[float, float, float]:
-    """Full size along x, y, z from the bbox (extents dict or eight corners), or defaults."""
+    """Full size along the object's own x, y, z from the bbox (extents dict or eight corners), or defaults."""
     box = obj.bbox
     if isinstance(box, dict):
         return float(box["x"]), float(box["y"]), float(box["z"])
@@ -29,6 +39,12 @@ def extents(obj: SceneObject) -> tuple[float, float, float]:
     return 2 * DEFAULT_RADIUS, 2 * DEFAULT_RADIUS, DEFAULT_HEIGHT
 
 
+def world_extents(size, quat) -> np.ndarray:
+    """Full size along world x, y, z of the world-axis-aligned box that holds a box of object-frame extents
+    ``size`` (x, y, z) turned by ``quat`` (w, x, y, z)."""
+    return np.abs(quat_matrix(quat)) @ np.asarray(size, dtype=float)
+
+
 def footprint_radius(obj: SceneObject) -> float:
     """Half the larger horizontal extent of ``obj``'s bounding box (metres): the radius it needs on the table."""
     ex, ey, _ = extents(obj)
@@ -36,13 +52,21 @@ def footprint_radius(obj: SceneObject) -> float:
 
 
 def height(obj: SceneObject) -> float:
-    """The vertical extent of ``obj``'s bounding box (metres)."""
-    return extents(obj)[2]
+    """How tall ``obj`` stands (metres): the vertical extent of its bounding box as it is turned."""
+    return float(world_extents(extents(obj), obj.orientation)[2])
 
 
 def outline(obj: SceneObject) -> np.ndarray:
-    """The corners, on the table plane, of ``obj``'s bounding box about its position (scene graphs keep world
-    axis-aligned boxes)."""
+    """The footprint of ``obj``'s bounding box on the table plane as the object stands (its pose): the convex
+    hull, counter-clockwise, of the box's corners seen from above."""
+    corners = (_UNIT_BOX * extents(obj)) @ quat_matrix(obj.orientation).T
+    return hull_2d(corners[:, :2]) + np.asarray(obj.position[:2], dtype=float)
+
+
+def axis_outline(obj: SceneObject) -> np.ndarray:
+    """The rectangle, counter-clockwise, of ``obj``'s bounding box's horizontal extents laid along the world axes
+    about its position, whatever its turn: the footprint the symbolic world puts objects down by (``free_spot``).
+    For a round object (equal x and y extents) it holds the object at any turn."""
     ex, ey, _ = extents(obj)
     corners = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]]) * [ex, ey]
     return corners + np.asarray(obj.position[:2], dtype=float)
@@ -50,11 +74,12 @@ def outline(obj: SceneObject) -> np.ndarray:
 
 def free_spot(scene: SceneGraph, obj: SceneObject, part: str) -> list[float] | None:
     """Where ``obj`` is put down on ``part``: the first free place of the one free-place rule
-    (``muble.stage.free_place``, nearest the part's centre) with bounding boxes as footprints; None when the part
-    has no room for it."""
-    (x0, x1), (y0, y1) = part_region(part, scene_top(scene))
-    held = outline(obj) - np.asarray(obj.position[:2], dtype=float)
-    others = [outline(other) for other in scene.objects if other.id != obj.id]
+    (``muble.stage.free_place``, nearest the part's centre) with ``axis_outline`` footprints; None when the part
+    has no room for it. The scene generator keeps an instruction only when the symbolic world completes its
+    ground truth, so its files depend on these answers (a protocol's recorded data hashes with them)."""
+    (x0, x1), (y0, y1) = scene_part_region(scene, part)
+    held = axis_outline(obj) - np.asarray(obj.position[:2], dtype=float)
+    others = [axis_outline(other) for other in scene.objects if other.id != obj.id]
     places = free_places((x0, y0), (x1, y1), held, others)
     if not places:
         return None

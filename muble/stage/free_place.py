@@ -5,10 +5,11 @@ centres where it would overlap another object form that object's footprint grown
 sum), grown again by the gap to keep. A centre is free when it lies outside every such region. The places of a
 box are searched on a grid and given nearest a preferred point first.
 
-The rule is the same for the physical and the symbolic world; only the footprints differ. Physics takes them
-from the bodies' collision geometry in their current pose (``muble_plugins.primitives.placement``), the symbolic
-world from the scene graph's bounding boxes (``muble.stage.footprint.free_spot``), which contain the geometry, so
-a place the symbolic world calls free is free in physics too.
+The rule is the same for the physical and the symbolic world and the tasks' room check; only the footprints
+differ. Physics takes them from the bodies' collision geometry in their current pose
+(``muble_plugins.primitives.placement``), the symbolic world from the scene graph's bounding boxes laid along the
+world axes (``muble.stage.footprint.free_spot``), the room check from the boxes' outlines as the objects stand
+(``muble_plugins.common.geometry.room_on_part``).
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Geometry shared by the simulation, the scene generator and the plugins: turns about the vertical, tilt from it,
-and convex hulls of footprints on the table plane.
+turns between two orientations, and convex outlines on the table plane (hulls, distances).
 
 Quaternions are MuJoCo's and the scene graph's: (w, x, y, z). Rotations go through ``scipy.spatial.transform``.
 """
@@ -31,10 +31,24 @@ def yaw_matrix(yaw: float) -> np.ndarray:
     return Rotation.from_euler("z", yaw).as_matrix()
 
 
+def quat_matrix(quat) -> np.ndarray:
+    """3x3 rotation matrix of the quaternion ``quat`` (w, x, y, z; normalised first)."""
+    w, x, y, z = np.asarray(quat, dtype=float) / np.linalg.norm(quat)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
 def tilt_deg(quat) -> float:
     """Degrees between the z axis of the frame turned by ``quat`` (w, x, y, z) and the world's vertical."""
     w, x, y, z = (float(v) for v in quat)
     return math.degrees(math.acos(min(1.0, max(-1.0, 1.0 - 2.0 * (x * x + y * y)))))
+
+
+def turn_deg(quat_a, quat_b) -> float:
+    """Degrees of the rotation that takes the orientation ``quat_a`` to ``quat_b`` (unit quaternions, w, x, y, z)."""
+    dot = min(1.0, abs(float(np.dot(quat_a, quat_b))))
+    return math.degrees(2.0 * math.acos(dot))
 
 
 def hull_2d(points: np.ndarray) -> np.ndarray:
@@ -46,3 +60,24 @@ def hull_2d(points: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(points[ConvexHull(points).vertices])
     except (QhullError, ValueError):
         return np.ascontiguousarray(points)
+
+
+def polygon_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Least distance between two convex polygons on the plane (vertices in order, n x 2); 0 when they overlap."""
+    for poly in (a, b):  # separating axes: the normals of both polygons' edges
+        edges = np.roll(poly, -1, axis=0) - poly
+        normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1)
+        pa, pb = a @ normals.T, b @ normals.T
+        if np.any((pa.max(axis=0) < pb.min(axis=0)) | (pb.max(axis=0) < pa.min(axis=0))):
+            break
+    else:
+        return 0.0
+    return min(_points_to_edges(a, b), _points_to_edges(b, a))
+
+
+def _points_to_edges(points: np.ndarray, poly: np.ndarray) -> float:
+    """Least distance from any of ``points`` to any edge of the closed polygon ``poly``."""
+    start, edge = poly, np.roll(poly, -1, axis=0) - poly
+    rel = points[:, None, :] - start[None, :, :]
+    t = np.clip((rel * edge).sum(axis=2) / np.maximum((edge * edge).sum(axis=1), 1e-18), 0.0, 1.0)
+    return float(np.linalg.norm(rel - t[:, :, None] * edge[None], axis=2).min())

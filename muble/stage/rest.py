@@ -1,8 +1,13 @@
-"""Whether a put-down object stayed: at rest, upright, not leaning over, and the height it comes to rest at.
+"""Whether an object stayed: settled where a scene put it, at rest, upright, not leaning over after a put-down,
+and the height it comes to rest at.
 
-One home for what ``lower`` checks after letting go, what the tasks' judges and planners read from a scene, and
-what the scene generator's stack check simulates. The limits, decided on purpose:
+One home for what the initial-state check and the scene generator's rest check demand of a scene before anything
+acts, what ``lower`` checks after letting go, what the tasks' judges and planners read from a scene, and what the
+scene generator's stack check simulates. Tilt is ``muble.stage.geometry.tilt_deg``. The limits, decided on purpose:
 
+- ``SETTLED_DISPLACEMENT`` (5 mm) and ``SETTLED_TURN`` (3 degrees): how far an object's origin or centre of mass
+  may move, and how far it may turn, while its scene settles, for it still to stand where the scene put it
+  (docs/environment.md, "Initial state", gives the figures they were measured against).
 - ``RESTING_SPEED`` (0.01 m/s): a body's linear speed below which it is at rest. A put-down waits for it, and a
   judge counts an object moving faster as not resting: 1 cm/s is a visible slide or roll, and a settled object
   in MuJoCo moves at well under a millimetre a second.
@@ -25,10 +30,18 @@ from muble.stage.geometry import tilt_deg
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
 
+SETTLED_DISPLACEMENT = 0.005  # m
+SETTLED_TURN = 3.0  # degrees
 RESTING_SPEED = 0.01  # m/s
 UPRIGHT_DEG = 20.0  # degrees from the vertical
 LEAN_DEG = UPRIGHT_DEG  # degrees further than when let go
 STACK_LEAN_DEG = 0.75 * LEAN_DEG  # degrees: the generator's margin
+
+
+def settled(displacement: float, turn: float = 0.0, limit: float = SETTLED_DISPLACEMENT) -> bool:
+    """An object that moved ``displacement`` (m: its origin or centre of mass, whichever moved more) and turned
+    ``turn`` degrees while its scene settled stands where the scene put it (``limit``: the displacement allowed)."""
+    return float(displacement) <= limit and float(turn) <= SETTLED_TURN
 
 
 def at_rest(speed: float) -> bool:
@@ -36,16 +49,19 @@ def at_rest(speed: float) -> bool:
     return float(speed) < RESTING_SPEED
 
 
+def _tilt(quat_or_tilt) -> float:
+    return float(quat_or_tilt) if isinstance(quat_or_tilt, (int, float)) else tilt_deg(quat_or_tilt)
+
+
 def upright(quat) -> bool:
-    """A body turned by ``quat`` (w, x, y, z) stands upright."""
-    return tilt_deg(quat) <= UPRIGHT_DEG
+    """A body turned by ``quat`` (w, x, y, z; or its tilt in degrees) stands upright."""
+    return _tilt(quat) <= UPRIGHT_DEG
 
 
 def leaned_over(quat, quat_at_release, limit: float = LEAN_DEG) -> float | None:
     """Degrees a body turned by ``quat`` leans further than it did when let go (``quat_at_release``, or a tilt in
     degrees), when that is more than ``limit``; else None."""
-    before = quat_at_release if isinstance(quat_at_release, (int, float)) else tilt_deg(quat_at_release)
-    lean = tilt_deg(quat) - before
+    lean = tilt_deg(quat) - _tilt(quat_at_release)
     return lean if lean > limit else None
 
 

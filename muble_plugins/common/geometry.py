@@ -1,8 +1,7 @@
-"""Table geometry the tasks need: room on a table part, resting-on and upright tests (object sizes and the
-symbolic world's free spot: ``muble.stage.footprint``)."""
+"""Table geometry the tasks need: room on a table part, resting-on and upright tests (object sizes, footprints and
+the symbolic world's free spot: ``muble.stage.footprint``; the limits: ``muble.stage.rest``)."""
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -10,14 +9,12 @@ import numpy as np
 from muble import SceneGraph, SceneObject
 from muble.core.observation import TOUCHING_TABLE
 from muble.programs.program import table_parts_of
-from muble.stage.footprint import extents, footprint_radius
+from muble.stage import rest
+from muble.stage.footprint import footprint_radius, outline
+from muble.stage.free_place import free_places
 from muble.stage.geometry import tilt_deg
-from muble.stage.rest import UPRIGHT_DEG, at_rest
-from muble.stage.table import BELOW_TABLE, part_region, scene_top
+from muble.stage.table import BELOW_TABLE, scene_part_region
 
-# Where SHOP-VRB2 scenes stand objects (world x, y in metres; synthetic scenes sample it). The table parts and
-# where the robot places objects are defined in muble.stage.table.
-TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
 # How much higher than its base a stacked object's origin (its bottom) stands at least where the world records
 # no contacts: a plate or tray holds what is put on it only its bottom's thickness (a few mm) above the table,
 # while an object beside the base stands level with it. A plate's floor can be thinner than this (the original
@@ -26,80 +23,28 @@ TABLE_REGION = ((0.30, 0.72), (-0.34, 0.12))
 RAISED_BY_BASE = 0.002
 # Judging the end state (docs/tasks.md): a put-down object counts only when it rests upright (the limits:
 # ``muble.stage.rest``).
-# Room on a table part for an object to be put there: the placing primitives keep 15 mm between real footprints
-# on a 1 cm grid; here bboxes (centred on the object's origin, so a mug's handle side may reach a little past
-# them) stand in for footprints, with a wider gap.
+# Room on a table part for an object to be put there: the free-place rule the placing primitives follow
+# (``muble.stage.free_place``), with the outlines of the scene's bboxes for footprints (centred on the object's
+# origin, so a mug's handle side may reach a little past them) and a wider gap than theirs (15 mm).
 ROOM_GAP = 0.02
 ROOM_SPACING = 0.01
-ROOM_BATCH = 96  # candidate centres tested at once
-
-
-def _box(obj: SceneObject) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(centre x, y; object x and y axes as world columns; half sizes) of the object's bbox seen from above."""
-    ex, ey, _ = extents(obj)
-    w, z = float(obj.orientation[0]), float(obj.orientation[3])
-    yaw = 2.0 * math.atan2(z, w) if abs(w) + abs(z) > 1e-9 else 0.0
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.asarray(obj.position[:2], dtype=float), np.array([[c, -s], [s, c]]), np.array([ex / 2, ey / 2])
-
-
-def _separating_axes(mover, obstacles: list, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For the separating-axis test of ``mover``'s box (turned as it stands) against each obstacle box: the four
-    axes of every pair as columns (2, 4n), each obstacle centre's projection on them, and the distance below
-    which the two boxes come closer than ``gap`` along each."""
-    _, rot_a, half_a = mover
-    axes, centres, reach = [], [], []
-    for centre_b, rot_b, half_b in obstacles:
-        pair = np.hstack([rot_a, rot_b])
-        axes.append(pair)
-        centres.append(centre_b @ pair)
-        reach.append(np.abs(rot_a.T @ pair).T @ half_a + np.abs(rot_b.T @ pair).T @ half_b + gap)
-    return np.hstack(axes), np.concatenate(centres), np.concatenate(reach)
-
-
-@functools.lru_cache(maxsize=None)
-def _grid(part: str, spacing: float, top) -> tuple[np.ndarray, tuple[tuple[float, float], tuple[float, float]]]:
-    """The part's candidate centres on a ``spacing`` grid, nearest its middle first, and its ranges (kept inside the
-    table top ``top``, see ``muble.stage.table.part_region``)."""
-    (x0, x1), (y0, y1) = region = part_region(part, top)
-    gx, gy = np.meshgrid(np.arange(x0, x1 + 1e-9, spacing), np.arange(y0, y1 + 1e-9, spacing), indexing="ij")
-    points = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    middle = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
-    points = points[np.argsort(np.linalg.norm(points - middle, axis=1), kind="stable")]
-    points.setflags(write=False)
-    return points, region
 
 
 def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: float = ROOM_GAP,
                  spacing: float = ROOM_SPACING) -> bool:
-    """Whether ``movers``, put down one after another on ``part`` (each at the free centre nearest the part's
-    middle, as the placing primitives choose), all find room beside the objects that stay and those placed
-    before. Boxes from the scene's bboxes, turned as the objects stand, stand in for their footprints."""
-    points, ((x0, x1), (y0, y1)) = _grid(part, spacing, scene_top(scene))
+    """Whether ``movers``, put down one after another on ``part`` (each at the free place nearest the part's
+    centre, as the placing primitives choose), all find room beside the objects that stay and those placed
+    before: the free-place rule of ``muble.stage.free_place`` on the outlines of the scene's bboxes
+    (``muble.stage.footprint.outline``), ``gap`` apart, on a ``spacing`` grid."""
+    (x0, x1), (y0, y1) = scene_part_region(scene, part)
     moving = {o.id for o in movers}
-    obstacles = [_box(o) for o in scene.objects if o.id not in moving]
+    obstacles = [outline(o) for o in scene.objects if o.id not in moving]
     for obj in movers:
-        box = _box(obj)
-        # Only what can come within reach of a centre in the part matters (bounding circles against its ranges).
-        reach = float(np.linalg.norm(box[2])) + gap
-        near = [b for b in obstacles
-                if math.hypot(max(x0 - b[0][0], 0.0, b[0][0] - x1), max(y0 - b[0][1], 0.0, b[0][1] - y1))
-                < reach + float(np.linalg.norm(b[2]))]
-        spot = points[0] if not near else None
-        if near:
-            axes, centres, reach = _separating_axes(box, near, gap)
-            # Nearest the middle first, a batch at a time: a part with room usually has it in the first batch.
-            # A centre is blocked by an obstacle when the boxes overlap (within the gap) along all four axes.
-            for start in range(0, len(points), ROOM_BATCH):
-                batch = points[start:start + ROOM_BATCH]
-                close = np.abs(batch @ axes - centres) < reach
-                free = ~close.reshape(len(batch), len(near), 4).all(axis=2).any(axis=1)
-                if free.any():
-                    spot = batch[int(np.argmax(free))]
-                    break
-        if spot is None:
+        held = outline(obj) - np.asarray(obj.position[:2], dtype=float)
+        places = free_places((x0, y0), (x1, y1), held, obstacles, gap=gap, spacing=spacing)
+        if not places:
             return False
-        obstacles.append((spot, box[1], box[2]))
+        obstacles.append(held + places[0])
     return True
 
 
@@ -111,13 +56,13 @@ def tilt(obj: SceneObject) -> float:
 
 
 def upright(obj: SceneObject) -> bool:
-    """``obj`` stands upright (its recorded tilt within ``muble.stage.rest.UPRIGHT_DEG``)."""
-    return tilt(obj) <= UPRIGHT_DEG
+    """``obj`` stands upright (its recorded tilt, ``muble.stage.rest.upright``)."""
+    return rest.upright(tilt(obj))
 
 
 def resting(obj: SceneObject) -> bool:
     """Not held and not moving (a world that records no speed counts as still)."""
-    return not obj.extra.get("in_hand") and at_rest(float(obj.extra.get("speed", 0.0)))
+    return not obj.extra.get("in_hand") and rest.at_rest(float(obj.extra.get("speed", 0.0)))
 
 
 def touches(obj: SceneObject, support: int | str) -> bool:

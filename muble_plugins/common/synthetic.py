@@ -1,7 +1,9 @@
 """Symbolic SHOP-VRB2 scenes sampled from the attribute vocabulary, for generator statistics and tests.
 
-No physics: objects get attributes, flags, a ground-truth weight and stiffness, a bounding box and a
-non-overlapping spot on the table, which is all instruction generation and symbolic planning read.
+No physics: objects get attributes, flags, a ground-truth weight and stiffness, a bounding box and a spot on the
+table, which is all instruction generation and symbolic planning read. The spots come from the scene generator's
+layout sampler (``muble.stage.layout``) on the stage's reach area, with the bounding boxes' outlines for the
+objects' footprints.
 """
 from __future__ import annotations
 
@@ -10,9 +12,9 @@ import math
 import numpy as np
 
 from muble import SceneGraph, SceneObject
-from muble.stage.geometry import yaw_quat
+from muble.stage.layout import BoxShape, TableLayout
+from muble.stage.table import STAGES, UNNAMED_STAGE
 
-from muble_plugins.common.geometry import TABLE_REGION
 from muble_plugins.common.materials import STIFFNESS_RANGE
 
 COLOURS = ("brown", "white", "gray", "blue", "purple", "green", "yellow", "cyan", "red", "black")
@@ -41,39 +43,36 @@ CATEGORIES: dict[str, tuple] = {
 }
 
 
+PLACE_TRIES = 20  # poses tried per object before another category is drawn in its stead
+
+
 def _pick(rng: np.random.Generator, items: tuple) -> str:
     return items[int(rng.integers(len(items)))]
 
 
 def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6),
                  stiffness_rng: np.random.Generator | None = None) -> SceneGraph:
-    """A scene of ``n_objects`` (inclusive range) objects placed without overlap on the table; stiffnesses come from
-    ``stiffness_rng`` (none without it)."""
+    """A scene of ``n_objects`` (inclusive range) objects placed on the unnamed stage's table as the scene generator
+    places them (``muble.stage.layout.TableLayout``); stiffnesses come from ``stiffness_rng`` (none without it)."""
     n = int(rng.integers(n_objects[0], n_objects[1] + 1))
     names = list(CATEGORIES)
     objects: list[SceneObject] = []
-    (x0, x1), (y0, y1) = TABLE_REGION
+    layout = TableLayout.on_stage(STAGES[UNNAMED_STAGE])
     while len(objects) < n:
         name = names[int(rng.integers(len(names)))]
         shapes, materials, sizes, flags, (w0, w1), ext = CATEGORIES[name]
         material = _pick(rng, materials)
         scale = {"small": 0.8, "medium-sized": 1.0, "large": 1.1}[size := _pick(rng, sizes)]
         ex, ey, ez = (e * scale for e in ext)
-        radius = 0.5 * max(ex, ey)
-        for _ in range(20):
-            x, y = rng.uniform(x0 + radius, x1 - radius), rng.uniform(y0 + radius, y1 - radius)
-            if all(math.hypot(x - o.position[0], y - o.position[1]) > radius + 0.5 * max(o.bbox["x"], o.bbox["y"])
-                   + 0.01 for o in objects):
-                break
-        else:
+        placement = layout.try_place(BoxShape(ex, ey), rng, PLACE_TRIES)
+        if placement is None:
             continue  # no room for this one: sample another category
-        yaw = rng.uniform(-math.pi, math.pi)
         objects.append(SceneObject(
             id=len(objects), model=name.replace(" ", "_") + "1", name=name, shape=_pick(rng, shapes), size=size,
             material=material, colour="transparent" if material == "glass" else _pick(rng, COLOURS),
-            position=np.array([x, y, 0.0]), orientation=yaw_quat(yaw),
+            position=placement.position, orientation=placement.quat,
             weight_gt=round(float(rng.uniform(w0, w1)), 1), stackable=flags[0], stack_base=flags[1],
-            pickupable=flags[2], rotation=math.degrees(yaw), bbox={"x": ex, "y": ey, "z": ez},
+            pickupable=flags[2], rotation=math.degrees(placement.yaw), bbox={"x": ex, "y": ey, "z": ez},
         ))
     if stiffness_rng is not None:
         # The SHOP-VRB2 object set's ground-truth stiffness ranges (N/m) by material, drawn log-uniformly from a

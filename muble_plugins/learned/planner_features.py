@@ -3,7 +3,7 @@ sub-goal, and the action vocabulary it chooses from. No PyTorch here (NumPy only
 training data and the agent share one featuriser.
 
 A decision is made over a token sequence: one goal token (the sub-goal's kind and the arm's state), one token per
-object in scene order, one per table part (``muble.stage.table.TABLE_PARTS``) and a "none" token (``lower``
+object in scene order, one per table part (``muble.core.types.TABLE_PARTS``) and a "none" token (``lower``
 without a target: put the held object down where it is). The network outputs a primitive class and a pointer to
 one token; primitives without a target ignore the pointer.
 
@@ -24,8 +24,8 @@ from muble import ActionCall, Answer, Observation, SceneGraph
 from muble.core.errors import PlanningError
 from muble.core.observation import MEASURED_STIFFNESS
 from muble.core.symbolic import ArmState, over
+from muble.core.types import TABLE_PARTS
 from muble.programs.program import execute, stack_pairs, table_parts_of
-from muble.stage.table import TABLE_PARTS
 
 from muble_plugins.common.books import fill_known
 from muble_plugins.common.geometry import on_table_part, rests_on, upright

@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from muble.stage.table import TABLE_PARTS
+from muble.core.types import TABLE_PARTS
 from muble_plugins.learned.planner_features import CLASSES, FEATURE_DIM, IGNORE, TARGET_KINDS, target_mask
 
 NEG = -1e9

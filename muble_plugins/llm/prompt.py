@@ -21,7 +21,7 @@ from typing import Any, Iterable
 from muble import (ActionCall, ActionResult, Answer, ConfigError, Instruction, Observation, ObservationMode, Track,
                    get_registry)
 from muble.core.params import Param, specs
-from muble.stage.table import TABLE_PARTS
+from muble.core.types import TABLE_PARTS
 
 PROMPTS = Path(__file__).parent / "prompts"
 SYSTEM_FIELDS = ("primitives", "object_form", "examples")

@@ -14,7 +14,7 @@ from typing import Any, Sequence
 
 from muble import ActionCall, Answer, ObservationMode, get_registry
 from muble.core.params import Param, check_call
-from muble.stage.table import TABLE_PARTS
+from muble.core.types import TABLE_PARTS
 
 from muble_plugins.llm.prompt import primitive_params
 

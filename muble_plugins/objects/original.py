@@ -144,7 +144,7 @@ def spec_from_scene_object(obj: SceneObject, catalogue: dict[str, Category], set
     original = is_original_scale(obj)
     friction = obj.extra.get(DEFAULT_FRICTION_KEY)
     if friction is None:
-        # This project's scene files build with MuJoCo's friction of 1 (as before); original ones take the
+        # This project's scene files build with MuJoCo's friction of 1; original ones take the
         # material's.
         friction = FRICTION[obj.material] if original else 1.0
     spec = ObjectSpec(

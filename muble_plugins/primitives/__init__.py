@@ -1,4 +1,5 @@
-"""Built-in primitive actions: move, approach, close/open gripper, lift, lower, weigh, squeeze, move_vel.
+"""Built-in primitive actions: move, approach, close/open gripper, lift, lower, weigh, squeeze, push, balance, shake,
+move_vel.
 
 Composite actions (pick up = approach + close_gripper + lift) are sequences of these and need no code here.
 """
@@ -13,6 +14,7 @@ def muble_register_primitives() -> list[PluginRecord]:
     from muble_plugins.primitives.lower import Lower
     from muble_plugins.primitives.move import Move
     from muble_plugins.primitives.move_vel import MoveVel
+    from muble_plugins.primitives.probing import Balance, Push, Shake
 
     return [
         PluginRecord("move", Move, "move the hand above an object or a table part (left/right/front/back/centre)"),
@@ -23,5 +25,8 @@ def muble_register_primitives() -> list[PluginRecord]:
         PluginRecord("lower", Lower, "put the held object down on an object or a free place on a table part"),
         PluginRecord("weigh", Weigh, "measure the weight (g) of the held object with the wrist force sensor"),
         PluginRecord("squeeze", Squeeze, "measure the stiffness (N/m) of the object between the fingers"),
+        PluginRecord("push", Push, "measure the friction coefficient of the held object, pushed along the table"),
+        PluginRecord("balance", Balance, "measure the centre of mass (mm off its base centre) of the held object"),
+        PluginRecord("shake", Shake, "shake the held object: whether loose contents rattle inside"),
         PluginRecord("move_vel", MoveVel, "move the hand at a constant velocity (m/s) for a duration (s)"),
     ]

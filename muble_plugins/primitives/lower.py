@@ -13,7 +13,7 @@ from muble.core.symbolic import CARRIED_TO, RAISE_HEIGHT, ArmState, over, set_fl
 from muble.stage.footprint import free_spot, height
 from muble.stage.geometry import tilt_deg
 from muble.stage.rest import at_rest, leaned_over
-from muble.stage.table import parts_at
+from muble.stage.table import part_box, parts_at
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
 from muble_plugins.primitives import tolerances as tol
@@ -108,7 +108,7 @@ def _places(env, target, held, table):
     vertical, the places for the held object's centre to try in turn) for ``target``."""
     here = env.object_pose(held).pos[:2]
     if isinstance(target, str):
-        lo, hi = table.part_region(target)
+        lo, hi = part_box(env, target)
         places = placement.free_places(env, lo, hi, held)
         if not places:
             raise PlanningError(placement.no_room(target, held))

@@ -9,6 +9,7 @@ import numpy as np
 from muble import ActionResult, JointGoal, PlanningError, PoseGoal, PrimitiveAction, SceneGraph
 from muble.core.symbolic import CARRIED_TO, ArmState, set_flag
 from muble.stage.footprint import free_spot
+from muble.stage.table import part_box
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import placement
 from muble_plugins.primitives.common import ATTEMPT, CARRY_TURNS, RELEASE_GAPS, TARGET_PLACE, checked_result, rotated
@@ -31,7 +32,7 @@ class Move(PrimitiveAction):
         attempt = int(self.arguments.get("attempt", 0))
         held = env.held_object
         if isinstance(target, str):
-            env.table().part_region(target)  # an unknown part name fails before anything moves
+            part_box(env, target)  # an unknown part name fails before anything moves
         else:
             ctx.body_name(env, target)
         snap = env.snapshot()
@@ -124,7 +125,7 @@ def hover_goal(env, target, yaw: float = 0.0, clear: bool = False, height: float
     ``clear``, above everything standing near it rather than above the target alone."""
     table = env.table()
     if isinstance(target, str):
-        lo, hi = table.part_region(target)
+        lo, hi = part_box(env, target)
         xy, top = 0.5 * (lo + hi), table.top_z
     else:
         xy, top = env.object_pose(int(target)).pos[:2], env.object_top(int(target))
@@ -150,7 +151,7 @@ def over_free_place(env, world, part: str, attempt: int = 0) -> np.ndarray:
     other way. ``lower`` then finds the hand over the place and goes straight down as it is turned.
     """
     table = env.table()
-    lo, hi = table.part_region(part)
+    lo, hi = part_box(env, part)
     reasons, any_free = [], False
     for yaw in CARRY_TURNS:  # the places for a turn are found only when the turns before it gave none
         places = placement.free_places(env, lo, hi, env.held_object, yaw=yaw)

@@ -11,8 +11,9 @@ from muble import ConfigError
 from muble.generation import SceneGenerator
 from muble.generation.checks import settle
 from muble.generation.ground_truth import decode_mask
-from muble.generation.placement import CollisionMesh, Placement, min_pairwise_distance
+from muble.generation.placement import CollisionMesh, min_pairwise_distance
 from muble.io.scene_io import scene_from_dict, scene_to_dict, validate_scene
+from muble.stage.layout import Placement
 from tests.generation.builtin import BUILTIN
 
 pytestmark = pytest.mark.gl
@@ -139,11 +140,11 @@ def test_a_stage_is_written_into_the_scene_and_its_table_bounds_placement(object
     """generator.stage: each scene names its stage, the layout keeps to that stage's table (the original's is
     0.8 m wide), and the reach check builds the robot on it."""
     from muble.sim.env import TabletopEnv
-    from muble.sim.world import STAGES
+    from muble.stage.table import STAGES
 
     g = SceneGenerator({**BUILTIN, "stage": "original"}, seed=5, object_set=object_set)
     try:
-        (x0, x1), (y0, y1) = STAGES["original"].top_ranges()
+        (x0, x1), (y0, y1) = STAGES["original"].top
         assert list(g.config.table_x) == [x0, x1] and list(g.config.table_y) == [y0, y1] == [-0.4, 0.4]
         scene = g.generate(0)
     finally:

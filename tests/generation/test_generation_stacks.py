@@ -9,11 +9,11 @@ import pytest
 from muble import get_registry
 from muble.generation import checks
 from muble.generation.config import GeneratorConfig
-from muble.generation.placement import Placement
 from muble.io.scene_io import load_scene
 from muble.programs.program import stack_pairs, stacked_pairs
 from muble.sim.build import object_models
 from muble.sim.env import ROBOT_DEFAULTS
+from muble.stage.layout import Placement
 
 DATA = Path(__file__).parent / "data"
 

@@ -7,7 +7,7 @@ import pytest
 
 from muble import get_registry
 from muble.sim.env import TabletopEnv
-from muble.stage.table import parts_at
+from muble.stage.table import part_box, parts_at
 from muble_plugins.primitives import placement
 from tests.support.scenes import simple_object_model, simple_scene
 
@@ -39,7 +39,7 @@ def _distance_to_board(xy, centre, half):
 
 def test_a_crowded_part_still_has_the_slot_between_turned_boards(env):
     env.reset()
-    lo, hi = env.table().part_region("left")
+    lo, hi = part_box(env, "left")
     places = placement.free_places(env, lo, hi, HELD)
     assert places, "the 10 cm slot fits a 6 cm can with 1.5 cm to spare on each side"
     radius = 0.03

@@ -10,8 +10,8 @@ from PIL import Image, ImageDraw
 
 from muble import SEG_BACKGROUND, SEG_TABLE, RenderError, get_registry
 from muble.generation.checks import CAMERA_NAME, view_model
-from muble.generation.placement import Placement
 from muble.stage.camera import CameraParams
+from muble.stage.layout import Placement
 
 pytestmark = pytest.mark.gl
 

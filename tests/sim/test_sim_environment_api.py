@@ -11,6 +11,7 @@ import pytest
 import muble
 from muble.core.environment import Environment, EnvironmentNames
 from muble.sim.env import TabletopEnv
+from muble.stage.table import part_box
 from tests.sim.conftest import pick
 
 PLUGINS = Path(muble.__file__).resolve().parents[1] / "muble_plugins"
@@ -51,7 +52,7 @@ def test_sim_environment_geometry_answers_match_the_physics(panda_env, scene_mod
         assert top == pytest.approx(height, abs=0.003), f"object {obj_id}: top {top:.4f} m, height {height:.4f} m"
         assert env.touches_support(obj_id), f"object {obj_id} rests on the table"
         assert not env.is_raised(obj_id) and not env.is_lifted(obj_id)
-    lo, hi = table.part_region("left")
+    lo, hi = part_box(env, "left")
     assert (lo < hi).all() and hi[1] <= 0.0  # "left" is -y, seen from the scene camera
     # the top-down grasp frame points the grip site's z axis down, and yaw turns it about the vertical
     for yaw in (0.0, 0.7):

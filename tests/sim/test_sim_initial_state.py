@@ -16,7 +16,8 @@ from muble.episode.runner import EpisodeRunner
 from muble.io.scene_io import load_scene
 from muble.sim import build
 from muble.sim.build import env_from_object_set, object_models
-from muble.sim.initial_state import MAX_DISPLACEMENT, MAX_PENETRATION, MAX_ROTATION, settle_and_check
+from muble.sim.initial_state import MAX_PENETRATION, settle_and_check
+from muble.stage.rest import SETTLED_DISPLACEMENT, SETTLED_TURN
 from tests.support.scenes import five_object_scene
 
 DATA = Path(__file__).resolve().parents[1] / "planning" / "data"
@@ -161,12 +162,12 @@ def test_stored_generated_scene_settles_within_tolerance(name, object_set):
     assert set(report.objects) == set(scene.ids)
     assert env.steps == 0  # settling is not part of the episode
     # Measured: at most 0.12 mm and 0.06 degrees on these scenes; the tolerances are 40 and 50 times that.
-    assert report.max_displacement < MAX_DISPLACEMENT / 10
-    assert report.max_rotation < MAX_ROTATION / 10
+    assert report.max_displacement < SETTLED_DISPLACEMENT / 10
+    assert report.max_rotation < SETTLED_TURN / 10
     assert report.max_penetration < MAX_PENETRATION / 3
     assert all(o.support is not None for o in report.objects.values())
     for obj in scene.objects:  # the environment is left settled where the scene put the objects
-        assert np.linalg.norm(env.object_pose(obj.id).pos - obj.position) < MAX_DISPLACEMENT / 10
+        assert np.linalg.norm(env.object_pose(obj.id).pos - obj.position) < SETTLED_DISPLACEMENT / 10
 
 
 def test_good_scene_runs_through_the_runner(base_scene, object_set):
@@ -192,7 +193,7 @@ def test_missing_stiffness_takes_the_material_default_once_logged(base_scene, ob
     assert len([r for r in caplog.records if "default" in r.getMessage()]) == 1
     report = settle_and_check(env)  # the object rests instead of sinking through the table
     assert report.objects[THERMOS].support == "table"
-    assert report.objects[THERMOS].displacement < MAX_DISPLACEMENT / 10
+    assert report.objects[THERMOS].displacement < SETTLED_DISPLACEMENT / 10
 
 
 def test_every_material_has_a_default_inside_its_sampling_range(object_set):

@@ -8,7 +8,8 @@ import pytest
 
 from muble.core.errors import ConfigError
 from muble.sim.env import TabletopEnv
-from muble.sim.world import STAGES, scene_stage
+from muble.sim.world import scene_stage
+from muble.stage.table import STAGES
 from tests.support.scenes import five_object_scene
 
 ORIGINAL_REST = [0.0, 0.0, 0.0, -0.75 * np.pi, 0.0, 0.75 * np.pi, 0.25 * np.pi]
@@ -106,8 +107,9 @@ def test_both_worlds_place_within_the_same_table_top_on_every_stage(scene_models
     """The symbolic world (scene graph only) and the physical one (the compiled table) keep a part's places inside
     the same top: on the original release's narrower desk a place the symbolic world chose off its left edge was
     one the arm could never put an object on, and episodes asking for it failed."""
+    from muble.core.types import TABLE_PARTS
     from muble.stage.footprint import free_spot
-    from muble.stage.table import STAGE_TOPS, TABLE_PARTS, part_region, scene_top
+    from muble.stage.table import part_box, scene_part_region, stage_of
 
     scene, models = scene_models
     scene = copy.deepcopy(scene)
@@ -115,14 +117,14 @@ def test_both_worlds_place_within_the_same_table_top_on_every_stage(scene_models
     env = TabletopEnv(scene, models)
     try:
         table = env.table()
-        np.testing.assert_allclose(np.array(STAGE_TOPS[stage]).T, [table.centre - table.half, table.centre + table.half],
+        np.testing.assert_allclose(np.array(STAGES[stage].top).T, [table.centre - table.half, table.centre + table.half],
                                    atol=1e-9)
-        assert scene_top(scene) == STAGE_TOPS[stage]
+        assert stage_of(scene) is STAGES[stage]
         for part in TABLE_PARTS:
-            lo, hi = table.part_region(part)
-            np.testing.assert_allclose(np.array(part_region(part, scene_top(scene))).T, [lo, hi], atol=1e-9)
+            lo, hi = part_box(env, part)
+            np.testing.assert_allclose(np.array(scene_part_region(scene, part)).T, [lo, hi], atol=1e-9)
         # Where the symbolic world puts an object down on the left lies in the physical world's region.
-        lo, hi = table.part_region("left")
+        lo, hi = part_box(env, "left")
         spot = free_spot(scene, scene.objects[0], "left")
         assert spot is not None and lo[0] <= spot[0] <= hi[0] and lo[1] <= spot[1] <= hi[1]
     finally:
@@ -130,9 +132,11 @@ def test_both_worlds_place_within_the_same_table_top_on_every_stage(scene_models
 
 
 def test_the_original_desk_narrows_the_left_part_and_robosuite_table_leaves_the_parts_as_they_were():
-    from muble.stage.table import STAGE_TOPS, TABLE_PARTS, part_region
+    from muble.core.types import TABLE_PARTS
+    from muble.stage.table import part_region
 
+    robosuite, original = STAGES["robosuite"], STAGES["original"]
     for part in TABLE_PARTS:
-        assert part_region(part, STAGE_TOPS["robosuite"]) == part_region(part)
-    (_, _), (y0, _) = part_region("left", STAGE_TOPS["original"])
-    assert y0 == pytest.approx(-0.4 + 0.08) and part_region("left")[1][0] == pytest.approx(-0.40)
+        assert robosuite.part_region(part) == part_region(part, robosuite.place)
+    (_, _), (y0, _) = original.part_region("left")
+    assert y0 == pytest.approx(-0.4 + 0.08) and robosuite.part_region("left")[1][0] == pytest.approx(-0.40)

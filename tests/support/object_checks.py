@@ -11,6 +11,7 @@ import numpy as np
 
 from muble.core.objects import ObjectModel
 from muble.sim.object_mjcf import object_id_from_name, test_world_xml
+from muble.stage.geometry import tilt_deg
 
 UPRIGHT = (1.0, 0.0, 0.0, 0.0)
 
@@ -37,9 +38,6 @@ def settle(placements: list[tuple[ObjectModel, tuple, tuple]], seconds: float = 
     n = len(placements)
     qpos = data.qpos.reshape(n, 7)
     qvel = data.qvel.reshape(n, 6)
-    # Tilt: angle between the body z axis and the world z axis.
-    x, y = qpos[:, 4], qpos[:, 5]
-    cos_tilt = np.clip(1 - 2 * (x * x + y * y), -1.0, 1.0)
     touching, penetration = set(), 0.0
     for c in data.contact[: data.ncon]:
         penetration = max(penetration, -float(c.dist))
@@ -49,8 +47,8 @@ def settle(placements: list[tuple[ObjectModel, tuple, tuple]], seconds: float = 
             oid = object_id_from_name(name)
             ids.append(-1 if oid is None else oid)
         touching.add(tuple(sorted(ids)))
-    return RestReport(qpos[:, :3].copy(), np.degrees(np.arccos(cos_tilt)), np.linalg.norm(qvel[:, :3], axis=1),
-                      np.linalg.norm(qvel[:, 3:], axis=1), penetration, touching)
+    return RestReport(qpos[:, :3].copy(), np.array([tilt_deg(q) for q in qpos[:, 3:7]]),
+                      np.linalg.norm(qvel[:, :3], axis=1), np.linalg.norm(qvel[:, 3:], axis=1), penetration, touching)
 
 
 def drop(model: ObjectModel, height: float = 0.05, seconds: float = 2.0) -> RestReport:

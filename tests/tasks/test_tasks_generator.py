@@ -107,3 +107,24 @@ def test_objects_are_only_sent_to_table_parts_with_room_for_them():
     # Objects put down in turn: the second must fit beside the first (the right part takes either plate).
     assert room_on_part(scene, [large_plate], "right") and room_on_part(scene, [small_plate], "right")
     assert not room_on_part(scene, [large_plate, small_plate], "right")
+
+
+def test_room_on_a_part_takes_footprints_as_the_objects_stand():
+    """A bbox is the object's own extents: a thin board fits a 6 cm corridor between two walls along its length,
+    not across it (the free-place rule of the placing primitives on the boxes' outlines, 2 cm apart)."""
+    from muble import SceneGraph, SceneObject
+    from muble.stage.geometry import yaw_quat
+
+    def box(i, x, y, size, yaw=0.0):
+        return SceneObject(id=i, model="board", name="chopping board", shape="cuboid", size="large",
+                           material="wooden", colour="brown", position=np.array([x, y, 0.0]),
+                           orientation=yaw_quat(yaw), weight_gt=100.0, stackable=False, stack_base=False,
+                           pickupable=True, bbox={"x": size[0], "y": size[1], "z": 0.02})
+
+    walls = [box(0, 0.5, -0.375, (0.8, 0.25)), box(1, 0.5, -0.095, (0.8, 0.19))]  # y < -0.25 and y > -0.19
+    along, across = box(2, 0.5, 0.2, (0.30, 0.01)), box(3, 0.5, 0.2, (0.30, 0.01), yaw=np.pi / 2)
+    scene = SceneGraph(objects=[*walls, along, across])
+    assert room_on_part(scene, [along], "left")
+    assert not room_on_part(scene, [across], "left")
+    # Turned a quarter round, a box's x and y extents are the other way about on the table: the same room.
+    assert room_on_part(scene, [box(3, 0.5, 0.2, (0.01, 0.30), yaw=np.pi / 2)], "left")

@@ -135,7 +135,7 @@ def _same(parts: list[np.ndarray], kept: list[np.ndarray]) -> bool:
 class ContextContents:
     """What a GL context holds from the models it was made from or refilled with: copies of the stage's arrays
     (``stage_parts``) and of each mesh slot's (``mesh_slot_parts``), compared with another model's by value.
-    Equal arrays are the match (exact, as a digest of their bytes was before, in a tenth of the time: comparing a
+    Equal arrays are the match (exact, as a digest of their bytes would be, in a tenth of the time: comparing a
     robosuite scene's ~27 MB of meshes and textures takes a few ms, hashing it ~65 ms every scene)."""
 
     def __init__(self):

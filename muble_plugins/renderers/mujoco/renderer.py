@@ -46,7 +46,7 @@ class MujocoRendererConfig:
     reflection: bool = True
     # Where the segmentation/depth pass (drawn first) shows no pixel of a reflecting plane or box (robosuite's stage
     # hides its floor behind the table), the RGB pass is drawn without the reflection: the same pixels for a third
-    # less. True draws it whether seen or not (as before; only geometry below the floor could show it unseen).
+    # less. True draws it whether seen or not (only geometry below the floor could show it unseen).
     reflection_when_hidden: bool = False
     # Multisampling of the RGB pass (None: the model's ``visual/quality/offsamples``, robosuite's 4); 0 turns it off.
     multisamples: int | None = bounded(None, ge=0, le=16, hint="or null for the model's own")
