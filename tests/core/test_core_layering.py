@@ -535,3 +535,28 @@ def test_a_plugin_name_used_as_one_is_found(tree):
     found = plugin_name_uses(path, {"move", "lift", "shopvrb2", "mujoco", "weigh", "ompl"})
     assert sorted(found) == [(1, "lift"), (1, "move"), (2, "shopvrb2"), (3, "mujoco"), (4, "weigh"),
                              (6, "shopvrb2"), (8, "ompl")]
+
+
+def test_the_architecture_picture_is_the_code_s():
+    """docs/images/architecture.svg is drawn from the imports by scripts/architecture_picture.py: an import that
+    adds or removes an arrow between packages fails here until the picture is drawn again."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "architecture_picture.py"), "--check"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+
+
+def test_the_architecture_picture_shows_a_planted_import(tmp_path):
+    """The picture follows the code: a new package importing the core gets a box and an arrow."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("architecture_picture", ROOT / "scripts" / "architecture_picture.py")
+    picture = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(picture)
+    counts, edges = picture.graph()
+    assert ("muble.app", "muble.core") in edges and ("muble.core", "muble.app") not in edges
+    drawn = picture.svg({**counts, "muble.extra": 1}, edges | {("muble.extra", "muble.core")})
+    assert ">muble.extra<" in drawn and "muble.extra imports muble.core" in drawn
+    assert drawn != picture.svg(counts, edges)
