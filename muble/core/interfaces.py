@@ -12,20 +12,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from muble.core.types import (
-    ActionCall,
-    ActionResult,
-    Answer,
-    Frame,
-    JointGoal,
-    Observation,
-    ObservationMode,
-    Outcome,
-    Pose,
-    PoseGoal,
-    Track,
-    Trajectory,
-)
+from muble.core.types import (ActionCall, ActionResult, Answer, Frame, JointGoal, Observation, ObservationMode, Outcome,
+                              Pose, PoseGoal, Track, Trajectory)
 
 if TYPE_CHECKING:  # pragma: no cover
     from collections.abc import Iterable, Sequence

@@ -168,24 +168,22 @@ class KeyframeStateRecorder(Renderer):
         return KeyframeStates(np.stack(self.states), robot=robot, object_set=object_set, camera=camera)
 
 
+@dataclass(eq=False)
 class EpisodeRunner:
     """Executes instructions on scenes with the configured robot, planner, agent, sensors and renderer."""
 
-    def __init__(self, registry: Any, robot: Any, planner: Any, agent: Any, object_set: Any, object_set_name: str,
-                 sensors: dict[str, Any], renderer: Renderer | None, cameras: tuple[str, ...] = ("front",),
-                 max_steps: int = 100, track: str = "program", mode: str = "graph"):
-        self.registry = registry
-        self.track = track  # what the agent is told (muble.episode.modes)
-        self.mode = mode
-        self.robot = robot
-        self.planner = planner
-        self.agent = agent
-        self.object_set = object_set
-        self.object_set_name = object_set_name
-        self.sensors = sensors
-        self.renderer = renderer
-        self.cameras = cameras
-        self.max_steps = max_steps
+    registry: Any
+    robot: Any
+    planner: Any
+    agent: Any
+    object_set: Any
+    object_set_name: str
+    sensors: dict[str, Any]
+    renderer: Renderer | None
+    cameras: tuple[str, ...] = ("front",)
+    max_steps: int = 100
+    track: str = "program"  # what the agent is told (muble.episode.modes)
+    mode: str = "graph"
 
     def execute(self, scene: SceneGraph, instruction: Instruction, task: Task) -> EpisodeOutput:
         from muble.core.errors import InitialStateError

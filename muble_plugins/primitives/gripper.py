@@ -75,21 +75,45 @@ class OpenGripper(PrimitiveAction):
         return ActionResult(True)
 
 
-class Weigh(PrimitiveAction):
-    """Weight in grams of the object in hand, from the wrist force sensor minus the empty-hand tare."""
+class _HeldMeasurement(PrimitiveAction):
+    """A measurement of the object in the hand: fails with ``empty_hand`` when nothing is held, or with what
+    ``unmeasurable`` says; otherwise returns what ``measure`` reads, in ``measure_unit``."""
 
     params = ()
-    measures = "weight"
-    measure_unit = "g"
+    empty_hand = "nothing in the hand to measure"
 
     def execute(self, env) -> ActionResult:
         if env.held_object is None:
-            return ActionResult(False, failure_reason="nothing in the hand to weigh: pick an object up first")
+            return ActionResult(False, failure_reason=self.empty_hand)
+        reason = self.unmeasurable(env)
+        if reason is not None:
+            return ActionResult(False, failure_reason=reason)
+        value = self.measure(env)
+        return ActionResult(True, measurement=value, info={"object": env.held_object, "unit": self.measure_unit})
+
+    def unmeasurable(self, env) -> str | None:
+        """Why the held object cannot be measured now, or None."""
+        return None
+
+    def measure(self, env) -> float:
+        raise NotImplementedError
+
+
+class Weigh(_HeldMeasurement):
+    """Weight in grams of the object in hand, from the wrist force sensor minus the empty-hand tare."""
+
+    measures = "weight"
+    measure_unit = "g"
+    empty_hand = "nothing in the hand to weigh: pick an object up first"
+
+    def unmeasurable(self, env) -> str | None:
         if env.touches_support(env.held_object):
             # Whatever it rests on would carry part of its weight: the reading would be wrong, not just noisy.
-            return ActionResult(False, failure_reason="the held object still touches its support: lift it first")
-        grams = env.weigh()
-        return ActionResult(True, measurement=grams, info={"object": env.held_object, "unit": "g"})
+            return "the held object still touches its support: lift it first"
+        return None
+
+    def measure(self, env) -> float:
+        return env.weigh()
 
     def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
         """The lifted object's weight is known: its ground truth, recorded as measured (``SceneObject.weight``)."""
@@ -101,25 +125,22 @@ class Weigh(PrimitiveAction):
         return ActionResult(True, measurement=held.weight_gt)
 
 
-class Squeeze(PrimitiveAction):
+class Squeeze(_HeldMeasurement):
     """Stiffness (N/m) of the object between the fingers, from force against finger displacement."""
 
-    params = ()
     measures = "stiffness"
     measure_unit = "N/m"
+    empty_hand = "nothing between the fingers to squeeze: grasp an object first"
 
-    def execute(self, env) -> ActionResult:
-        if env.held_object is None:
-            return ActionResult(False, failure_reason="nothing between the fingers to squeeze: grasp an object first")
-        stiffness = env.squeeze()
-        return ActionResult(True, measurement=stiffness, info={"object": env.held_object, "unit": "N/m"})
+    def measure(self, env) -> float:
+        return env.squeeze()
 
     def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
         """The grasped object's stiffness is known (lifted or still standing on its support, as in ``execute``):
         its ground truth, recorded as measured (``extra["stiffness_measured"]``)."""
         held = ArmState.of(scene).held_object(scene)
         if held is None:
-            return ActionResult(False, failure_reason="nothing between the fingers to squeeze: grasp an object first")
+            return ActionResult(False, failure_reason=self.empty_hand)
         if held.stiffness is None:
             return ActionResult(False, failure_reason=f"object {held.id} has no stiffness to measure")
         held.extra[MEASURED_STIFFNESS] = held.stiffness  # as the physical world's scene graph records it

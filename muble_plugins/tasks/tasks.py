@@ -73,25 +73,19 @@ def template_file_tasks(path: str | Path) -> dict[str, type[ShopVrb2Task]]:
     return {name: task_class(t) for name, t in load_templates(path).items()}
 
 
-def _task_class(template_id: str, class_name: str) -> type[ShopVrb2Task]:
-    return task_class(ALL_TEMPLATES[template_id], class_name)
-
-
-MeasureWeightSingle = _task_class("measure_weight_single", "MeasureWeightSingle")
-MeasureWeightMulti = _task_class("measure_weight_multi", "MeasureWeightMulti")
-PickUpByWeight = _task_class("pick_up_lightest", "PickUpByWeight")
-MoveSingle = _task_class("move_single", "MoveSingle")
-RemoveFromPart = _task_class("remove", "RemoveFromPart")
-MoveByWeight = _task_class("move_weight", "MoveByWeight")
-StackSimple = _task_class("stack_simple", "StackSimple")
-StackByWeight = _task_class("stack_weight", "StackByWeight")
-StackThree = _task_class("stack_three", "StackThree")
-StackOrder = _task_class("stack_order", "StackOrder")
+# The ten SHOP-VRB2 templates' task class names, by template id, in registration order.
+SHOP_VRB2_CLASS_NAMES = {
+    "measure_weight_single": "MeasureWeightSingle", "measure_weight_multi": "MeasureWeightMulti",
+    "pick_up_lightest": "PickUpByWeight", "move_single": "MoveSingle", "remove": "RemoveFromPart",
+    "move_weight": "MoveByWeight", "stack_simple": "StackSimple", "stack_weight": "StackByWeight",
+    "stack_three": "StackThree", "stack_order": "StackOrder",
+}
 
 # The stiffness family (stiffness_templates.yaml): registered, but not in the default SHOP-VRB2 mix.
 STIFFNESS_TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {name: task_class(t) for name, t in
                                                          STIFFNESS_TEMPLATES.items()}
 
-TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {**{cls.template.template_id: cls for cls in (
-    MeasureWeightSingle, MeasureWeightMulti, PickUpByWeight, MoveSingle, RemoveFromPart, MoveByWeight,
-    StackSimple, StackByWeight, StackThree, StackOrder)}, **STIFFNESS_TASK_CLASSES}
+TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {
+    **{template_id: task_class(ALL_TEMPLATES[template_id], class_name)
+       for template_id, class_name in SHOP_VRB2_CLASS_NAMES.items()},
+    **STIFFNESS_TASK_CLASSES}

@@ -97,6 +97,18 @@ def _mixed(nodes: Any, links: Any, factor: Any, first: Any, second: Any) -> Any:
     return mix.outputs["Shader"]
 
 
+def multiplied_colour(nodes: Any, links: Any, rgb: Any, factor: float, by: Any) -> Any:
+    """The linear RGB colour ``rgb`` multiplied by the socket ``by``, blended in by ``factor`` (a Mix node's
+    Result: ``rgb * (1 - factor + factor * by)``)."""
+    mix = nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Factor"].default_value = factor
+    mix.inputs["A"].default_value = (*rgb, 1)
+    links.new(by, mix.inputs["B"])
+    return mix.outputs["Result"]
+
+
 def _facing(nodes: Any, blend: float) -> Any:
     weight = nodes.new("ShaderNodeLayerWeight")
     weight.inputs["Blend"].default_value = blend
@@ -138,13 +150,7 @@ def _rubber(mat, bsdf, rgb, nodes, links):
     squared.operation = "MULTIPLY"
     links.new(cells.outputs["Distance"], squared.inputs[0])
     links.new(cells.outputs["Distance"], squared.inputs[1])
-    patch = nodes.new("ShaderNodeMix")
-    patch.data_type = "RGBA"
-    patch.blend_type = "MULTIPLY"
-    patch.inputs["Factor"].default_value = 0.5
-    patch.inputs["A"].default_value = (*rgb, 1)
-    links.new(squared.outputs["Value"], patch.inputs["B"])
-    colour = patch.outputs["Result"]
+    colour = multiplied_colour(nodes, links, rgb, 0.5, squared.outputs["Value"])
     fresnel = nodes.new("ShaderNodeFresnel")
     fresnel.inputs["IOR"].default_value = 1.519
     body = _mixed(nodes, links, fresnel.outputs["Fac"], _bsdf(nodes, "diffuse", colour),

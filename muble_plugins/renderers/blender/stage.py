@@ -10,6 +10,7 @@ import numpy as np
 from muble.core.errors import ConfigError, RenderError, unknown_name
 
 from .config import BACKDROPS, COLOUR_SPACES, DENOISER_QUALITIES, DEVICES, ENGINES, BlenderRendererConfig
+from .materials import multiplied_colour
 
 log = logging.getLogger(__name__)
 
@@ -168,15 +169,10 @@ def _studio_backdrop(nodes: Any, links: Any, sky: Any) -> None:
     level.use_clamp = True
     level.inputs[1].default_value = STUDIO_LUMINANCE[0]
     links.new(slope.outputs["Value"], level.inputs[0])
-    tint = nodes.new("ShaderNodeMix")
-    tint.data_type = "RGBA"
-    tint.blend_type = "MULTIPLY"
-    tint.inputs["Factor"].default_value = 1.0
-    tint.inputs["A"].default_value = (*STUDIO_TINT, 1.0)
-    links.new(level.outputs["Value"], tint.inputs["B"])
+    tint = multiplied_colour(nodes, links, STUDIO_TINT, 1.0, level.outputs["Value"])
     backdrop = nodes.new("ShaderNodeBackground")
     backdrop.inputs["Strength"].default_value = 1.0
-    links.new(tint.outputs["Result"], backdrop.inputs["Color"])
+    links.new(tint, backdrop.inputs["Color"])
     # Seen directly, reflected or through glass: the backdrop; diffuse light still comes from the sky.
     path = nodes.new("ShaderNodeLightPath")
     seen = nodes.new("ShaderNodeMath")
