@@ -17,9 +17,9 @@ from pathlib import Path
 from muble.core.errors import ConfigError
 from muble.evaluation.results import read_results
 from muble.evaluation.stats import wilson
+from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 
-TEMPLATES = ["measure_weight_single", "measure_weight_multi", "pick_up_lightest", "move_single", "remove",
-             "move_weight", "stack_simple", "stack_weight", "stack_three", "stack_order"]
+TEMPLATES = list(SHOPVRB2_TEMPLATES)
 # The paper's SHOP-VRB2 simulation figures (perception included): 100% on the single-object tasks, 33% on
 # stacking by weight, 43.9% overall. It reports no other task type separately.
 PAPER = {"measure_weight_single": "100%", "move_single": "100%", "stack_weight": "33%", "overall": "43.9%"}
