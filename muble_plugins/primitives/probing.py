@@ -202,29 +202,47 @@ def _not_on_table(env, obj_id: int) -> str | None:
     return None
 
 
-class Balance(PrimitiveAction):
+class _LiftedReading(PrimitiveAction):
+    """A reading of the object hanging free in the hand: ``execute`` checks that one is lifted and hands it to
+    ``read``; ``symbolic_effect`` checks the same in a scene graph and hands the object to ``known``."""
+
+    action = ""  # the verb in failure reasons ("balance", "shake")
+
+    def execute(self, env) -> ActionResult:
+        held, failed = _lifted(env, self.action)
+        return failed if failed else self.read(env, held)
+
+    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+        hand = ArmState.of(scene)
+        held = hand.held_object(scene)
+        if held is None or not hand.raised:
+            return ActionResult(False, failure_reason=f"{self.action} needs a lifted object")
+        return self.known(held)
+
+    def read(self, env, held: int) -> ActionResult:
+        raise NotImplementedError
+
+    def known(self, held) -> ActionResult:
+        raise NotImplementedError
+
+
+class Balance(_LiftedReading):
     """Centre of mass of the lifted object: its horizontal offset [x, y] (mm, object frame) from the object's
     origin (the centre of its base), from the wrist torque held still divided by the weight it carries."""
 
     params = ()
     measures = "com_offset"
     measure_unit = "mm"
+    action = "balance"
 
-    def execute(self, env) -> ActionResult:
-        held, failed = _lifted(env, "balance")
-        if failed:
-            return failed
+    def read(self, env, held: int) -> ActionResult:
         tilts = _tilts(env, held)
         offset = env.balance(tilts)
         return ActionResult(True, measurement=[round(float(v) * 1000.0, 2) for v in offset],
                             info={"object": held, "unit": "mm", "readings": 1 + len(tilts)})
 
-    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+    def known(self, held) -> ActionResult:
         """The lifted object's centre of mass is known: its ground truth (``physical_properties.COM_OFFSET``)."""
-        hand = ArmState.of(scene)
-        held = hand.held_object(scene)
-        if held is None or not hand.raised:
-            return ActionResult(False, failure_reason="balancing needs a lifted object")
         offset = physical_properties.com_offset_mm(held)
         if offset is None:
             return ActionResult(False, failure_reason=f"object {held.id} has no centre of mass to measure")
@@ -273,7 +291,7 @@ def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
 
 
-class Shake(PrimitiveAction):
+class Shake(_LiftedReading):
     """Whether something rattles inside the lifted object: the hand swings it ``cycles`` times ``amplitude``
     either side along ``direction``; loose contents hitting the walls are wrist force spikes that the rigid
     motion of a solid or an empty container does not make."""
@@ -284,11 +302,9 @@ class Shake(PrimitiveAction):
               Param("cycles", "int", low=2, high=8, doc="swings"))
     measures = "rattles"
     measure_unit = ""
+    action = "shake"
 
-    def execute(self, env) -> ActionResult:
-        held, failed = _lifted(env, "shake")
-        if failed:
-            return failed
+    def read(self, env, held: int) -> ActionResult:
         amplitude = float(self.arguments.get("amplitude", SHAKE_AMPLITUDE))
         direction, ends = self._ends(env, amplitude)
         reading = env.shake(ends, float(self.arguments.get("period", SHAKE_PERIOD)),
@@ -324,10 +340,6 @@ class Shake(PrimitiveAction):
         raise PlanningError(f"the held object cannot be shaken {amplitude:.2f} m either way in any direction tried: "
                             f"{'; '.join(reasons[:3])}")
 
-    def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
+    def known(self, held) -> ActionResult:
         """Whether the lifted object holds loose contents (``physical_properties.CONTENTS``) is known."""
-        hand = ArmState.of(scene)
-        held = hand.held_object(scene)
-        if held is None or not hand.raised:
-            return ActionResult(False, failure_reason="shaking needs a lifted object")
         return ActionResult(True, measurement=physical_properties.rattles(held))
