@@ -13,5 +13,6 @@ def muble_register_agents() -> list[PluginRecord]:
     return [
         PluginRecord("oracle", OracleAgent, "executes the ground-truth program, replanning after every primitive",
                      OracleConfig),
-        PluginRecord("random", RandomAgent, "uniformly random primitives on random objects", RandomConfig),
+        PluginRecord("random", RandomAgent, "uniformly random primitives on random objects", RandomConfig,
+                     takes_config=True),
     ]

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from muble import ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, Track
+from muble.core.ranges import configured
 
 from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, WEIGH
 
@@ -18,21 +19,24 @@ class RandomConfig:
 
 
 class RandomAgent(Agent):
-    """Uniformly random primitives on random objects: the floor every reasoner should beat."""
+    """Uniformly random primitives on random objects: the floor every reasoner should beat.
 
-    def __init__(self, seed: int = 0, stop_probability: float = 0.05) -> None:
-        self.seed = seed
-        self.stop_probability = stop_probability
-        self.rng = np.random.default_rng(seed)
+    Built from a ``RandomConfig`` (the registry's checked instance) and/or keyword overrides of its fields
+    (``RandomAgent(seed=3)``).
+    """
+
+    def __init__(self, config: RandomConfig | None = None, **options) -> None:
+        self.config = configured(RandomConfig, config, options, owner="agent 'random'")
+        self.rng = np.random.default_rng(self.config.seed)
 
     def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
               mode: ObservationMode = ObservationMode.graph) -> None:
         # Each episode its own stream, reproducible from (seed, split, scene index, template).
         episode = zlib.crc32(f"{instruction.split}/{instruction.image_index}/{instruction.template_id}".encode())
-        self.rng = np.random.default_rng([self.seed, episode])
+        self.rng = np.random.default_rng([self.config.seed, episode])
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
-        if self.rng.random() < self.stop_probability:
+        if self.rng.random() < self.config.stop_probability:
             return None
         ids = [o.id for o in observation.scene.objects]
         name = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE)[int(self.rng.integers(7))]

@@ -5,6 +5,7 @@ shape, size), each trained by ``muble train trainer=NAME``, and the ``learned_pl
 Needs PyTorch (``pip install "muble[learn]"``): the models' modules load only when the registry builds a part,
 so listing plugins and composing configs work without it.
 """
+import dataclasses
 import os
 import sys
 
@@ -26,43 +27,45 @@ from muble_plugins.learned.config import (
 )
 
 
-def planner_trainer(**settings):
+# The registry's factories: each gets its checked config and imports its part's module only when called.
+def planner_trainer(config: PlannerTrainerConfig):
     from muble_plugins.learned.planner import PlannerTrainer
 
-    return PlannerTrainer(**settings)
+    return PlannerTrainer(**dataclasses.asdict(config))
 
 
-def parser_trainer(**settings):
+def parser_trainer(config: ParserTrainerConfig):
     from muble_plugins.learned.parser import ParserTrainer
 
-    return ParserTrainer(**settings)
+    return ParserTrainer(config)
 
 
-def recogniser_trainer(**settings):
+def recogniser_trainer(config: RecogniserTrainerConfig):
     from muble_plugins.learned.recogniser import RecogniserTrainer
 
-    return RecogniserTrainer(**settings)
+    return RecogniserTrainer(config)
 
 
-def learned_planner(**settings):
+def learned_planner(config: LearnedPlannerConfig):
     from muble_plugins.learned.agent import LearnedPlannerAgent
 
-    return LearnedPlannerAgent(**settings)
+    return LearnedPlannerAgent(config)
 
 
 @hookimpl
 def muble_register_trainers() -> list[PluginRecord]:
     return [
         PluginRecord("planner", planner_trainer, "the next primitive and its target, from symbolic roll-outs",
-                     PlannerTrainerConfig),
+                     PlannerTrainerConfig, takes_config=True),
         PluginRecord("parser", parser_trainer, "instruction text to program (sequence to sequence)",
-                     ParserTrainerConfig),
+                     ParserTrainerConfig, takes_config=True),
         PluginRecord("recogniser", recogniser_trainer, "object crop to name, colour, material, shape, size "
-                     "(ResNet-18)", RecogniserTrainerConfig),
+                     "(ResNet-18)", RecogniserTrainerConfig, takes_config=True),
     ]
 
 
 @hookimpl
 def muble_register_agents() -> list[PluginRecord]:
     return [PluginRecord("learned_planner", learned_planner, "a trained planner (with a trained parser on the "
-                         "language track and a trained recogniser in masks mode)", LearnedPlannerConfig)]
+                         "language track and a trained recogniser in masks mode)", LearnedPlannerConfig,
+                         takes_config=True)]

@@ -19,8 +19,10 @@ from typing import Any
 
 from muble import ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, Track
 from muble.core.errors import ConfigError
+from muble.core.ranges import configured
 
 from muble_plugins.common.books import RETRY_LIMIT, primitive_params
+from muble_plugins.learned.config import LearnedPlannerConfig
 from muble_plugins.learned.planner_features import Memory, decode, observe_features
 
 ATTRIBUTES = ("name", "colour", "material", "shape", "size", "stackable", "stack_base", "pickupable")
@@ -48,13 +50,18 @@ def load_network(path: str | Path):
 
 
 class LearnedPlannerAgent(Agent):
-    """Primitives and targets from a trained planner (``muble train trainer=planner``)."""
+    """Primitives and targets from a trained planner (``muble train trainer=planner``).
 
-    def __init__(self, checkpoint: str = "planner.pt", parser: str | None = None,
-                 recogniser: str | None = None, network: Any = None) -> None:
-        self.checkpoint = checkpoint
-        self.net = network if network is not None else load_network(checkpoint)
-        self.parser_path, self.recogniser_path = parser, recogniser
+    Built from a ``LearnedPlannerConfig`` (the registry's checked instance) and/or keyword overrides of its fields
+    (``LearnedPlannerAgent(checkpoint="runs/planner/planner.pt")``); ``network``, a planner network already in
+    memory, stands in for the checkpoint's.
+    """
+
+    def __init__(self, config: LearnedPlannerConfig | None = None, *, network: Any = None, **options: Any) -> None:
+        self.config = cfg = configured(LearnedPlannerConfig, config, options, owner="agent 'learned_planner'")
+        self.checkpoint = cfg.checkpoint
+        self.net = network if network is not None else load_network(cfg.checkpoint)
+        self.parser_path, self.recogniser_path = cfg.parser, cfg.recogniser
         self._parser = self._recogniser = None
         self.memory = Memory()
         self.answered = False

@@ -38,8 +38,9 @@ import numpy as np
 
 from muble.core.errors import ConfigError
 from muble.core.observation import agent_program
+from muble.core.ranges import configured
 from muble_plugins.learned import checkpoint as ckpt
-from muble_plugins.learned.config import TEMPLATES
+from muble_plugins.learned.config import TEMPLATES, ParserTrainerConfig
 
 KIND = "parser"
 FILE_NAME = "parser.pt"
@@ -298,16 +299,17 @@ def exact_match(parser: InstructionParser, pairs: Sequence[tuple[str, list[dict]
 class ParserTrainer:
     """``muble train trainer=parser`` (settings: ``muble_plugins.learned.config.ParserTrainerConfig``)."""
 
-    def __init__(self, scenes: int = 2000, epochs: int = 4, batch_size: int = 64, learning_rate: float = 1e-3,
-                 width: int = 128, heads: int = 4, layers: int = 2, validation_scenes: int = 200,
-                 feedforward: int = 256, dropout: float = 0.1, object_set: str = "shopvrb2"):
-        if width % heads:
-            raise ConfigError(f"trainer.width={width} must be a multiple of trainer.heads={heads}")
-        self.settings = {"scenes": scenes, "epochs": epochs, "batch_size": batch_size,
-                         "learning_rate": learning_rate, "width": width, "heads": heads, "layers": layers,
-                         "validation_scenes": validation_scenes, "feedforward": feedforward, "dropout": dropout}
-        if object_set != "shopvrb2":  # kept out otherwise, so checkpoints made before the setting still resume
-            self.settings["object_set"] = object_set
+    def __init__(self, config: ParserTrainerConfig | None = None, **options: Any):
+        self.config = cfg = configured(ParserTrainerConfig, config, options, owner="trainer 'parser'")
+        if cfg.width % cfg.heads:
+            raise ConfigError(f"trainer.width={cfg.width} must be a multiple of trainer.heads={cfg.heads}")
+        self.settings = {"scenes": cfg.scenes, "epochs": cfg.epochs, "batch_size": cfg.batch_size,
+                         "learning_rate": cfg.learning_rate, "width": cfg.width, "heads": cfg.heads,
+                         "layers": cfg.layers, "validation_scenes": cfg.validation_scenes,
+                         "feedforward": cfg.feedforward, "dropout": cfg.dropout}
+        # Kept out at its default, so checkpoints made before the setting still resume.
+        if cfg.object_set != ParserTrainerConfig.object_set:
+            self.settings["object_set"] = cfg.object_set
 
     def train(self, run) -> dict[str, Any]:
         torch = ckpt.torch_module()
@@ -322,7 +324,7 @@ class ParserTrainer:
             return ckpt.progress(items, run, desc, total)
 
         t0 = time.perf_counter()
-        objects_name = s.get("object_set", "shopvrb2")
+        objects_name = self.config.object_set
         train_pairs = build_pairs(run.seed, 0, s["scenes"], run.protocol, bar, objects_name)
         validation_pairs = build_pairs(run.seed, 1, s["validation_scenes"], run.protocol, bar, objects_name)
         data_seconds = time.perf_counter() - t0

@@ -40,6 +40,7 @@ import numpy as np
 
 from muble import Trainer
 from muble.core.errors import ConfigError
+from muble.core.ranges import configured
 from muble.core.training import TrainingRun
 from muble.io.layout import DatasetLayout
 from muble.io.scene_io import load_scene
@@ -377,9 +378,8 @@ def learning_rate_schedule(torch: Any, optimiser: Any, kind: str, crops: int, ba
 class RecogniserTrainer(Trainer):
     """``muble train trainer=recogniser train.data_root=DIR``: ResNet-18 on object crops of a generated dataset."""
 
-    def __init__(self, **settings: Any) -> None:
-        settings = {k: v for k, v in settings.items() if k != "name"}
-        self.config = RecogniserTrainerConfig(**settings)
+    def __init__(self, config: RecogniserTrainerConfig | None = None, **options: Any) -> None:
+        self.config = configured(RecogniserTrainerConfig, config, options, owner="trainer 'recogniser'")
         if self.config.schedule not in SCHEDULES:
             raise ConfigError(f"trainer.schedule must be one of {', '.join(SCHEDULES)}, got '{self.config.schedule}'")
 

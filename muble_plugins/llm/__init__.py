@@ -15,4 +15,4 @@ def muble_register_agents() -> list[PluginRecord]:
     from muble_plugins.llm.config import LlmConfig
 
     return [PluginRecord("llm", LlmAgent, "asks an OpenAI-compatible chat endpoint for each primitive (JSON replies)",
-                         LlmConfig)]
+                         LlmConfig, takes_config=True)]

@@ -19,8 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from muble import ActionCall, Agent, Answer, ConfigError, Instruction, Observation, ObservationMode, Track
+from muble.core.ranges import configured
 
-from muble_plugins.llm.config import ImagePolicy, SchemaForm
+from muble_plugins.llm.config import ImagePolicy, LlmConfig
 from muble_plugins.llm.endpoint import Endpoint, EpisodeStats, ExchangeLog
 from muble_plugins.llm.examples import load_examples, pick_examples
 from muble_plugins.llm.prompt import (RETRY_FIELDS, STEP_FIELDS, SYSTEM_FIELDS, PromptTemplate, Turn, examples_text,
@@ -46,29 +47,29 @@ class UnusableReply:
 
 
 class LlmAgent(Agent):
-    """Plans with a chat model behind an OpenAI-compatible endpoint; see the module's docstring."""
+    """Plans with a chat model behind an OpenAI-compatible endpoint; see the module's docstring.
 
-    def __init__(self, base_url: str = "http://127.0.0.1:8080/v1", model: str = "local",
-                 api_key_env: str = "OPENAI_API_KEY", temperature: float = 0.0, max_tokens: int = 256,
-                 timeout: float = 60.0, max_retries: int = 2, http_retries: int = 4, max_backoff: float = 30.0,
-                 schema: bool = True, schema_form: str | SchemaForm = SchemaForm.json_schema,
-                 system_prompt: str | None = None, step_prompt: str | None = None,
-                 history: int = 8, images: str | ImagePolicy = ImagePolicy.auto, examples: int = 0,
-                 examples_root: str | None = None, examples_split: str = "train", log_dir: str | None = None) -> None:
-        self.endpoint = Endpoint(base_url, model, api_key_env, temperature, max_tokens, timeout, http_retries,
-                                 max_backoff, SchemaForm(getattr(schema_form, "value", schema_form)).value)
-        self.max_retries, self.schema, self.history = max_retries, schema, history
-        self.images = ImagePolicy(getattr(images, "value", images))
+    Built from an ``LlmConfig`` (the registry's checked instance) and/or keyword overrides of its fields
+    (``LlmAgent(base_url="http://127.0.0.1:11434/v1", model="qwen2.5")``), checked against the schema's types and
+    bounds.
+    """
+
+    def __init__(self, config: LlmConfig | None = None, **options: Any) -> None:
+        self.config = cfg = configured(LlmConfig, config, options, owner="agent 'llm'")
+        self.endpoint = Endpoint(cfg.base_url, cfg.model, cfg.api_key_env, cfg.temperature, cfg.max_tokens,
+                                 cfg.timeout, cfg.http_retries, cfg.max_backoff, cfg.schema_form.value)
+        self.max_retries, self.schema, self.history = cfg.max_retries, cfg.schema, cfg.history
+        self.images = cfg.images
         # Prompt files are read and checked now, so a wrong path or placeholder stops the run before any episode.
-        self.system_template = PromptTemplate.load(system_prompt, "system.md", SYSTEM_FIELDS)
-        self.step_template = PromptTemplate.load(step_prompt, "step.md", STEP_FIELDS)
+        self.system_template = PromptTemplate.load(cfg.system_prompt, "system.md", SYSTEM_FIELDS)
+        self.step_template = PromptTemplate.load(cfg.step_prompt, "step.md", STEP_FIELDS)
         self.retry_template = PromptTemplate.load(None, "retry.md", RETRY_FIELDS)
-        if examples and not examples_root:
+        if cfg.examples and not cfg.examples_root:
             raise ConfigError("agent.examples needs agent.examples_root: a dataset folder written by `muble "
                               "generate` with ground-truth sequences (its agent.examples_split split)")
-        self.examples = examples
-        self.example_pool = load_examples(Path(examples_root), examples_split) if examples else []
-        self.log_dir = Path(log_dir) if log_dir else None
+        self.examples = cfg.examples
+        self.example_pool = load_examples(Path(cfg.examples_root), cfg.examples_split) if cfg.examples else []
+        self.log_dir = Path(cfg.log_dir) if cfg.log_dir else None
         self.output_dir: Path | None = None  # set by muble eval: the logs then go beside its records
         self.record = ExchangeLog()
         self.episode_stats = EpisodeStats()

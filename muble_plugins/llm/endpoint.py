@@ -142,7 +142,7 @@ class Endpoint:
     """The chat-completions endpoint of one agent (one client per worker process, made on first use)."""
 
     def __init__(self, base_url: str, model: str, api_key_env: str, temperature: float, max_tokens: int,
-                 timeout: float, http_retries: int, max_backoff: float, schema_form: str = "json_schema") -> None:
+                 timeout: float, http_retries: int, max_backoff: float, schema_form: str) -> None:
         self.base_url, self.model, self.api_key_env = base_url, model, api_key_env
         self.temperature, self.max_tokens, self.timeout = temperature, max_tokens, timeout
         self.http_retries, self.max_backoff = http_retries, max_backoff

@@ -13,7 +13,7 @@ def muble_register_object_sets() -> list[PluginRecord]:
 
     return [
         PluginRecord("shopvrb2", ShopVrb2Objects, "the ten SHOP-VRB2 household categories, procedural shapes",
-                     ObjectSetConfig),
+                     ObjectSetConfig, takes_config=True),
         PluginRecord("ycb", YcbObjects, "nine YCB items at published size and mass, procedural shapes",
-                     ObjectSetConfig),
+                     ObjectSetConfig, takes_config=True),
     ]

@@ -23,7 +23,7 @@ from muble import ConfigError, ObjectSet
 from muble.core.errors import unknown_name
 from muble.core.objects import GraspFrame, MeshPart, ObjectModel, ObjectSpec
 from muble.core.object_physics import realised_damping, realised_stiffness
-from muble.core.ranges import bounded
+from muble.core.ranges import bounded, configured
 
 from muble_plugins.common.materials import STIFFNESS_RANGE  # ground-truth stiffness by material (N/m)
 from muble_plugins.objects.build_cache import built_geometry
@@ -204,27 +204,27 @@ class CatalogueObjectSet(ObjectSet):
     category left without a model or a finish is not sampled. ``property_range`` ("all", "inner", "outer")
     chooses the part of each weight range (linear) and stiffness range (log space) that is sampled
     (``muble_plugins.objects.heldout``). At their defaults every draw is the one the catalogue always made.
+
+    Built from an ``ObjectSetConfig`` (the registry's checked instance) and/or keyword overrides of its fields
+    (``ShopVrb2Objects(cache_dir=None)``), checked against the schema's types and bounds.
     """
 
     set_name = ""
     catalogue: dict[str, Category] = {}
 
-    def __init__(self, cache_dir: str | None = "", categories: list[str] | None = None,
-                 damping_ratio: float = 1.0, exclude_models: list[str] | None = None,
-                 only_models: list[str] | None = None, exclude_finishes: list[str] | None = None,
-                 only_finishes: list[str] | None = None, property_range: str = "all",
-                 inner_fraction: float = 0.6):
+    def __init__(self, config: ObjectSetConfig | None = None, **options):
+        self.config = cfg = configured(ObjectSetConfig, config, options, owner=f"object_set '{self.set_name}'")
         # "" = the default cache folder, None = no disk cache.
-        self.cache = MeshCache(default_cache_dir() if cache_dir == "" else cache_dir)
-        self.damping_ratio = damping_ratio
-        check_property_range(property_range, inner_fraction)
-        self.property_range = property_range
-        self.inner_fraction = float(inner_fraction)
-        enabled = list(categories) if categories else list(self.catalogue)
+        self.cache = MeshCache(default_cache_dir() if cfg.cache_dir == "" else cfg.cache_dir)
+        self.damping_ratio = cfg.damping_ratio
+        check_property_range(cfg.property_range)
+        self.property_range = cfg.property_range
+        self.inner_fraction = cfg.inner_fraction
+        enabled = list(cfg.categories) or list(self.catalogue)
         for name in enabled:
             self._category(name)
-        self._sampled = sampled_categories(self.catalogue, self.set_name, exclude_models or [], only_models or [],
-                                           exclude_finishes or [], only_finishes or [])
+        self._sampled = sampled_categories(self.catalogue, self.set_name, cfg.exclude_models, cfg.only_models,
+                                           cfg.exclude_finishes, cfg.only_finishes)
         self._enabled = [name for name in enabled if name in self._sampled]
         if not self._enabled:
             raise ConfigError(f"{self.set_name}: the model and finish filters leave none of the categories "

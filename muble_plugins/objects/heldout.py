@@ -29,8 +29,7 @@ def finish_name(colour: str, material: str) -> str:
     return f"{colour} {material}"
 
 
-def sample_range_part(rng: np.random.Generator, low: float, high: float, part: str = "all",
-                      inner_fraction: float = 0.6) -> float:
+def sample_range_part(rng: np.random.Generator, low: float, high: float, part: str, inner_fraction: float) -> float:
     """A uniform sample of [``low``, ``high``] (``part="all"``: one ``rng.uniform`` draw, as always), of its middle
     ``inner_fraction`` (``"inner"``) or of the two tails beside that middle (``"outer"``).
 
@@ -47,12 +46,11 @@ def sample_range_part(rng: np.random.Generator, low: float, high: float, part: s
     return low + u if u < tail else high - (u - tail)
 
 
-def check_property_range(part: str, inner_fraction: float) -> None:
-    """``ConfigError`` for a ``property_range`` other than all/inner/outer or an ``inner_fraction`` outside (0, 1)."""
+def check_property_range(part: str) -> None:
+    """``ConfigError`` for a ``property_range`` other than all/inner/outer (``inner_fraction``'s bounds are its
+    config field's: ``ObjectSetConfig``)."""
     if part not in PROPERTY_RANGES:
         raise ConfigError(unknown_name("property_range", part, PROPERTY_RANGES))
-    if not 0.0 < inner_fraction < 1.0:
-        raise ConfigError(f"inner_fraction must lie strictly between 0 and 1, got {inner_fraction}")
 
 
 @dataclass(frozen=True)

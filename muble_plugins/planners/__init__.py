@@ -12,7 +12,7 @@ def muble_register_planners() -> list[PluginRecord]:
 
     return [
         PluginRecord("ompl", OmplPlanner, "OMPL joint-space planner (RRTConnect by default) with path "
-                     "simplification and trapezoidal timing", OmplPlannerConfig),
+                     "simplification and trapezoidal timing", OmplPlannerConfig, takes_config=True),
         PluginRecord("straight_line", StraightLinePlanner, "straight-line Cartesian motion of the hand for short "
-                     "moves (approach, lift, lower)", StraightLinePlannerConfig),
+                     "moves (approach, lift, lower)", StraightLinePlannerConfig, takes_config=True),
     ]

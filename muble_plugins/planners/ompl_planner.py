@@ -10,6 +10,7 @@ import numpy as np
 from muble import (CollisionWorld, ConfigError, JointGoal, MotionPlanner, PlanningError, PoseGoal, Trajectory,
                    bounded)
 from muble.core.errors import unknown_name
+from muble.core.ranges import configured
 from muble_plugins.planners.timing import time_parameterise
 
 logger = logging.getLogger(__name__)
@@ -39,10 +40,14 @@ class OmplPlannerConfig:
 
 
 class OmplPlanner(MotionPlanner):
-    """Plans in joint space against ``world.is_valid``; a pose goal is turned into joints with the world's IK."""
+    """Plans in joint space against ``world.is_valid``; a pose goal is turned into joints with the world's IK.
 
-    def __init__(self, **options):
-        self.config = OmplPlannerConfig(**options)
+    Built from an ``OmplPlannerConfig`` (the registry's checked instance) and/or keyword overrides of its fields
+    (``OmplPlanner(try_direct=False)``), checked against the schema's types and bounds.
+    """
+
+    def __init__(self, config: OmplPlannerConfig | None = None, **options):
+        self.config = configured(OmplPlannerConfig, config, options, owner="planner 'ompl'")
         if self.config.planner not in OMPL_PLANNERS:
             raise ConfigError(unknown_name("OMPL planner", self.config.planner, OMPL_PLANNERS))
         self.last_planning_time = 0.0

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from muble import CollisionWorld, JointGoal, MotionPlanner, PlanningError, Pose, PoseGoal, Trajectory
+from muble.core.ranges import configured
 
 logger = logging.getLogger(__name__)
 
@@ -45,11 +46,12 @@ class StraightLinePlanner(MotionPlanner):
     """Moves the end effector along a straight line (position) with slerped orientation.
 
     Needs a world with ``ee_pose(q) -> Pose`` (``MujocoCollisionWorld`` has it). A ``JointGoal`` is followed
-    as a straight line in joint space instead.
+    as a straight line in joint space instead. Built from a ``StraightLinePlannerConfig`` and/or keyword overrides of
+    its fields, checked as ``OmplPlanner``'s are.
     """
 
-    def __init__(self, **options):
-        self.config = StraightLinePlannerConfig(**options)
+    def __init__(self, config: StraightLinePlannerConfig | None = None, **options):
+        self.config = configured(StraightLinePlannerConfig, config, options, owner="planner 'straight_line'")
         self.last_planning_time = 0.0
 
     def plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory:

@@ -26,4 +26,5 @@ def muble_register_tasks() -> list[PluginRecord]:
             raise ConfigError(f"{path} (from {TEMPLATE_FILES_VARIABLE}): template ids {taken} are already tasks; "
                               "rename them")
         classes.update(added)
-    return [PluginRecord(name, cls, cls.template.description, ShopVrb2TaskConfig) for name, cls in classes.items()]
+    return [PluginRecord(name, cls, cls.template.description, ShopVrb2TaskConfig, takes_config=True)
+            for name, cls in classes.items()]

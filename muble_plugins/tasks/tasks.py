@@ -9,6 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from muble import ActionCall, Answer, Instruction, Observation, Outcome, PlanningError, SceneGraph, Task
+from muble.core.ranges import configured
 from muble.programs.descriptions import SceneIndex
 
 from muble_plugins.agents.oracle import OracleAgent
@@ -29,18 +30,20 @@ class ShopVrb2TaskConfig:
 
 
 class ShopVrb2Task(Task):
-    """A SHOP-VRB2 template: instructions with CLEVR-IEP programs, ground-truth primitives, success check."""
+    """A SHOP-VRB2 template: instructions with CLEVR-IEP programs, ground-truth primitives, success check.
+
+    Built from a ``ShopVrb2TaskConfig`` (the registry's checked instance) and/or keyword overrides of its fields.
+    """
 
     template: ClassVar[Template]
 
-    def __init__(self, instructions_per_scene: int = 1, extra_steps: int = 0, weight_margin_g: float = 2.0):
-        self.instructions_per_scene = instructions_per_scene
-        self.extra_steps = extra_steps
-        self.weight_margin_g = weight_margin_g
+    def __init__(self, config: ShopVrb2TaskConfig | None = None, **options):
+        self.config = configured(ShopVrb2TaskConfig, config, options, owner=f"task '{self.template.template_id}'")
 
     def generate(self, scene: SceneGraph, rng: np.random.Generator) -> list[Instruction]:
-        return generate_for_template(self.template, scene, rng, count=self.instructions_per_scene,
-                                     index=SceneIndex(scene, self.extra_steps), weight_margin=self.weight_margin_g)
+        cfg = self.config
+        return generate_for_template(self.template, scene, rng, count=cfg.instructions_per_scene,
+                                     index=SceneIndex(scene, cfg.extra_steps), weight_margin=cfg.weight_margin_g)
 
     def ground_truth(self, instruction: Instruction, scene: SceneGraph) -> list[ActionCall]:
         """The oracle's primitives, rolled out in the symbolic world from ``scene`` (weights unknown at start)."""

@@ -21,8 +21,8 @@ class ContactCountConfig:
 class ContactCount(muble.Sensor):
     """Number of active contacts; a quick way to see that something touches something."""
 
-    def __init__(self, include_table: bool = True):
-        self.include_table = include_table
+    def __init__(self, config: ContactCountConfig):  # the registry's checked options (takes_config)
+        self.include_table = config.include_table
 
     def read(self, env) -> dict:
         data, model = env.data, env.model
@@ -38,7 +38,7 @@ class ContactCount(muble.Sensor):
 @muble.hookimpl
 def muble_register_sensors():
     return [muble.PluginRecord("contact_count", ContactCount, "number of active MuJoCo contacts",
-                               ContactCountConfig)]
+                               ContactCountConfig, takes_config=True)]
 
 
 @muble.hookimpl
@@ -57,7 +57,8 @@ def muble_register_primitives():
 def muble_register_tasks():
     from muble_example_plugin.touch import Touch, TouchConfig
 
-    return [muble.PluginRecord("touch", Touch, "touch the object the instruction names", TouchConfig)]
+    return [muble.PluginRecord("touch", Touch, "touch the object the instruction names", TouchConfig,
+                               takes_config=True)]
 
 
 @muble.hookimpl
@@ -65,4 +66,4 @@ def muble_register_agents():
     from muble_example_plugin.agent import GreedyAgent, GreedyConfig
 
     return [muble.PluginRecord("greedy", GreedyAgent, "grasps, lifts and weighs the object the program's words name",
-                               GreedyConfig)]
+                               GreedyConfig, takes_config=True)]

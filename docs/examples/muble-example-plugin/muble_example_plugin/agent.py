@@ -42,9 +42,8 @@ class GreedyConfig:
 class GreedyAgent(muble.Agent):
     """Scripted grasp, lift, weigh and answer for the single-object templates (see the module doc)."""
 
-    def __init__(self, lift_height: float = 0.15, max_weighings: int = 5):
-        self.lift_height = lift_height
-        self.max_weighings = max_weighings
+    def __init__(self, config: GreedyConfig | None = None):  # the registry's checked options, or the defaults
+        self.config = config or GreedyConfig()
         self.script: Script | None = None
         self.last: ActionCall | Answer | None = None
 
@@ -86,7 +85,7 @@ class GreedyAgent(muble.Agent):
             yield Answer([grams])
         elif kinds[-1] == "pick_up" and len(targets) == 1:
             yield from self._hold_up(targets[0])
-        elif kinds[-1] == "pick_up" and superlative and 1 < len(targets) <= self.max_weighings:
+        elif kinds[-1] == "pick_up" and superlative and 1 < len(targets) <= self.config.max_weighings:
             weights = {}
             for k, target in enumerate(targets):
                 if k:
@@ -101,7 +100,7 @@ class GreedyAgent(muble.Agent):
         yield ActionCall("move", {"target": target})  # the hand above it
         yield ActionCall("approach", {"target": target})  # down into its grasp pose
         yield ActionCall("close_gripper", {"target": target})
-        yield ActionCall("lift", {"height": self.lift_height})
+        yield ActionCall("lift", {"height": self.config.lift_height})
 
     def _weigh(self, target: int) -> Generator[ActionCall, ActionResult, float]:
         yield from self._hold_up(target)

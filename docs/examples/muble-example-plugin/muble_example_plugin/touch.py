@@ -44,8 +44,8 @@ class Touch(muble.Task):
 
     task_id = "touch"
 
-    def __init__(self, pickupable_only: bool = True):
-        self.pickupable_only = pickupable_only
+    def __init__(self, config: TouchConfig | None = None):  # the registry's checked options, or the defaults
+        self.pickupable_only = (config or TouchConfig()).pickupable_only
 
     def generate(self, scene, rng: np.random.Generator) -> list[Instruction]:
         names = [(o.colour, o.name) for o in scene.objects]
