@@ -2,18 +2,19 @@
 contents (``shake``), on sampled SHOP-VRB2 objects with both grippers (docs/physical_properties.md).
 
 Every object stands alone on the table (x 0.4-0.6 m, y -0.15-0.15 m, its natural pose), built by the object set
-with one property sampled:
+with one property sampled as the scene generator samples it (``muble.core.physical_properties.sampled``):
 - friction coefficient uniform in [0.3, 1.0] (``FRICTION_RANGE``): picked (``move``, ``approach``,
   ``close_gripper``), lifted and weighed, set back as it was picked (the snapshot before lifting: the hand holds it
   standing on the table, its measured weight kept), then pushed there and back; right within ±10 %;
-- centre of mass uniform over a disc of radius ``COM_RADIUS`` of the smaller horizontal extent about the base
+- centre of mass uniform over a disc of radius ``COM_RADIUS_SHARE`` of the smaller horizontal extent about the base
   centre: picked, lifted, balanced; right within 5 mm (distance between the readings and the true offset);
-- loose contents in half of the closed containers, ``CONTENTS_G`` grams (at most ``CONTENTS_SHARE`` of the
-  weight): picked, lifted, shaken; right when it rattles exactly when it holds contents.
-Properties go to the categories that can carry them and be measured: the pickupable ones (bowl, glass, mug, soda
-can, thermos, wine glass), and for contents the closed ones among them (soda can, thermos; a food box is closed
-but wider than either gripper opens). Objects that could not be picked or whose motion could not be planned count
-apart from the readings.
+- loose contents in half of the closed containers (``CONTENTS_PROBABILITY``), ``CONTENTS_G`` grams (at most
+  ``CONTENTS_SHARE`` of the weight): picked, lifted, shaken; right when it rattles exactly when it holds contents.
+Properties go to the categories that carry them (``ObjectSet.physical_properties``, the SHOP-VRB2 catalogue's
+``Category.physical_properties``): the pickupable ones (bowl, glass, mug, soda can, thermos, wine glass), and for
+contents the closed ones among them (soda can, thermos; a food box is closed but not pickupable: wider than either
+gripper opens). Objects that could not be picked or whose motion could not be planned count apart from the
+readings.
 
 Run from the repository root: ``python benchmarks/physical_properties.py [--objects 100] [--seed 0]
 [--properties friction,com,contents] [--grippers Panda,Robotiq85Gripper] [--categories mug,glass] [--jobs 1]``.
@@ -35,18 +36,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
 
-FRICTION_RANGE = (0.3, 1.0)
+from muble.core.physical_properties import SCENE_KEYS, model_fields, sampled  # noqa: E402
+from muble_plugins.objects.shopvrb2 import CATALOGUE  # noqa: E402
+
 FRICTION_TOLERANCE = 0.10  # relative
-COM_RADIUS = 0.3  # of the smaller horizontal extent: 0.6 of the way from the centre to the nearest side
 COM_TOLERANCE = 5.0  # mm
-CONTENTS_G = (10.0, 40.0)
-CONTENTS_SHARE = 0.2
 GOALS = {"friction": 0.95, "com": 0.95, "contents": 0.98}
-PROPERTY_CATEGORIES = {
-    "friction": ("bowl", "glass", "mug", "soda can", "thermos", "wine glass"),
-    "com": ("bowl", "glass", "mug", "soda can", "thermos", "wine glass"),
-    "contents": ("soda can", "thermos"),
-}
+PROPERTY = {"friction": "friction", "com": "com_offset", "contents": "contents"}  # ``--properties`` -> PROPERTIES
+PROPERTY_CATEGORIES = {name: tuple(c.name for c in CATALOGUE.values() if prop in c.physical_properties)
+                       for name, prop in PROPERTY.items()}
 
 
 def _act(env, name, **params):
@@ -68,19 +66,14 @@ def measure_one(job: tuple) -> dict:
     objects = registry.create("object_set", "shopvrb2")
     spec = objects.sample(rng, category)
     model = objects.build(spec)
+    value = sampled(PROPERTY[prop], rng, model, spec.weight_g)
+    model = dataclasses.replace(model, **model_fields({SCENE_KEYS[PROPERTY[prop]]: value}, spec.weight_g))
     if prop == "friction":
-        truth = float(rng.uniform(*FRICTION_RANGE))
-        model = dataclasses.replace(model, friction_coefficient=truth)
+        truth = value
     elif prop == "com":
-        radius = COM_RADIUS * float(min(model.extents[:2]))
-        angle, r = rng.uniform(0.0, 2 * np.pi), radius * np.sqrt(rng.uniform())
-        offset = r * np.array([np.cos(angle), np.sin(angle)])
-        model = dataclasses.replace(model, com_offset=offset)
-        truth = (offset * 1000.0).tolist()
+        truth = [v * 1000.0 for v in value]
     else:
-        truth = bool(rng.uniform() < 0.5)
-        grams = min(float(rng.uniform(*CONTENTS_G)), CONTENTS_SHARE * spec.weight_g) if truth else 0.0
-        model = dataclasses.replace(model, contents_mass=grams / 1000.0)
+        truth = value > 0.0
     out = {"property": prop, "gripper": gripper, "category": category, "model": spec.model,
            "weight_g": spec.weight_g, "truth": truth}
     scene = simple_scene([(float(rng.uniform(0.4, 0.6)), float(rng.uniform(-0.15, 0.15)))], [model])

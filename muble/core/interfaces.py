@@ -246,6 +246,8 @@ class ObjectSet(ABC):
 
     ``hidden_properties`` names object properties (scene-object fields or ``extra`` keys) that agents must not
     see beyond the ones always withheld (ground-truth weight and stiffness, see ``muble.core.observation``).
+    ``physical_properties(spec)`` says which hidden physical properties (friction, centre of mass, loose contents)
+    an object can carry, so the scene generator draws them for it when asked to; by default none.
     """
 
     hidden_properties: ClassVar[tuple[str, ...]] = ()
@@ -266,6 +268,14 @@ class ObjectSet(ABC):
         SHOP-VRB2 files have none), used when the environment is built. Optional; the default, ``None``, makes such
         an object a ``SceneValidationError``."""
         return None
+
+    def physical_properties(self, spec: "ObjectSpec") -> tuple[str, ...]:
+        """Which of the hidden physical properties the scene generator draws
+        (``muble.core.physical_properties.PROPERTIES``: ``friction``, ``com_offset``, ``contents``) the object
+        ``spec`` describes can carry; the generator draws those asked for (``GeneratorConfig.physical_properties``)
+        for it and no others. ``contents`` needs a closed container (``ObjectModel.closed``). Optional; the
+        default, none, leaves every object as its model builds it."""
+        return ()
 
 
 class Agent(ABC):

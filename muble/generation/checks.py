@@ -112,9 +112,9 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
     every object stacked before it still does; and on its way down onto that pose (``STACK_SWEEP`` straight down)
     it keeps ``STACK_CLEARANCE`` from every object outside its stack. Else why not (the first pair that fails).
 
-    The objects start as placed on the table; each top object keeps its turn about the vertical. A bowl too small
-    for a mug's base, a can on a bowl's sloping wall, a glass on a tray's rim: the physics of the built models
-    says, not the objects' categories.
+    The objects start as placed on the table; each top object keeps its turn about the vertical, and its loose
+    contents (``ObjectModel.contents_mass``) go with it. A bowl too small for a mug's base, a can on a bowl's
+    sloping wall, a glass on a tray's rim: the physics of the built models says, not the objects' categories.
     """
     import mujoco
 
@@ -124,9 +124,24 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     bodies = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"obj{i}") for i in range(len(models))]
-    qpos = [model.jnt_qposadr[model.body_jntadr[b]] for b in bodies]
-    qvel = [model.jnt_dofadr[model.body_jntadr[b]] for b in bodies]
+    # Each object's free bodies: its own and, in a closed container, its loose contents' (``muble.sim.object_mjcf``).
+    parts = [[b, *[c for c in [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"obj{i}_contents")] if c >= 0]]
+             for i, b in enumerate(bodies)]
     steps = max(1, int(round(settle_time / timestep)))
+
+    def place(i: int, origin) -> None:
+        """Object ``i`` moved, unturned and at rest, so that its origin is at ``origin``; its contents go along."""
+        shift = None
+        for b in parts[i]:
+            q, v = model.jnt_qposadr[model.body_jntadr[b]], model.jnt_dofadr[model.body_jntadr[b]]
+            if shift is None:  # the object's own body: exactly at ``origin``
+                shift = np.asarray(origin, float) - data.qpos[q:q + 3]
+                data.qpos[q:q + 3] = origin
+            else:
+                data.qpos[q:q + 3] += shift
+            data.qvel[v:v + 6] = 0.0
+        mujoco.mj_forward(model, data)
+
     placed: list[tuple[int, int, np.ndarray]] = []  # (top, base, the top's orientation when let go)
     for top, base in pairs:
         tb, bb = bodies[top], bodies[base]
@@ -141,16 +156,14 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
         height = resting_height(model, data, bb, points, start_z, tb)
         if height is None:
             return f"object {top} has nothing of object {base} under it when centred over it"
-        a = qpos[top]
         release = height + depth + STACK_DROP
-        stack = {bodies[b] for _, b, _ in placed} | {bb}
-        blocked = _in_the_way(model, data, a, tb, stack, [centre[0], centre[1], release])
+        stack = {p for _, b, _ in placed for p in parts[b]} | set(parts[base]) | set(parts[top])
+        blocked = _in_the_way(model, data, lambda origin: place(top, origin), tb, stack,
+                              [centre[0], centre[1], release])
         if blocked is not None:
             return (f"object {top} set down on object {base} comes within {STACK_CLEARANCE * 1000:.0f} mm of object "
-                    f"{bodies.index(blocked)} on the way")
-        data.qpos[a:a + 3] = [centre[0], centre[1], release]
-        data.qvel[qvel[top]:qvel[top] + 6] = 0.0
-        mujoco.mj_forward(model, data)
+                    f"{next(i for i, p in enumerate(parts) if blocked in p)} on the way")
+        place(top, [centre[0], centre[1], release])
         placed.append((top, base, data.xquat[tb].copy()))
         mujoco.mj_step(model, data, nstep=steps)
         if not np.all(np.isfinite(data.qpos)):
@@ -164,10 +177,10 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
     return None
 
 
-def _in_the_way(model, data, qpos_adr: int, body: int, allowed: set[int], release) -> int | None:
-    """The first body other than ``allowed`` that ``body``, lowered straight down onto ``release`` (its origin)
-    from ``STACK_SWEEP`` above, comes within ``STACK_CLEARANCE`` of; ``None`` when the way is clear. The body's
-    pose is left at the last height tried."""
+def _in_the_way(model, data, place, body: int, allowed: set[int], release) -> int | None:
+    """The first body other than ``allowed`` that ``body``, lowered straight down onto ``release`` (its origin, where
+    ``place(origin)`` puts it) from ``STACK_SWEEP`` above, comes within ``STACK_CLEARANCE`` of; ``None`` when the
+    way is clear. The body's pose is left at the last height tried."""
     import mujoco
 
     geoms = np.flatnonzero(model.geom_bodyid == body)
@@ -175,8 +188,7 @@ def _in_the_way(model, data, qpos_adr: int, body: int, allowed: set[int], releas
     model.geom_margin[geoms] = STACK_CLEARANCE
     try:
         for dz in np.linspace(STACK_SWEEP, 0.0, int(round(STACK_SWEEP / 0.02)) + 1):
-            data.qpos[qpos_adr:qpos_adr + 3] = [release[0], release[1], release[2] + dz]
-            mujoco.mj_forward(model, data)
+            place([release[0], release[1], release[2] + dz])
             for k in range(data.ncon):
                 c = data.contact[k]
                 pair = (int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2]))

@@ -50,6 +50,11 @@ class GeneratorConfig:
     many of its objects are in no step's result of the instruction's program (no filter, relation or action of
     the instruction picks them: ``muble.generation.task_mix``); the scene file lists those ids under
     ``extra.generator.distractors``, hidden from agents.
+
+    ``physical_properties`` names hidden physical properties (``muble.core.physical_properties.PROPERTIES``:
+    ``friction``, ``com_offset``, ``contents``) to draw for every object the object set says carries them
+    (``ObjectSet.physical_properties``), each from a random stream of its own; the built models have them in every
+    check and the scene file holds them (``SceneObject.extra``), hidden from agents. Empty: none is drawn or written.
     """
 
     object_set: str = ""
@@ -94,6 +99,7 @@ class GeneratorConfig:
     camera_jitter_deg: float = bounded(0.0, ge=0, hint="degrees, 0 = none")  # uniform per EulerXYZ angle
     lamp_jitter: float = bounded(0.0, ge=0, hint="m, 0 = none")  # per axis; energy factor in [1 - j, 1 + j]
     distractors: int = bounded(0, ge=0)  # objects beyond the drawn count that the instruction must not refer to
+    physical_properties: list[str] = field(default_factory=list)  # hidden properties drawn per object; [] = none
 
 
 def on_stage(cfg: GeneratorConfig) -> GeneratorConfig:

@@ -3,7 +3,8 @@
 Every scene is a pure function of (``seed``, ``index``): its objects are drawn from the named stream
 ``scene.objects`` and their placements from ``scene.layout`` (``muble.core.streams``, keyed by index and scene
 sample), and every retry draws from them, so the same pair always yields the same JSON, and a shard of indices can
-be generated anywhere in any order.
+be generated anywhere in any order. The hidden physical properties asked for (``physical_properties``) come from
+streams of their own (``PROPERTY_STREAMS``), so drawing them changes no other draw.
 """
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ from typing import Any, Callable
 import numpy as np
 from omegaconf import DictConfig
 
-from muble.core.errors import ConfigError, SceneGenerationError
+from muble.core import physical_properties
+from muble.core.errors import ConfigError, SceneGenerationError, unknown_name
 from muble.core.objects import ObjectModel, ObjectSpec
 from muble.core.ranges import configured
 from muble.core.scene import SceneGraph, SceneObject
@@ -38,6 +40,9 @@ WEIGHT_RESAMPLES = 30
 # Raised whenever the same settings make other files (2: named random streams, fixed-order sums, 9-decimal floats);
 # a dataset folder records it, so one made by another version is not resumed into a mix of both.
 GENERATOR_VERSION = 2
+# The stream each hidden physical property (``muble.core.physical_properties.PROPERTIES``) is drawn from.
+PROPERTY_STREAMS = {"friction": streams.SCENE_FRICTION, "com_offset": streams.SCENE_COM_OFFSET,
+                    "contents": streams.SCENE_CONTENTS}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,6 +118,10 @@ class SceneGenerator:
             raise ConfigError(f"reach_x {cfg.reach_x} and reach_y {cfg.reach_y} must be [low, high] ranges")
         if not cfg.count_probabilities or abs(sum(cfg.count_probabilities) - 1) > 1e-6:
             raise ConfigError(f"count_probabilities must sum to 1, got {cfg.count_probabilities}")
+        for name in cfg.physical_properties:
+            if name not in physical_properties.PROPERTIES:
+                raise ConfigError(unknown_name("generator.physical_properties property", name,
+                                               physical_properties.PROPERTIES))
 
     # --- renderers --------------------------------------------------------------------------------------------
     def _renderer_for(self, camera: CameraParams):
@@ -177,6 +186,25 @@ class SceneGenerator:
                 return None
         return specs
 
+    def _physical_properties(self, specs: list[ObjectSpec], models: list[ObjectModel],
+                             rngs: dict[str, np.random.Generator]) -> tuple[list[ObjectModel], list[dict[str, Any]]]:
+        """The models with the hidden physical properties drawn for them, and each object's scene keys and values
+        (``muble.core.physical_properties.sampled``, rounded as the file keeps them): per property of ``rngs``, per
+        object in scene order, for the objects the object set says carry it (``ObjectSet.physical_properties``)."""
+        values: list[dict[str, Any]] = [{} for _ in specs]
+        if not rngs:
+            return models, values
+        carried = getattr(self.object_set, "physical_properties", lambda spec: ())
+        for name, rng in rngs.items():
+            key = physical_properties.SCENE_KEYS[name]
+            for value, spec, model in zip(values, specs, models):
+                if name in carried(spec):
+                    value[key] = physical_properties.sampled(name, rng, model, spec.weight_g)
+        # The model gets what the file says, as an environment built from the file does (muble.sim.build).
+        models = [dataclasses.replace(m, **physical_properties.model_fields(v, s.weight_g)) if v else m
+                  for v, s, m in zip(values, specs, models)]
+        return models, values
+
     def _layout(self, models: list[ObjectModel], rng: np.random.Generator) -> list[Placement] | None:
         cfg = self.config
         layout = TableLayout(cfg.reach_x, cfg.reach_y, cfg.table_x, cfg.table_y, cfg.margin, cfg.robot_clearance,
@@ -205,6 +233,9 @@ class SceneGenerator:
         cfg = self.config
         objects_rng = streams.stream(streams.SCENE_OBJECTS, self.seed, int(index), int(sample))
         layout_rng = streams.stream(streams.SCENE_LAYOUT, self.seed, int(index), int(sample))
+        # In PROPERTIES order, which is the order of their keys in the file; none asked for: no stream is made.
+        property_rngs = {name: streams.stream(PROPERTY_STREAMS[name], self.seed, int(index), int(sample))
+                         for name in physical_properties.PROPERTIES if name in cfg.physical_properties}
         staging = self.staging(index)
         reasons: collections.Counter[str] = collections.Counter()
         for _ in range(cfg.layout_tries):
@@ -214,6 +245,8 @@ class SceneGenerator:
                 continue
             t0 = time.perf_counter()
             models = [self.object_set.build(s) for s in specs]
+            # Before every check, so placement, rest, stacks and reach see the objects as the file will give them.
+            models, properties = self._physical_properties(specs, models, property_rngs)
             t1 = time.perf_counter()
             placements = self._layout(models, layout_rng)
             t2 = time.perf_counter()
@@ -222,7 +255,8 @@ class SceneGenerator:
             if placements is None:
                 reasons["placement"] += 1
                 continue
-            if accept is not None and not accept(self._scene(index, specs, models, placements, None, staging)):
+            if accept is not None and not accept(self._scene(index, specs, models, placements, None, staging,
+                                                             properties)):
                 reasons["not accepted"] += 1
                 continue
             frame = self._draw(self.renderer, models, placements, staging)
@@ -239,7 +273,7 @@ class SceneGenerator:
                 if not all(settled(m, limit=cfg.stability_tolerance) for m in moved):
                     reasons["stability"] += 1
                     continue
-            scene = self._scene(index, specs, models, placements, None, staging)
+            scene = self._scene(index, specs, models, placements, None, staging, properties)
             pairs = stacks(scene) if stacks is not None and cfg.stack_check else []
             if pairs:
                 t5 = time.perf_counter()
@@ -284,7 +318,8 @@ class SceneGenerator:
             obj.mask = mask
         scene.table = {"mask": table_mask}
 
-    def _scene(self, index, specs, models, placements, segmentation, staging: Staging) -> SceneGraph:
+    def _scene(self, index, specs, models, placements, segmentation, staging: Staging,
+               properties: list[dict[str, Any]]) -> SceneGraph:
         cfg = self.config
         objects = []
         masks = None
@@ -309,6 +344,7 @@ class SceneGenerator:
                 scale_factor=rounded(float(spec.scale)),
                 mask=masks[i] if masks is not None else None,
                 stiffness=rounded(float(model.stiffness)),
+                extra=dict(properties[i]),  # the hidden physical properties drawn (none unless asked for)
             ))
         name = f"SHOPVRB2_{cfg.split}_{index:06d}.png"
         scene = SceneGraph(

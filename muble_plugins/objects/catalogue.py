@@ -93,6 +93,8 @@ class Category:
     sizes: tuple[str, ...] = ("small", "medium-sized", "large")
     mass_exponent: float = 2.0  # mass ∝ scale^e: 2 for thin-walled shells, 3 for solid or filled items
     closed: bool = False  # a closed container (a can, a flask, a food box): it can hold loose contents
+    # The hidden physical properties its objects carry (``ObjectSet.physical_properties``): none by default.
+    physical_properties: tuple[str, ...] = ()
     # Models built when a scene names them but never sampled (so that adding one changes no generated scene):
     # the original SHOP-VRB2 models this catalogue does not sample.
     imported_variants: dict[str, tuple[str, Callable[[float], Geometry]]] = field(default_factory=dict)
@@ -271,6 +273,10 @@ class CatalogueObjectSet(ObjectSet):
     def default_stiffness(self, material: str) -> float | None:
         """Contact stiffness (N/m) for a scene object of ``material`` that has none (``default_stiffness``)."""
         return default_stiffness(material)
+
+    def physical_properties(self, spec: ObjectSpec) -> tuple[str, ...]:
+        """The hidden physical properties ``spec``'s category carries (``Category.physical_properties``)."""
+        return self._category(spec.category).physical_properties
 
     def geometry(self, spec: ObjectSpec) -> Geometry:
         """The (cached) geometry of ``spec``'s model at its scale."""

@@ -13,6 +13,7 @@ weights in the original SHOP-VRB2 files are lighter (60-490 g); MuBlE uses the r
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Callable
 
@@ -222,8 +223,19 @@ WINE2 = [(0.02, 0.0), (0.045, 0.025), (0.048, 0.05), (0.046, 0.07)]  # wide red-
 # White-wine bowl on a 7 cm stem (the original SHOP-VRB2 wine_glass3).
 WINE3 = [(0.017, 0.0), (0.036, 0.03), (0.039, 0.055), (0.038, 0.085)]
 
+
+def _carrying(category: Category) -> Category:
+    """``category`` with the hidden physical properties its objects carry: those the measuring primitives read of
+    an object in the hand (friction: ``push``, centre of mass: ``balance``) for a pickupable category, and loose
+    contents (``shake``) for a closed one among them. A food box is closed but not pickupable: none."""
+    if not category.pickupable:
+        return category
+    carried = ("friction", "com_offset", "contents") if category.closed else ("friction", "com_offset")
+    return dataclasses.replace(category, physical_properties=carried)
+
+
 CATALOGUE: dict[str, Category] = {
-    c.name: c
+    c.name: _carrying(c)
     for c in [
         Category(
             "baking tray",

@@ -84,6 +84,15 @@ def test_a_dataset_made_before_stages_resumes_on_the_stage_it_stands_on(tmp_path
         check_or_store_identity(stored_null, {**now, "generator": {"min_objects": 4, "stage": "original"}})
 
 
+def test_a_dataset_made_before_hidden_physical_properties_resumes_without_them(tmp_path):
+    made_before = {"seed": 0, "generator": {"min_objects": 4}, "dataset": {}}
+    check_or_store_identity(tmp_path, made_before)
+    check_or_store_identity(tmp_path, {**made_before, "generator": {"min_objects": 4, "physical_properties": []}})
+    with pytest.raises(ConfigError, match=r'generator.physical_properties: not stored, requested \["friction"\]'):
+        check_or_store_identity(tmp_path, {**made_before, "generator": {"min_objects": 4,
+                                                                        "physical_properties": ["friction"]}})
+
+
 def test_a_dataset_storing_the_generators_own_image_size_and_step_resumes_on_the_settings_that_own_them(tmp_path):
     stored = {"seed": 0, "robot": {"name": "Panda", "timestep": 0.002}, "renderer": {"width": 848, "height": 480},
               "generator": {"min_objects": 4, "image_width": 848, "image_height": 480, "timestep": 0.002},

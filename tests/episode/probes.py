@@ -2,16 +2,58 @@
 a world that fails on purpose."""
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
+
 from muble import ActionCall, ActionResult, Agent, Answer
+from muble.core import physical_properties
 from muble.core.observation import leaks
+
+# The scene keys of the hidden physical properties: no observation may carry them, under any name or nesting.
+HIDDEN_KEYS = (physical_properties.FRICTION, physical_properties.COM_OFFSET, physical_properties.CONTENTS)
+# What each measuring primitive reports, under the name ``leaks`` knows a measurement by.
+MEASURES = {"weigh": "weight", "squeeze": "stiffness", "push": "friction", "balance": "com_offset",
+            "shake": "rattles"}
+
+
+def hidden_values(scene) -> set[float]:
+    """Every non-zero number the scene's objects hold under ``HIDDEN_KEYS`` (a com offset's coordinates each)."""
+    values = set()
+    for o in scene.objects:
+        for key in HIDDEN_KEYS:
+            value = o.extra.get(key)
+            values.update(float(v) for v in np.ravel([] if value is None else value) if float(v) != 0.0)
+    return values
+
+
+def keys_and_numbers(value, out: tuple[list, list] | None = None) -> tuple[list, list]:
+    """Every mapping key and every number inside ``value`` (dataclasses, mappings, sequences, arrays of at most 16
+    values: not images)."""
+    keys, numbers = out if out is not None else ([], [])
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for f in dataclasses.fields(value):
+            keys_and_numbers(getattr(value, f.name), (keys, numbers))
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            keys.append(k)
+            keys_and_numbers(v, (keys, numbers))
+    elif isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.size <= 16):
+        for v in value:
+            keys_and_numbers(v, (keys, numbers))
+    elif isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_)):
+        numbers.append(float(value))
+    return keys, numbers
 
 
 class Snoop(Agent):
     """Wraps an agent and checks each observation it gets: no ground truth, no weight or stiffness it did not
-    measure."""
+    measure, and, anywhere in it, none of the hidden physical properties' keys (``HIDDEN_KEYS``) and none of
+    ``secrets`` (their values: ``hidden_values``) but as a measurement of its own."""
 
-    def __init__(self, inner: Agent):
+    def __init__(self, inner: Agent, secrets: set[float] = frozenset()):
         self.inner = inner
+        self.secrets = set(secrets)
         self.found: list[str] = []
         self.seen = 0
         self.weights_seen = 0
@@ -21,9 +63,8 @@ class Snoop(Agent):
 
     def _inspect(self, observation) -> None:
         result = observation.last_result
-        measures = {"weigh": "weight", "squeeze": "stiffness"}
-        if self.last is not None and self.last.name in measures and result is not None and result.success:
-            self.measured.setdefault(self.held, {})[measures[self.last.name]] = float(result.measurement)
+        if self.last is not None and self.last.name in MEASURES and result is not None and result.success:
+            self.measured.setdefault(self.held, {})[MEASURES[self.last.name]] = result.measurement
         self.held = next((o.id for o in observation.scene.objects if o.extra.get("in_hand")), None)
         self.seen += 1
         self.weights_seen += sum(o.weight is not None for o in observation.scene.objects)
@@ -33,6 +74,10 @@ class Snoop(Agent):
                 for obj_id, value in reading.items():
                     if self.measured.get(obj_id, {}).get(key) != value:
                         self.found.append(f"sensor {key} reports object {obj_id} unmeasured")
+        keys, numbers = keys_and_numbers(observation)
+        self.found += [f"key '{k}'" for k in keys if k in HIDDEN_KEYS]
+        _, mine = keys_and_numbers(self.measured)
+        self.found += [f"the hidden value {v}" for v in numbers if v in self.secrets and v not in mine]
 
     def _inspect_instruction(self, instruction) -> None:
         if instruction.extra:

@@ -10,7 +10,8 @@ import copy
 import numpy as np
 import pytest
 
-from muble import ActionCall, Agent, Answer, Outcome, get_registry
+from muble import ActionCall, ActionResult, Agent, Answer, Instruction, Observation, Outcome, get_registry
+from muble.core import physical_properties
 from muble.core.observation import agent_view, leaks
 from muble.episode import run_episode
 from muble_plugins.agents.oracle import OracleAgent
@@ -18,7 +19,7 @@ from muble_plugins.common.success import check
 from muble_plugins.common.symbolic import SymbolicWorld
 from muble_plugins.common.synthetic import sample_scene
 
-from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted, Snoop
+from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted, Snoop, hidden_values
 
 # Every registered template (the stiffness family included), so a new one is covered by the snooping test.
 TEMPLATES = tuple(get_registry().names("task"))
@@ -43,12 +44,18 @@ def episodes():
 @pytest.mark.parametrize("template", TEMPLATES)
 def test_agent_sees_no_ground_truth_and_only_its_own_measurements(episodes, template):
     task, ins, scene = episodes[template]
-    # A scene file whose weights and stiffness are filled in: none of it may reach the agent.
+    # A scene file whose weights and stiffness are filled in, and hidden physical properties: none of it may reach
+    # the agent. A scene without the latter gets all three on every object (values no other field holds); one with
+    # them keeps its own, which its instruction was made for.
     scene = copy.deepcopy(scene)
+    carried = bool(hidden_values(scene))
     for o in scene.objects:
         o.weight = o.weight_gt + 1.0  # every object has a ground-truth stiffness too
         o.extra["friction"] = 0.7
-    snoop = Snoop(OracleAgent())
+        if not carried:
+            o.extra.update({physical_properties.FRICTION: 0.4137 + o.id / 1000, physical_properties.COM_OFFSET:
+                            [0.01237 + o.id / 10000, -0.00711], physical_properties.CONTENTS: 21.37 + o.id})
+    snoop = Snoop(OracleAgent(), hidden_values(scene))
     result = run_episode(ins, SymbolicWorld(scene), snoop, check)
     assert result.outcome is Outcome.SUCCESS, result.error
     assert snoop.seen >= 2 and snoop.found == [], snoop.found
@@ -56,6 +63,39 @@ def test_agent_sees_no_ground_truth_and_only_its_own_measurements(episodes, temp
     assert all(o.weight_gt is not None for o in result.final_scene.objects)
     if template.startswith("measure_weight"):
         assert snoop.weights_seen, "a weight measured by the agent is shown to it afterwards"
+
+
+def test_the_snoop_finds_a_hidden_physical_property_anywhere_but_in_a_measurement_of_its_own():
+    scene = sample_scene(np.random.default_rng(0), 0, stiffness_rng=np.random.default_rng(1))
+    scene.objects[0].extra.update({physical_properties.FRICTION: 0.4137, physical_properties.COM_OFFSET:
+                                   [0.01237, -0.00711], physical_properties.CONTENTS: 21.37})
+    secrets = hidden_values(scene)
+    assert secrets == {0.4137, 0.01237, -0.00711, 21.37}
+    ins = Instruction("Pick up the mug.", [], "pick_up", "pick_up")
+
+    def found(observation) -> list[str]:
+        snoop = Snoop(Scripted([]), secrets)
+        snoop.reset(ins, observation)
+        return snoop.found
+
+    assert found(Observation(scene=agent_view(scene))) == []
+    assert {"key 'friction_coefficient'", "key 'com_offset'", "key 'contents_g'",
+            "the hidden value 21.37"} <= set(found(Observation(scene=scene)))
+    # A value under another name, in a sensor's reading or a result's info, is found by its value.
+    assert found(Observation(scene=agent_view(scene), measurements={"load": {0: [1.0, 21.37]}})) == [
+        "the hidden value 21.37"]
+    assert found(Observation(scene=agent_view(scene), last_result=ActionResult(True, info={"mu": 0.4137}))) == [
+        "the hidden value 0.4137"]
+    # The agent's own measurement (push on the object in its hand) is its to see.
+    held = agent_view(scene)
+    held.objects[0].extra["in_hand"] = True
+    snoop = Snoop(Scripted([ActionCall("push")]), secrets)
+    snoop.reset(ins, Observation(scene=held))
+    assert snoop.act(ins, Observation(scene=held)) == ActionCall("push")
+    pushed = agent_view(scene, {0: {"friction": 0.4137}})
+    pushed.objects[0].extra["in_hand"] = True
+    snoop.act(ins, Observation(scene=pushed, last_result=ActionResult(True, measurement=0.4137), step=1))
+    assert snoop.seen == 2 and snoop.found == [], snoop.found
 
 
 def test_leaks_finds_what_agent_view_removes(episodes):

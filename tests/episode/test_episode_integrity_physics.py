@@ -1,11 +1,12 @@
-"""The action loop's contracts with MuJoCo physics: invalid calls, recovery from a failed primitive, and an end
-state judged on contacts and uprightness rather than positions."""
+"""The action loop's contracts with MuJoCo physics: invalid calls, recovery from a failed primitive, an end state
+judged on contacts and uprightness rather than positions, and no hidden physical property shown in any mode."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from muble import Instruction, Outcome, get_registry
+from muble import ActionCall, Instruction, Outcome, get_registry
+from muble.core.physical_properties import CONTENTS, PROPERTIES
 from muble.episode import run_episode
 from muble.episode.physical import PhysicalWorld
 from muble.sim.env import TabletopEnv
@@ -13,7 +14,7 @@ from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.success import check
 from tests.support.scenes import simple_object_model, simple_scene
 
-from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted
+from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted, Snoop, hidden_values
 
 pytestmark = pytest.mark.slow
 
@@ -92,3 +93,37 @@ def test_the_oracle_recovers_from_a_forced_approach_failure_with_physics():
     assert result.failures == 1
     approaches = [c for c in world.calls if c.name == "approach"]
     assert len(approaches) >= 2 and approaches[1].params.get("attempt") == 1
+
+
+@pytest.mark.gl
+def test_no_observation_mode_shows_the_hidden_physical_properties():
+    """A generated scene whose objects carry every hidden physical property (a closed container with contents among
+    them), built with every registered sensor and drawn by the MuJoCo renderer: in graph, masks and image mode no
+    observation an agent gets holds their keys or their values."""
+    from muble.generation import SceneGenerator
+    from muble.sim.build import env_from_object_set
+    from tests.generation.builtin import BUILTIN
+
+    registry = get_registry()
+    object_set = registry.create("object_set", "shopvrb2")
+    generator = SceneGenerator({**BUILTIN, "reach_check": False, "physical_properties": list(PROPERTIES)}, seed=4,
+                               object_set=object_set)
+    try:
+        scene = generator.generate(0)
+    finally:
+        generator.close()
+    secrets = hidden_values(scene)
+    assert any(o.extra.get(CONTENTS) for o in scene.objects) and len(secrets) >= 10, secrets
+    renderer = registry.create("renderer", "mujoco", {"width": 160, "height": 120})
+    try:
+        for mode in ("graph", "masks", "image"):
+            env = env_from_object_set(scene, object_set, sensors=registry.names("sensor"))
+            try:
+                renderer.setup(env.sync_scene_graph(), env.model)
+                snoop = Snoop(Scripted([ActionCall("move", {"target": "left"}), ActionCall("lift")]), secrets)
+                run_episode(stack_instruction(1, 0), PhysicalWorld(env, registry, renderer), snoop, check, mode=mode)
+            finally:
+                env.close()
+            assert snoop.seen >= 3 and snoop.found == [], (mode, snoop.found)
+    finally:
+        renderer.close()
