@@ -11,8 +11,10 @@ The view is an allow-list, so a property nobody thought of stays hidden by defau
 - visible: identity and visible attributes (model, category, shape, size, material, colour), pose, bbox,
   mask, affordances (stackable, stack base, pickupable), the gripper flags and the contact state (what an
   object stands on or touches, which a camera sees);
-- hidden until measured in this episode: ``weight`` (grams, from ``weigh``) and stiffness (N/m, from
-  ``squeeze``, reported as ``extra["stiffness_measured"]``);
+- hidden until measured in this episode: ``weight`` (grams, from ``weigh``) and the properties other primitives
+  measure, each reported as ``extra["<property>_measured"]`` (``MEASURED_EXTRA``): stiffness (N/m, ``squeeze``),
+  friction (coefficient, ``push``), the centre of mass's offset ([x, y] mm, ``balance``) and whether it rattles
+  (``shake``);
 - never shown: ``weight_gt``, the ground-truth ``stiffness``, a scene file's pre-filled ``weight``, and every
   other key a scene file or an object set carries (friction, geometry parameters, …). An object set may hide
   visible fields as well (``ObjectSet.hidden_properties``).
@@ -30,10 +32,20 @@ VISIBLE_EXTRA = ("in_hand", "raised", "approached", "gripper_over", "touching", 
 TOUCHING_TABLE = "table"  # what ``extra["touching"]`` names the table (beside object ids)
 # Fields of ``SceneObject`` that carry ground truth and never reach an agent.
 GROUND_TRUTH_FIELDS = ("weight_gt", "stiffness")
-MEASURED_STIFFNESS = "stiffness_measured"
+# Measured properties besides the weight (``SceneObject.weight``): the name a primitive reports it under
+# (``PrimitiveAction.measures``) -> the ``extra`` key an agent's view carries it under once measured.
+MEASURED_EXTRA = {name: f"{name}_measured" for name in ("stiffness", "friction", "com_offset", "rattles")}
+MEASURED_STIFFNESS = MEASURED_EXTRA["stiffness"]
 # Scene-level fields an agent may see (everything else of the scene file, ``extra`` included, stays hidden).
 _SCENE_VISIBLE = ("split", "image_index", "image_filename", "directions", "camera_params", "lamp_params", "table",
                   "robot", "relationships")
+
+
+def _plain(value):
+    """A measured value as plain Python: a bool, a float or a list of floats."""
+    if isinstance(value, (bool, list, tuple)) or type(value).__name__ == "bool_":
+        return [float(v) for v in value] if isinstance(value, (list, tuple)) else bool(value)
+    return float(value)
 
 
 def agent_object(obj: SceneObject, measured: Mapping[str, float] | None = None,
@@ -41,8 +53,9 @@ def agent_object(obj: SceneObject, measured: Mapping[str, float] | None = None,
     """``obj`` as an agent may know it; ``measured`` holds what this agent measured of it ({"weight": g, …})."""
     measured = measured or {}
     extra = {k: copy.deepcopy(obj.extra[k]) for k in VISIBLE_EXTRA if k in obj.extra}
-    if "stiffness" in measured:
-        extra[MEASURED_STIFFNESS] = float(measured["stiffness"])
+    for name, key in MEASURED_EXTRA.items():
+        if name in measured:
+            extra[key] = _plain(measured[name])
     view = SceneObject(
         id=obj.id, model=obj.model, name=obj.name, shape=obj.shape, size=obj.size, material=obj.material,
         colour=obj.colour, position=obj.position.copy(), orientation=obj.orientation.copy(), weight_gt=None,
@@ -64,7 +77,7 @@ def agent_view(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | 
     """A copy of ``scene`` that carries only what an agent may know (see the module doc).
 
     ``measured`` maps object id to the values this agent measured in this episode ({"weight": g,
-    "stiffness": N/m}); ``hidden`` names further properties to withhold (an object set's hidden properties).
+    "stiffness": N/m, "friction": …}); ``hidden`` names further properties to withhold (an object set's hidden properties).
     """
     measured = measured or {}
     hidden = tuple(hidden)
@@ -110,10 +123,11 @@ def leaks(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | None 
             found.append(f"object {o.id}: stiffness")
         if o.weight is not None and o.weight != mine.get("weight"):
             found.append(f"object {o.id}: weight {o.weight} not measured by the agent")
-        if MEASURED_STIFFNESS in o.extra and o.extra[MEASURED_STIFFNESS] != mine.get("stiffness"):
-            found.append(f"object {o.id}: stiffness not measured by the agent")
+        for name, key in MEASURED_EXTRA.items():
+            if key in o.extra and o.extra[key] != mine.get(name):
+                found.append(f"object {o.id}: {name} not measured by the agent")
         for key in o.extra:
-            if key not in VISIBLE_EXTRA and key != MEASURED_STIFFNESS:
+            if key not in VISIBLE_EXTRA and key not in MEASURED_EXTRA.values():
                 found.append(f"object {o.id}: extra['{key}']")
     if scene.extra:
         found.append(f"scene extra keys {sorted(scene.extra)}")

@@ -6,18 +6,23 @@ final output of every chain before it (top of the stack first). ``filter_relate`
 turns the one object before it into the objects on that side of it (``related``). The recorded ``input`` field is informative
 only; execution always follows the chain.
 
-Weights and stiffnesses are known only once measured: in ``"measured"`` mode a step that needs the weight of an
-object whose ``weight`` is still ``None`` (or the stiffness of one without ``extra["stiffness_measured"]``) stops
-execution and reports those objects as measurement sub-goals (weigh them, or squeeze them). In ``"ground_truth"``
-mode weights come from ``weight_gt`` and stiffnesses from ``stiffness`` (generation, reference checks).
+Hidden properties are known only once measured (``QUANTITIES``: weight, stiffness, friction, centre-of-mass
+offset, loose contents): in ``"measured"`` mode a step that needs one of an object the agent has not measured
+(``weight`` still ``None``, or no ``extra["<property>_measured"]``, ``muble.core.observation.MEASURED_EXTRA``)
+stops execution and reports those objects as measurement sub-goals (``ProgramTrace.pending``). In
+``"ground_truth"`` mode the values come from the scene's ground truth (``weight_gt``, ``stiffness``, the
+``muble.core.physical_properties`` keys), as generation and the reference checks need.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+import math
+
+from muble.core import physical_properties as physical
 from muble.core.errors import ConfigError, PlanningError, unknown_name
-from muble.core.observation import MEASURED_STIFFNESS  # extra key of a stiffness the agent measured (N/m)
+from muble.core.observation import MEASURED_EXTRA
 from muble.core.scene import SceneGraph, SceneObject
 from muble.core.types import TABLE_PARTS
 from muble.stage.table import parts_at
@@ -35,6 +40,9 @@ WEIGHT_SUPERLATIVES = ("heaviest", "lightest")
 WEIGHT_ORDERS = ("ascending", "descending")
 STIFFNESS_SUPERLATIVES = ("hardest", "softest")
 STIFFNESS_ORDERS = WEIGHT_ORDERS  # ascending: softest first
+FRICTION_SUPERLATIVES = ("least slippery", "most slippery")  # the largest friction coefficient first
+COM_SUPERLATIVES = ("furthest off-centre", "most centred")  # the largest centre-of-mass offset first
+RATTLE_VALUES = ("rattling", "silent")  # filter_rattles: the objects that rattle, or those that do not
 # Spatial relations of ``filter_relate`` (the original SHOP-VRB2 words) and the scene direction each one follows
 # (sign, direction name) when the scene has ``directions``; without them left is -y and front is +x, as the table
 # parts are named (``muble.stage.table``).
@@ -69,76 +77,114 @@ def table_parts_of(obj: SceneObject, scene: SceneGraph | None = None) -> frozens
 class ProgramTrace:
     """The result of running a program: one output per executed step.
 
-    ``pending_weights`` lists the objects whose weight must be measured (``pending_stiffness``: whose stiffness
-    must be measured) before the step at ``len(outputs)`` can run; both are empty when the program ran to the end.
+    ``pending`` lists the objects whose ``pending_property`` (a ``QUANTITIES`` name) must be measured before the
+    step at ``len(outputs)`` can run; empty when the program ran to the end.
     """
 
     outputs: list[Any] = field(default_factory=list)
-    pending_weights: tuple[int, ...] = ()
     steps: int = 0
-    pending_stiffness: tuple[int, ...] = ()
+    pending_property: str | None = None
+    pending: tuple[int, ...] = ()
+
+    @property
+    def pending_weights(self) -> tuple[int, ...]:
+        return self.pending if self.pending_property == "weight" else ()
+
+    @property
+    def pending_stiffness(self) -> tuple[int, ...]:
+        return self.pending if self.pending_property == "stiffness" else ()
 
     @property
     def complete(self) -> bool:
-        return not self.pending_weights and not self.pending_stiffness and len(self.outputs) == self.steps
+        return not self.pending and len(self.outputs) == self.steps
 
     @property
     def final(self) -> Any:
-        if self.pending_weights:
-            raise PlanningError(
-                f"program stopped at step {len(self.outputs)}: weigh objects {list(self.pending_weights)} first"
-            )
-        if self.pending_stiffness:
-            raise PlanningError(f"program stopped at step {len(self.outputs)}: squeeze objects "
-                                f"{list(self.pending_stiffness)} first")
+        if self.pending:
+            raise PlanningError(f"program stopped at step {len(self.outputs)}: "
+                                f"{QUANTITIES[self.pending_property].verb} objects {list(self.pending)} first")
         if not self.complete:
             raise PlanningError(f"program stopped at step {len(self.outputs)} of {self.steps}")
         return self.outputs[-1]
 
 
 class _NeedMeasurement(Exception):
-    """Internal: a step needs unmeasured values; ``pending`` names the ``ProgramTrace`` field that lists them."""
+    """Internal: a step needs the ``quantity`` of objects ``ids`` that are not measured yet."""
 
-    def __init__(self, pending: str, ids: list[int]):
-        self.pending = pending
+    def __init__(self, quantity: str, ids: list[int]):
+        self.quantity = quantity
         self.ids = tuple(ids)
 
 
+@dataclass(frozen=True)
+class Quantity:
+    """A hidden property a program compares or asks for, known to an agent only once it measured it.
+
+    ``truth`` reads the ground truth of an object (None: the scene gives none), ``measured`` what the agent measured
+    of it (None: not yet), both as the value a query answers; ``rank`` turns a value into the number filters and
+    orders compare. ``superlatives`` are the words of ``filter_<step>``, the first picking the largest value; a
+    quantity without them is a yes/no property whose ``filter_<step>`` keeps the objects that have it (``values``:
+    the words for yes and no).
+    """
+
+    name: str  # the property, as primitives report it (``PrimitiveAction.measures``)
+    step: str  # the program steps' suffix: filter_<step>, order_<step>, query_<step>
+    verb: str  # the built-in primitive that measures it, as error messages name it
+    truth: Callable[[SceneObject], Any]
+    measured: Callable[[SceneObject], Any]
+    superlatives: tuple[str, str] = ()
+    orders: tuple[str, ...] = WEIGHT_ORDERS
+    values: tuple[str, str] = ()
+    rank: Callable[[Any], float] = float
+
+
+def _measured_extra(name: str) -> Callable[[SceneObject], Any]:
+    key = MEASURED_EXTRA[name]
+    return lambda o: o.extra.get(key)
+
+
+def _offset_mm(value: Any) -> float | None:
+    """The distance (mm) of a centre-of-mass offset [x, y] (mm) from the centre, as a query answers it."""
+    return None if value is None else round(math.hypot(float(value[0]), float(value[1])), 2)
+
+
+QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
+    Quantity("weight", "weight", "weigh", lambda o: o.weight_gt, lambda o: o.weight, WEIGHT_SUPERLATIVES),
+    Quantity("stiffness", "stiffness", "squeeze", lambda o: o.stiffness, _measured_extra("stiffness"), STIFFNESS_SUPERLATIVES),
+    Quantity("friction", "friction", "push", physical.friction_of, _measured_extra("friction"), FRICTION_SUPERLATIVES),
+    Quantity("com_offset", "com_offset", "balance", lambda o: _offset_mm(physical.com_offset_mm(o)),
+             lambda o: _offset_mm(o.extra.get(MEASURED_EXTRA["com_offset"])), COM_SUPERLATIVES),
+    Quantity("rattles", "rattles", "shake", lambda o: None if o.extra.get(physical.CONTENTS) is None else physical.rattles(o),
+             _measured_extra("rattles"), values=RATTLE_VALUES, orders=()),
+)}
+
+
 class _Context:
-    def __init__(self, scene: SceneGraph, weights: str, known: dict[int, float] | None,
-                 known_stiffness: dict[int, float] | None = None):
+    def __init__(self, scene: SceneGraph, weights: str, known: dict[str, dict[int, Any]]):
         if weights not in WEIGHT_MODES:
             raise ConfigError(unknown_name("weight mode", weights, WEIGHT_MODES))
         self.scene = scene
         self.by_id = {o.id: o for o in scene.objects}
         self.ground_truth = weights == "ground_truth"
-        self.known = known or {}
-        self.known_stiffness = known_stiffness or {}
+        self.known = known
         self.chains: list[Any] = []
 
-    def stiffnesses(self, ids: list[int]) -> list[float]:
+    def values(self, quantity: Quantity, ids: list[int]) -> list[Any]:
+        """The ``quantity`` of objects ``ids``: ground truth, or what was measured (raises ``_NeedMeasurement``
+        naming those not measured yet)."""
         if self.ground_truth:
-            missing = [i for i in ids if self.by_id[i].stiffness is None]
+            out = [quantity.truth(self.by_id[i]) for i in ids]
+            missing = [i for i, v in zip(ids, out) if v is None]
             if missing:
-                raise PlanningError(f"objects {missing} have no ground-truth stiffness; a program that compares "
-                                    "stiffness needs a scene whose objects carry one")
-            return [self.by_id[i].stiffness for i in ids]
-        return _measured(ids, lambda i: self.known_stiffness.get(i, self.by_id[i].extra.get(MEASURED_STIFFNESS)),
-                         "pending_stiffness")
-
-    def weights(self, ids: list[int]) -> list[float]:
-        if self.ground_truth:
-            return [self.by_id[i].weight_gt for i in ids]
-        return _measured(ids, lambda i: self.known.get(i, self.by_id[i].weight), "pending_weights")
-
-
-def _measured(ids: list[int], read: Callable[[int], float | None], pending: str) -> list[float]:
-    """The values ``read`` gives for ``ids``; raises ``_NeedMeasurement`` naming those not measured yet."""
-    out = [read(i) for i in ids]
-    missing = [i for i, v in zip(ids, out) if v is None]
-    if missing:
-        raise _NeedMeasurement(pending, missing)
-    return out
+                raise PlanningError(f"objects {missing} have no ground-truth {quantity.name}; a program that asks "
+                                    f"for it needs a scene whose objects carry one")
+            return out
+        known = self.known.get(quantity.name, {})
+        out = [known[i] if i in known else quantity.measured(self.by_id[i]) for i in ids]
+        missing = [i for i, v in zip(ids, out) if v is None]
+        if missing:
+            raise _NeedMeasurement(quantity.name, missing)
+        return out
 
 
 def _ids(value: Any, step: dict[str, Any], index: int) -> list[int]:
@@ -175,39 +221,45 @@ def _step_filter_relate(ctx: _Context, step: dict, prev: Any, index: int) -> lis
     return related(ctx.scene, ids[0], step.get("input_value"))
 
 
-def _measured_steps(quantity: str, values: str, superlatives: tuple[str, str],
-                    orders: tuple[str, ...]) -> dict[str, Callable]:
-    """The filter, order and query steps of a measured quantity (``values``: the ``_Context`` method that reads
-    it); the first superlative picks the largest value."""
+def _quantity_steps(q: Quantity) -> dict[str, Callable]:
+    """The filter, order and query steps of a measured quantity."""
 
     def filter_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
         ids = _ids(prev, step, index)
         which = step.get("input_value")
-        if which not in superlatives:
-            raise PlanningError(unknown_name(f"{quantity} superlative", str(which), superlatives))
+        words = q.superlatives or q.values
+        if which not in words:
+            raise PlanningError(unknown_name(f"{q.name} {'superlative' if q.superlatives else 'value'}", str(which),
+                                             words))
         if not ids:
             return []
-        measured = getattr(ctx, values)(ids)
-        pick = max if which == superlatives[0] else min
-        return [ids[pick(range(len(ids)), key=lambda k: measured[k])]]
+        measured = ctx.values(q, ids)
+        if not q.superlatives:  # a yes/no property: keep the objects that have it (or that do not)
+            want = which == q.values[0]
+            return [i for i, v in zip(ids, measured) if bool(v) == want]
+        pick = max if which == q.superlatives[0] else min
+        return [ids[pick(range(len(ids)), key=lambda k: q.rank(measured[k]))]]
 
     def order_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
         ids = _ids(prev, step, index)
         order = step.get("input_value")
-        if order not in orders:
-            raise PlanningError(unknown_name(f"{quantity} order", str(order), orders))
-        measured = getattr(ctx, values)(ids)
-        ranked = sorted(range(len(ids)), key=lambda k: measured[k], reverse=order == "descending")
+        if order not in q.orders:
+            raise PlanningError(unknown_name(f"{q.name} order", str(order), q.orders))
+        measured = ctx.values(q, ids)
+        ranked = sorted(range(len(ids)), key=lambda k: q.rank(measured[k]), reverse=order == "descending")
         return [ids[k] for k in ranked]
 
-    def query_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[float]:
-        return list(getattr(ctx, values)(_ids(prev, step, index)))
+    def query_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[Any]:
+        return list(ctx.values(q, _ids(prev, step, index)))
 
-    return {f"filter_{quantity}": filter_step, f"order_{quantity}": order_step, f"query_{quantity}": query_step}
+    steps = {f"filter_{q.step}": filter_step, f"query_{q.step}": query_step}
+    if q.orders:
+        steps[f"order_{q.step}"] = order_step
+    return steps
 
 
-_WEIGHT_STEP_TYPES = _measured_steps("weight", "weights", WEIGHT_SUPERLATIVES, WEIGHT_ORDERS)
-_STIFFNESS_STEP_TYPES = _measured_steps("stiffness", "stiffnesses", STIFFNESS_SUPERLATIVES, STIFFNESS_ORDERS)
+QUANTITY_STEPS: dict[str, dict[str, Callable]] = {name: _quantity_steps(q) for name, q in QUANTITIES.items()}
+QUERY_STEPS: dict[str, str] = {f"query_{q.step}": name for name, q in QUANTITIES.items()}  # step -> property
 
 
 def _step_pass_targets(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
@@ -245,26 +297,30 @@ STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
     **{name: _attribute_filter(attr) for name, attr in ATTRIBUTE_FILTERS.items()},
     "filter_table_part": _step_filter_table_part,
     "filter_relate": _step_filter_relate,
-    **_WEIGHT_STEP_TYPES,
-    **_STIFFNESS_STEP_TYPES,
+    **{name: run for steps in QUANTITY_STEPS.values() for name, run in steps.items()},
     "pick_up": _step_pass_targets,
     "move_to": _step_pass_targets,
     "stack": _step_stack,
 }
-STIFFNESS_STEPS = frozenset(_STIFFNESS_STEP_TYPES)
+STIFFNESS_STEPS = frozenset(QUANTITY_STEPS["stiffness"])
 
 
 def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = "measured",
             known_weights: dict[int, float] | None = None,
-            known_stiffness: dict[int, float] | None = None) -> ProgramTrace:
+            known_stiffness: dict[int, float] | None = None,
+            known: dict[str, dict[int, Any]] | None = None) -> ProgramTrace:
     """Run ``program`` on ``scene``.
 
-    ``known_weights`` adds measurements not yet written into the scene graph (object id -> grams);
-    ``known_stiffness`` likewise (object id -> N/m).
+    ``known`` adds measurements not yet written into the scene graph (property -> object id -> value, as the
+    primitive reported it); ``known_weights`` (object id -> grams) and ``known_stiffness`` (N/m) are its weight
+    and stiffness parts.
     Raises ``PlanningError`` when the program cannot run on this scene (unknown object, no target) and
     ``ConfigError`` for an unknown step type.
     """
-    ctx = _Context(scene, weights, known_weights, known_stiffness)
+    values = {name: dict(v) for name, v in (known or {}).items()}
+    values.setdefault("weight", {}).update(known_weights or {})
+    values.setdefault("stiffness", {}).update(known_stiffness or {})
+    ctx = _Context(scene, weights, values)
     trace = ProgramTrace(steps=len(program))
     prev: Any = None
     for index, step in enumerate(program):
@@ -277,7 +333,7 @@ def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = 
         try:
             out = run(ctx, step, prev, index)
         except _NeedMeasurement as need:
-            setattr(trace, need.pending, need.ids)
+            trace.pending_property, trace.pending = need.quantity, need.ids
             return trace
         except KeyError as e:
             raise PlanningError(f"step {index} ({kind}) refers to object {e} that this scene lacks") from None

@@ -5,7 +5,7 @@ import copy
 
 import numpy as np
 
-from muble.core.observation import TOUCHING_TABLE
+from muble.core.observation import MEASURED_EXTRA, TOUCHING_TABLE
 from muble.core.scene import SceneGraph
 from muble.stage.footprint import world_extents
 from muble.stage.geometry import tilt_deg
@@ -105,6 +105,7 @@ def scene_graph_from_sim(env, previous: SceneGraph) -> SceneGraph:
         measured = env.measurements.get(obj.id, {}) if hasattr(env, "measurements") else {}
         if "weight" in measured:
             obj.weight = measured["weight"]
-        if "stiffness" in measured:
-            obj.extra["stiffness_measured"] = measured["stiffness"]
+        for name, key in MEASURED_EXTRA.items():
+            if name in measured:
+                obj.extra[key] = measured[name]
     return scene

@@ -11,8 +11,7 @@ from muble import (ActionCall, Agent, Answer, Instruction, Observation, Observat
 
 from muble.core.symbolic import ArmState
 
-from muble_plugins.common.books import RETRY_LIMIT, fill_known, primitive_params
-from muble_plugins.common.symbolic import SQUEEZE, WEIGH
+from muble_plugins.common.books import RETRY_LIMIT, Known, book, fill_known, primitive_params
 
 log = logging.getLogger(__name__)
 
@@ -26,9 +25,10 @@ class OracleAgent(Agent):
     """Solves any task that plans towards its goal (``Task.next_actions``), closed loop.
 
     After every primitive it asks the instruction's task (the registered task named by its ``template_id``, or
-    the one it was built for) for the next primitives from the observed scene, with the weights and stiffnesses it
-    measured so far (the scene's ``weight`` fields and ``extra["stiffness_measured"]``, which hold only what this
-    agent measured, and the ``weigh`` and ``squeeze`` results), and takes the first; so a slipped grasp or a
+    the one it was built for) for the next primitives from the observed scene, with the hidden properties it
+    measured so far (the scene's ``weight`` fields and ``extra["<property>_measured"]``, which hold only what this
+    agent measured, and the results of the measuring primitives: weigh, squeeze, push, balance, shake), and takes
+    the first; so a slipped grasp or a
     displaced object is simply planned around. The gripper's state comes from the scene's flags (``in_hand``,
     ``raised``, ``approached``, ``gripper_over``), which the symbolic and the physical world both report; a world
     without the hover flags has them filled in from the last primitive.
@@ -47,16 +47,14 @@ class OracleAgent(Agent):
     def __init__(self, task: Task | None = None) -> None:
         self.task = task
         self.tasks: dict[str, Task] = {}
-        self.measured: dict[int, float] = {}
-        self.stiffness: dict[int, float] = {}  # N/m, from this agent's squeeze results
+        self.known: Known = {}  # what this agent's measuring primitives reported, by property and object
         self.answered = False
         self.last: ActionCall | None = None
         self.failures: dict[object, int] = {}  # failed primitives per target (object id, table part or None)
 
     def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
               mode: ObservationMode = ObservationMode.graph) -> None:
-        self.measured = {}
-        self.stiffness = {}
+        self.known = {}
         self.answered = False
         self.last = None
         self.failures = {}
@@ -71,7 +69,7 @@ class OracleAgent(Agent):
     def _known(self, observation: Observation) -> Observation:
         """The observation with this agent's measurements and the gripper's hover state filled in."""
         scene = copy.deepcopy(observation.scene)
-        fill_known(scene, self.measured, self.stiffness, self.last, observation.last_result)
+        fill_known(scene, self.known, self.last, observation.last_result)
         return dataclasses.replace(observation, scene=scene)
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
@@ -81,11 +79,8 @@ class OracleAgent(Agent):
                 key = self._target(self.last)
                 self.failures[key] = self.failures.get(key, 0) + 1
                 log.info("%s failed (%s); retrying differently", self.last, result.failure_reason)
-            elif self.last.name in (WEIGH, SQUEEZE) and isinstance(result.measurement, (int, float)):
-                held = ArmState.of(observation.scene).held
-                if held is not None:
-                    store = self.measured if self.last.name == WEIGH else self.stiffness
-                    store[held] = float(result.measurement)
+            else:
+                book(self.known, self.last, result, ArmState.of(observation.scene).held)
         step = self._task(instruction).next_actions(instruction, self._known(observation))
         if isinstance(step, Answer):
             if self.answered:

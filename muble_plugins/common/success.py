@@ -10,7 +10,7 @@ import math
 from typing import Any
 
 from muble import Answer, ConfigError, Instruction, Outcome, PlanningError, SceneGraph
-from muble.programs.program import execute, stack_pairs
+from muble.programs.program import QUERY_STEPS, execute, stack_pairs
 
 from muble_plugins.common.geometry import broken, on_table_part, rests_on
 
@@ -19,6 +19,8 @@ log = logging.getLogger(__name__)
 WEIGHT_TOLERANCE_G = 2.0  # absolute slack on an answered weight …
 WEIGHT_TOLERANCE_REL = 0.02  # … or this fraction of it, whichever is larger
 STIFFNESS_TOLERANCE_REL = 0.05  # an answered stiffness within this fraction of the true one
+FRICTION_TOLERANCE_REL = 0.10  # an answered friction coefficient within this fraction of the true one
+COM_TOLERANCE_MM = 5.0  # an answered centre-of-mass offset (mm from the centre) within this of the true one
 
 
 def recorded_final(instruction: Instruction, scene: SceneGraph) -> Any:
@@ -51,6 +53,41 @@ def stiffness_match(answer: Any, expected: list[float], ids: list[int] | None = 
     return _values_match(answer, expected, ids, lambda e: STIFFNESS_TOLERANCE_REL * abs(e))
 
 
+def friction_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
+    """As ``weights_match``, for friction coefficients: each within ``FRICTION_TOLERANCE_REL`` of the true one."""
+    return _values_match(answer, expected, ids, lambda e: FRICTION_TOLERANCE_REL * abs(e))
+
+
+def com_offset_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
+    """As ``weights_match``, for centre-of-mass offsets (mm from the centre): each within ``COM_TOLERANCE_MM``."""
+    return _values_match(answer, expected, ids, lambda e: COM_TOLERANCE_MM)
+
+
+def rattles_match(answer: Any, expected: list[bool], ids: list[int] | None = None) -> bool:
+    """The answer says of each queried object whether it rattles (a list of yes/no in the program's order, or a
+    mapping of object id to yes/no); yes/no may be booleans or the words "yes"/"no"."""
+    words = {"yes": True, "no": False, "true": True, "false": False}
+
+    def yes_no(v: Any) -> float | None:
+        if isinstance(v, bool):
+            return float(v)
+        return float(words[v.strip().lower()]) if isinstance(v, str) and v.strip().lower() in words else None
+
+    values = answer.value if isinstance(answer, Answer) else answer
+    if isinstance(values, dict):
+        values = {k: yes_no(v) for k, v in values.items()}
+    elif isinstance(values, (list, tuple)):
+        values = [yes_no(v) for v in values]
+    else:
+        values = yes_no(values)
+    return _values_match(values, [float(e) for e in expected], ids, lambda e: 0.0)
+
+
+# The answer check of each query step (``muble.programs.program.QUERY_STEPS``), by the property it asks for.
+ANSWER_CHECKS = {"weight": weights_match, "stiffness": stiffness_match, "friction": friction_match,
+                 "com_offset": com_offset_match, "rattles": rattles_match}
+
+
 def _values_match(answer: Any, expected: list[float], ids: list[int] | None, tolerance) -> bool:
     values = answer.value if isinstance(answer, Answer) else answer
     if isinstance(values, dict):
@@ -74,7 +111,7 @@ def _values_match(answer: Any, expected: list[float], ids: list[int] | None, tol
 
 
 def queried_ids(instruction: Instruction, scene: SceneGraph) -> list[int] | None:
-    """The objects a ``query_weight`` (or ``query_stiffness``) program measures, in its order: the recorded output
+    """The objects a query program (``query_weight``, ``query_friction`` …) measures, in its order: the recorded output
     of the step before, or the program run on ``scene``."""
     if len(instruction.program) < 2:
         return None
@@ -98,8 +135,8 @@ def check(instruction: Instruction, scene: SceneGraph, answer: Answer | None) ->
         return Outcome.PROGRAM_FAILURE
     kind = instruction.program[-1]["type"]
     try:
-        if kind in ("query_weight", "query_stiffness"):
-            match = weights_match if kind == "query_weight" else stiffness_match
+        if kind in QUERY_STEPS:
+            match = ANSWER_CHECKS[QUERY_STEPS[kind]]
             ok = answer is not None and match(answer, target, queried_ids(instruction, scene))
             return Outcome.SUCCESS if ok else Outcome.INCORRECT_ANSWER
         if kind == "pick_up":

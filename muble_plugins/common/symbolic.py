@@ -15,14 +15,15 @@ import copy
 
 from muble import ActionCall, ActionResult, Observation, SceneGraph, get_registry
 from muble.core.errors import ConfigError
-from muble.core.observation import MEASURED_STIFFNESS, agent_view
+from muble.core.observation import MEASURED_EXTRA, agent_view
 from muble.core.symbolic import FLAGS
 
 # The primitive plugins' registry names (muble_plugins/primitives), as the tasks' planners call them: grasping
 # and releasing are the gripper primitives.
 MOVE, APPROACH, LIFT, WEIGH, LOWER = "move", "approach", "lift", "weigh", "lower"
 GRASP, RELEASE, SQUEEZE = "close_gripper", "open_gripper", "squeeze"
-PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE)
+PUSH, BALANCE, SHAKE = "push", "balance", "shake"
+PRIMITIVES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE, PUSH, BALANCE, SHAKE)
 
 
 class SymbolicWorld:
@@ -38,21 +39,23 @@ class SymbolicWorld:
         self.scene = copy.deepcopy(scene)
         for o in self.scene.objects:
             o.weight = None
-            o.extra.pop(MEASURED_STIFFNESS, None)
+            for key in MEASURED_EXTRA.values():
+                o.extra.pop(key, None)
             for flag in FLAGS:
                 o.extra[flag] = False
         self.steps = 0
 
     @property
     def measured(self) -> dict[int, dict[str, float]]:
-        """What the agent measured this episode, by object id: the weights and stiffnesses the scene records as
-        measured (the world starts with none)."""
+        """What the agent measured this episode, by object id: the weights and other properties the scene records
+        as measured (``MEASURED_EXTRA``; the world starts with none)."""
         found: dict[int, dict[str, float]] = {}
         for o in self.scene.objects:
             if o.weight is not None:
                 found.setdefault(o.id, {})["weight"] = o.weight
-            if MEASURED_STIFFNESS in o.extra:
-                found.setdefault(o.id, {})["stiffness"] = o.extra[MEASURED_STIFFNESS]
+            for name, key in MEASURED_EXTRA.items():
+                if key in o.extra:
+                    found.setdefault(o.id, {})[name] = o.extra[key]
         return found
 
     def observe(self, result: ActionResult | None, step: int) -> Observation:

@@ -1,15 +1,20 @@
 """Symbolic SHOP-VRB2 scenes sampled from the attribute vocabulary, for generator statistics and tests.
 
 No physics: objects get attributes, flags, a ground-truth weight and stiffness, a bounding box and a spot on the
-table, which is all instruction generation and symbolic planning read. The spots come from the scene generator's
+table, which is all instruction generation and symbolic planning read; with ``properties_rng`` also the hidden
+physical properties (``muble.core.physical_properties``) the SHOP-VRB2 object set gives its objects: friction and
+a centre of mass to the pickupable ones, loose contents (or none) to the closed pickupable ones. The spots come from the scene generator's
 layout sampler (``muble.stage.layout``) on the stage's reach area, with the bounding boxes' outlines for the
 objects' footprints.
 """
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
+
+from muble.core import physical_properties
 
 from muble import SceneGraph, SceneObject
 from muble.stage.layout import BoxShape, TableLayout
@@ -43,6 +48,7 @@ CATEGORIES: dict[str, tuple] = {
 }
 
 
+CLOSED = ("soda can", "thermos", "food box")  # closed containers, which can hold loose contents
 PLACE_TRIES = 20  # poses tried per object before another category is drawn in its stead
 
 
@@ -51,9 +57,11 @@ def _pick(rng: np.random.Generator, items: tuple) -> str:
 
 
 def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6),
-                 stiffness_rng: np.random.Generator | None = None) -> SceneGraph:
+                 stiffness_rng: np.random.Generator | None = None,
+                 properties_rng: np.random.Generator | None = None) -> SceneGraph:
     """A scene of ``n_objects`` (inclusive range) objects placed on the unnamed stage's table as the scene generator
-    places them (``muble.stage.layout.TableLayout``); stiffnesses come from ``stiffness_rng`` (none without it)."""
+    places them (``muble.stage.layout.TableLayout``); stiffnesses come from ``stiffness_rng`` (none without it),
+    the hidden physical properties from ``properties_rng`` (none without it)."""
     n = int(rng.integers(n_objects[0], n_objects[1] + 1))
     names = list(CATEGORIES)
     objects: list[SceneObject] = []
@@ -80,11 +88,22 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
         for o in objects:
             low, high = STIFFNESS_RANGE[o.material]
             o.stiffness = round(float(np.exp(stiffness_rng.uniform(np.log(low), np.log(high)))), 1)
+    if properties_rng is not None:
+        for o in objects:
+            if not o.pickupable:
+                continue
+            model = SimpleNamespace(extents=(o.bbox["x"], o.bbox["y"], o.bbox["z"]), closed=o.name in CLOSED)
+            carried = ("friction", "com_offset") + (("contents",) if model.closed else ())
+            for name in carried:
+                o.extra[physical_properties.SCENE_KEYS[name]] = physical_properties.sampled(
+                    name, properties_rng, model, o.weight_gt)
     return SceneGraph(objects=objects, split="synthetic", image_index=index,
                       image_filename=f"SHOP_VRB2_synthetic_{index:06d}.png")
 
 
-def sample_scenes(seed: int, count: int) -> list[SceneGraph]:
-    """``count`` scenes, scene ``i`` deterministic from ``(seed, i)``."""
-    return [sample_scene(np.random.default_rng([seed, i]), i, stiffness_rng=np.random.default_rng([seed, i, 5]))
+def sample_scenes(seed: int, count: int, properties: bool = False) -> list[SceneGraph]:
+    """``count`` scenes, scene ``i`` deterministic from ``(seed, i)``; ``properties``: with the hidden physical
+    properties (from a stream of their own, so the scenes are otherwise the same)."""
+    return [sample_scene(np.random.default_rng([seed, i]), i, stiffness_rng=np.random.default_rng([seed, i, 5]),
+                         properties_rng=np.random.default_rng([seed, i, 6]) if properties else None)
             for i in range(count)]

@@ -1,11 +1,12 @@
 """Ground-truth action planning by backward chaining from the program's goal.
 
-The program, run on the observed scene with the weights and stiffnesses measured so far, either asks for a
-measurement (a sub-goal: weigh those objects, or squeeze them) or yields the goal: an answer, an object held
-up, objects on a table part, or a stack. Each goal expands backwards into the primitives whose preconditions
-lead to it: placing needs a lifted object, lifting needs grasping, grasping needs approaching, approaching needs
-the gripper over the object; weighing needs a lifted object, squeezing only a grasped one (it is squeezed where
-it stands and let go again). Planning always starts from the observed state, so the oracle can replan after
+The program, run on the observed scene with the hidden properties measured so far, either asks for a
+measurement (a sub-goal: weigh, squeeze, push, balance or shake those objects) or yields the goal: an answer, an
+object held up, objects on a table part, or a stack. Each goal expands backwards into the primitives whose
+preconditions lead to it: placing needs a lifted object, lifting needs grasping, grasping needs approaching,
+approaching needs the gripper over the object; weighing, balancing and shaking need a lifted object, squeezing
+only a grasped one (it is squeezed where it stands and let go again), and pushing one grasped standing on the
+table whose weight is known (weighed, set down where it was and grasped again) (``MEASURE``). Planning always starts from the observed state, so the oracle can replan after
 every primitive.
 """
 from __future__ import annotations
@@ -14,10 +15,11 @@ from dataclasses import dataclass
 
 from muble import ActionCall, Answer, PlanningError, SceneGraph
 from muble.core.symbolic import ArmState, over
-from muble.programs.program import execute, stack_pairs, table_parts_of
+from muble.programs.program import QUERY_STEPS, execute, stack_pairs, table_parts_of
 
 from muble_plugins.common.geometry import on_table_part, rests_on, upright
-from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH
+from muble_plugins.common.symbolic import (APPROACH, BALANCE, GRASP, LIFT, LOWER, MOVE, PUSH, RELEASE, SHAKE,
+                                           SQUEEZE, WEIGH)
 
 
 @dataclass
@@ -95,6 +97,27 @@ def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> lis
     return _deliver(scene, obj_id, _carried_to(scene, obj_id, arm, base_id), base_id, arm)
 
 
+def _push(obj_id: int, arm: ArmState, scene: SceneGraph) -> list[ActionCall]:
+    """Measure the friction of ``obj_id``: pushing divides by its weight, so it is weighed first, then set down
+    where it was (lowering lets go) and grasped again standing, and pushed."""
+    if scene.object(obj_id).weight is None:
+        return hold_up(obj_id, arm) + [ActionCall(WEIGH)]
+    if arm.held == obj_id and arm.raised:
+        return [ActionCall(LOWER)]
+    return grasp(obj_id, arm) + [ActionCall(PUSH)]
+
+
+# How each hidden property is measured (``PrimitiveAction.measures`` of the built-in primitives): the primitives
+# that measure it of an object, from the arm's state.
+MEASURE = {
+    "weight": lambda obj_id, arm, scene: hold_up(obj_id, arm) + [ActionCall(WEIGH)],
+    "stiffness": lambda obj_id, arm, scene: grasp(obj_id, arm) + [ActionCall(SQUEEZE)],
+    "friction": _push,
+    "com_offset": lambda obj_id, arm, scene: hold_up(obj_id, arm) + [ActionCall(BALANCE)],
+    "rattles": lambda obj_id, arm, scene: hold_up(obj_id, arm) + [ActionCall(SHAKE)],
+}
+
+
 def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, float] | None = None,
               arm: ArmState | None = None, known_stiffness: dict[int, float] | None = None) -> Plan:
     """The remaining primitives for ``program`` from the observed ``scene`` (empty when the goal holds).
@@ -105,17 +128,12 @@ def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, f
     arm = arm or ArmState.of(scene)
     trace = execute(program, scene, weights="measured", known_weights=known_weights,
                     known_stiffness=known_stiffness)
-    if trace.pending_weights:
-        pending = trace.pending_weights
-        target = arm.held if arm.held in pending else pending[0]
-        return Plan(hold_up(target, arm) + [ActionCall(WEIGH)])
-    if trace.pending_stiffness:
-        pending = trace.pending_stiffness
-        target = arm.held if arm.held in pending else pending[0]
-        return Plan(grasp(target, arm) + [ActionCall(SQUEEZE)])
+    if trace.pending:
+        target = arm.held if arm.held in trace.pending else trace.pending[0]
+        return Plan(MEASURE[trace.pending_property](target, arm, scene))
     final_step = program[-1]
     kind, result = final_step["type"], trace.final
-    if kind in ("query_weight", "query_stiffness"):
+    if kind in QUERY_STEPS:
         return Plan([], Answer(list(result)))
     if kind == "pick_up":
         return Plan(hold_up(result[0], arm))
@@ -131,6 +149,5 @@ def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, f
             if not rests_on(scene.object(top), scene.object(base)):
                 return Plan(place_on(scene, top, base, arm))
         return Plan(put_down(arm))
-    raise PlanningError(f"a program must end in query_weight, query_stiffness, pick_up, move_to or stack, "
-                        f"not '{kind}'")
+    raise PlanningError(f"a program must end in {', '.join(QUERY_STEPS)}, pick_up, move_to or stack, not '{kind}'")
 

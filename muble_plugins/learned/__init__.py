@@ -5,7 +5,6 @@ shape, size), each trained by ``muble train trainer=NAME``, and the ``learned_pl
 Needs PyTorch (``pip install "muble[learn]"``): the models' modules load only when the registry builds a part,
 so listing plugins and composing configs work without it.
 """
-import dataclasses
 import os
 import sys
 
@@ -31,7 +30,7 @@ from muble_plugins.learned.config import (
 def planner_trainer(config: PlannerTrainerConfig):
     from muble_plugins.learned.planner import PlannerTrainer
 
-    return PlannerTrainer(**dataclasses.asdict(config))
+    return PlannerTrainer(config)
 
 
 def parser_trainer(config: ParserTrainerConfig):

@@ -4,7 +4,7 @@ Kept apart from the models so that listing the plugins, or composing a config, n
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from muble.core.ranges import bounded
 from muble.io.instructions_io import SHOPVRB2_TEMPLATES
@@ -31,6 +31,9 @@ class PlannerTrainerConfig:
     # Share of roll-out primitives that fail without effect, as a physical one may (a missed grasp, no plan).
     slip: float = bounded(0.05, ge=0, lt=1)
     validation_scenes: int = bounded(200, ge=0)
+    # The templates whose instructions the roll-outs play, by template id ([]: the ten SHOP-VRB2 templates); the
+    # scenes carry every hidden property, so any registered family can be named (e.g. the physical family).
+    templates: list[str] = field(default_factory=list)
 
 
 @dataclass

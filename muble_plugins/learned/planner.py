@@ -45,20 +45,24 @@ from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.success import check
 from muble_plugins.common.symbolic import SymbolicWorld
 from muble_plugins.common.synthetic import sample_scene
-from muble_plugins.learned.config import TEMPLATES
+from muble.core.errors import ConfigError, unknown_name
+from muble.core.ranges import configured
+
+from muble_plugins.learned.config import TEMPLATES, PlannerTrainerConfig
 from muble_plugins.learned.planner_features import (CLASSES, FEATURE_DIM, Memory, encode, features, known_view,
                                                     random_call)
 
 log = logging.getLogger(__name__)
 
-MAX_STEPS = 60  # primitives per roll-out (the oracle needs at most about 30 on SHOP-VRB2)
+MAX_STEPS = 100  # primitives per roll-out (the oracle needs at most about 30 on SHOP-VRB2, 46 on the physical family)
 
 
 def scene_for(seed: int, index: int, validation: bool) -> SceneGraph:
     """Scene ``index`` of the training (``[seed, index]``, as ``sample_scenes``) or the validation stream
     (``[seed, index, 1]``: disjoint from every training scene of the seed)."""
     key = [seed, index, 1] if validation else [seed, index]
-    return sample_scene(np.random.default_rng(key), index, stiffness_rng=np.random.default_rng(key + [5]))
+    return sample_scene(np.random.default_rng(key), index, stiffness_rng=np.random.default_rng(key + [5]),
+                        properties_rng=np.random.default_rng(key + [6]))
 
 
 def instructions_for(scene: SceneGraph, seed: int, index: int, validation: bool,
@@ -87,7 +91,7 @@ class _Oracle(OracleAgent):
         return _task(instruction.template_id)
 
     def _known(self, observation: Observation) -> Observation:
-        self.view = known_view(observation, self.measured, self.stiffness, self.last)
+        self.view = known_view(observation, self.known, self.last)
         return dataclasses.replace(observation, scene=self.view)
 
 
@@ -124,7 +128,7 @@ class _Recorder(Agent):
         failed = self.memory.observe(observation)
         label = self.oracle.act(instruction, observation)
         scene = self.oracle.view
-        tokens, _ = features(instruction.program, scene, self.memory.measured, self.memory.stiffness, failed)
+        tokens, _ = features(instruction.program, scene, self.memory.known, failed)
         cls, pointer = encode(label, scene)
         self.samples.append((tokens.astype(np.float16), cls, pointer))
         if label is None or isinstance(label, Answer):
@@ -136,7 +140,8 @@ class _Recorder(Agent):
         return label
 
 
-def rollouts(seed: int, indices: range, validation: bool, explore: float, slip: float, progress=None
+def rollouts(seed: int, indices: range, validation: bool, explore: float, slip: float, progress=None,
+             templates: tuple[str, ...] = TEMPLATES
              ) -> tuple[list[tuple[np.ndarray, int, int]], list[tuple[Instruction, SceneGraph]]]:
     """Labelled states of the oracle's roll-outs on the scenes ``indices``, and the (instruction, scene) pairs."""
     samples: list[tuple[np.ndarray, int, int]] = []
@@ -147,16 +152,16 @@ def rollouts(seed: int, indices: range, validation: bool, explore: float, slip: 
     quiet.setLevel(logging.WARNING)  # the oracle logs every failed primitive it retries: most explored ones
     try:
         for index in items:
-            _scene_rollouts(seed, index, validation, explore, slip, samples, episodes)
+            _scene_rollouts(seed, index, validation, explore, slip, samples, episodes, templates)
     finally:
         quiet.setLevel(level)
     return samples, episodes
 
 
 def _scene_rollouts(seed: int, index: int, validation: bool, explore: float, slip: float,
-                    samples: list, episodes: list) -> None:
+                    samples: list, episodes: list, templates: tuple[str, ...] = TEMPLATES) -> None:
     scene = scene_for(seed, index, validation)
-    for k, instruction in enumerate(instructions_for(scene, seed, index, validation)):
+    for k, instruction in enumerate(instructions_for(scene, seed, index, validation, templates)):
         episodes.append((instruction, scene))
         rng = np.random.default_rng([seed, index, 4 if validation else 6, k])
         recorder = _Recorder(rng, explore)
@@ -179,16 +184,15 @@ def symbolic_success(agent: Agent, episodes: list[tuple[Instruction, SceneGraph]
 class PlannerTrainer(Trainer):
     """Trains ``planner_net.PlannerNet`` on symbolic roll-outs of the oracle (see the module doc)."""
 
-    def __init__(self, scenes: int = 2000, epochs: int = 5, batch_size: int = 256, learning_rate: float = 1e-3,
-                 width: int = 32, heads: int = 2, layers: int = 2, explore: float = 0.2, slip: float = 0.05,
-                 validation_scenes: int = 200):
-        self.settings = {"scenes": scenes, "epochs": epochs, "batch_size": batch_size,
-                         "learning_rate": learning_rate, "width": width, "heads": heads, "layers": layers,
-                         "explore": explore, "slip": slip, "validation_scenes": validation_scenes}
-        if width % heads:
-            from muble.core.errors import ConfigError
-
-            raise ConfigError(f"trainer.width={width} must be a multiple of trainer.heads={heads}")
+    def __init__(self, config: PlannerTrainerConfig | None = None, **options):
+        cfg = configured(PlannerTrainerConfig, config, options, owner="trainer 'planner'")
+        self.settings = dataclasses.asdict(cfg)
+        if cfg.width % cfg.heads:
+            raise ConfigError(f"trainer.width={cfg.width} must be a multiple of trainer.heads={cfg.heads}")
+        unknown = [t for t in cfg.templates if t not in get_registry().names("task")]
+        if unknown:
+            raise ConfigError(unknown_name("trainer.templates entry", unknown[0], get_registry().names("task")))
+        self.templates = tuple(cfg.templates) or TEMPLATES
 
     def train(self, run: TrainingRun) -> dict[str, Any]:
         from muble_plugins.learned import checkpoint as ck
@@ -205,9 +209,10 @@ class PlannerTrainer(Trainer):
 
         start, cpu = time.perf_counter(), time.process_time()
         bar = (lambda items: ck.progress(items, run, "roll-outs", total=len(items)))
-        train_samples, _ = rollouts(run.seed, range(s["scenes"]), False, s["explore"], s["slip"], bar)
+        train_samples, _ = rollouts(run.seed, range(s["scenes"]), False, s["explore"], s["slip"], bar,
+                                    self.templates)
         val_samples, val_episodes = rollouts(run.seed, range(s["validation_scenes"]), True, s["explore"],
-                                             s["slip"], bar)
+                                             s["slip"], bar, self.templates)
         data_s, data_cpu_s = time.perf_counter() - start, time.process_time() - cpu
 
         model = {"in_dim": FEATURE_DIM, "width": s["width"], "heads": s["heads"], "layers": s["layers"],

@@ -8,8 +8,9 @@ without a target: put the held object down where it is). The network outputs a p
 one token; primitives without a target ignore the pointer.
 
 The sub-goal comes from running the program on the observed scene with what was measured so far
-(``muble.programs.program.execute`` in ``"measured"`` mode): objects still to weigh or squeeze, an answer, an object
-to hold up, objects to put on a table part, or stack pairs. The features mark which objects the sub-goal is
+(``muble.programs.program.execute`` in ``"measured"`` mode): objects still to measure (weigh, squeeze, push,
+balance or shake: the sub-goal's kind is the primitive that measures the property), an answer, an object to hold
+up, objects to put on a table part, or stack pairs. The features mark which objects the sub-goal is
 about and which of them already meet it; which primitive to call on which token is the network's choice.
 """
 from __future__ import annotations
@@ -22,17 +23,18 @@ import numpy as np
 
 from muble import ActionCall, Answer, Observation, SceneGraph
 from muble.core.errors import PlanningError
-from muble.core.observation import MEASURED_STIFFNESS
+from muble.core.observation import MEASURED_EXTRA
 from muble.core.symbolic import ArmState, over
 from muble.core.types import TABLE_PARTS
-from muble.programs.program import execute, stack_pairs, table_parts_of
+from muble.programs.program import QUANTITIES, QUERY_STEPS, execute, stack_pairs, table_parts_of
 
-from muble_plugins.common.books import fill_known
+from muble_plugins.common.books import Known, book, fill_known
 from muble_plugins.common.geometry import on_table_part, rests_on, upright
-from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE, SQUEEZE, WEIGH  # noqa: F401
+from muble_plugins.common.symbolic import (APPROACH, BALANCE, GRASP, LIFT, LOWER, MOVE, PUSH, RELEASE, SHAKE,
+                                           SQUEEZE, WEIGH)
 
 STOP = "stop"  # answer (query programs) and stop
-CLASSES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE, STOP)
+CLASSES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE, PUSH, BALANCE, SHAKE, STOP)
 # Which tokens each class may point at: objects, table parts, the none token; classes absent take no target.
 TARGET_KINDS: dict[str, tuple[str, ...]] = {
     MOVE: ("object", "part"),
@@ -40,14 +42,15 @@ TARGET_KINDS: dict[str, tuple[str, ...]] = {
     GRASP: ("object",),
     LOWER: ("object", "part", "none"),
 }
-GOAL_KINDS = ("weigh", "squeeze", "answer", "pick_up", "move_to", "stack", "unknown")
+MEASURE_KINDS = tuple(q.verb for q in QUANTITIES.values())  # a measuring sub-goal's kind: the primitive's name
+GOAL_KINDS = (*MEASURE_KINDS, "answer", "pick_up", "move_to", "stack", "unknown")
 IGNORE = -100  # pointer label of a class without a target
 
 # Token layout: type indicators, then object features, then part features, then the goal token's features.
 TOKEN_TYPES = ("goal", "object", "part", "none")
 OBJECT_FEATURES = (
-    "in_hand", "raised", "approached", "gripper_over", "weight_known", "stiffness_known",
-    "pending_weight", "pending_stiffness", "pending_rank", "primary", "secondary", "goal_object", "goal_rank",
+    "in_hand", "raised", "approached", "gripper_over", *(f"{q}_known" for q in QUANTITIES),
+    "pending", "pending_rank", "primary", "secondary", "goal_object", "goal_rank",
     "on_goal", "at_destination", "upright", "stack_position", "stack_base_of_primary", "queried",
     "held_and_pending", "in_dest_part",
 )
@@ -70,8 +73,7 @@ class SubGoal:
     """The program's current sub-goal on the observed scene."""
 
     kind: str
-    pending_weights: tuple[int, ...] = ()
-    pending_stiffness: tuple[int, ...] = ()
+    pending: tuple[int, ...] = ()  # objects whose property the sub-goal's kind measures
     primary: int | None = None  # the object the sub-goal acts on now (move, stack: the first unmet one)
     secondary: int | None = None  # the stack base the primary goes on
     part: str | None = None  # move_to's table part
@@ -81,19 +83,15 @@ class SubGoal:
     answer: list | None = None  # query programs, once every needed value is measured
 
 
-def subgoal(program: list[dict], scene: SceneGraph, known_weights: dict[int, float],
-            known_stiffness: dict[int, float]) -> SubGoal:
+def subgoal(program: list[dict], scene: SceneGraph, known: Known) -> SubGoal:
     """The current sub-goal; raises ``PlanningError`` when the program cannot run on the scene."""
-    trace = execute(program, scene, weights="measured", known_weights=known_weights,
-                    known_stiffness=known_stiffness)
-    if trace.pending_weights:
-        return SubGoal("weigh", pending_weights=tuple(trace.pending_weights))
-    if trace.pending_stiffness:
-        return SubGoal("squeeze", pending_stiffness=tuple(trace.pending_stiffness))
+    trace = execute(program, scene, weights="measured", known=known)
+    if trace.pending:
+        return SubGoal(QUANTITIES[trace.pending_property].verb, pending=tuple(trace.pending))
     final_step = program[-1]
     kind, result = final_step["type"], trace.final
     arm = ArmState.of(scene)
-    if kind in ("query_weight", "query_stiffness"):
+    if kind in QUERY_STEPS:
         queried = list(trace.outputs[-2]) if len(trace.outputs) >= 2 and isinstance(trace.outputs[-2], list) else []
         return SubGoal("answer", goal_objects=queried, answer=list(result))
     if kind == "pick_up":
@@ -120,8 +118,7 @@ def subgoal(program: list[dict], scene: SceneGraph, known_weights: dict[int, flo
     return SubGoal("unknown")
 
 
-def known_view(observation: Observation, measured: dict[int, float], stiffness: dict[int, float],
-               last: ActionCall | None) -> SceneGraph:
+def known_view(observation: Observation, known: Known, last: ActionCall | None) -> SceneGraph:
     """The observed scene with this agent's measurements filled in and, after a failed primitive, the hover and
     grasp-pose flags cleared (the hand is not where the plan left it); a world that reports no hover flags has
     them filled in from the last primitive. The same bookkeeping as the oracle's, so its labels fit."""
@@ -129,7 +126,7 @@ def known_view(observation: Observation, measured: dict[int, float], stiffness: 
     # scenes were most of a roll-out's time.
     scene = dataclasses.replace(observation.scene, objects=[
         dataclasses.replace(o, extra=dict(o.extra)) for o in observation.scene.objects])
-    fill_known(scene, measured, stiffness, last, observation.last_result)
+    fill_known(scene, known, last, observation.last_result)
     return scene
 
 
@@ -139,11 +136,10 @@ def _rank(items: list[int] | tuple[int, ...], obj_id: int) -> float:
     return (items.index(obj_id) + 1) / 4.0 if obj_id in items else 0.0
 
 
-def features(program: list[dict], scene: SceneGraph, known_weights: dict[int, float],
-             known_stiffness: dict[int, float], last_failed: bool) -> tuple[np.ndarray, SubGoal]:
+def features(program: list[dict], scene: SceneGraph, known: Known, last_failed: bool) -> tuple[np.ndarray, SubGoal]:
     """Token features (1 + objects + parts + 1, ``FEATURE_DIM``) for ``scene`` (already ``known_view``) and the
     sub-goal they were built from."""
-    goal = subgoal(program, scene, known_weights, known_stiffness)
+    goal = subgoal(program, scene, known)
     objects = scene.objects
     n = len(objects)
     x = np.zeros((1 + n + len(TABLE_PARTS) + 1, FEATURE_DIM), dtype=np.float32)
@@ -168,11 +164,11 @@ def features(program: list[dict], scene: SceneGraph, known_weights: dict[int, fl
         row[_OBJ["raised"]] = bool(o.extra.get("in_hand")) and bool(o.extra.get("raised"))
         row[_OBJ["approached"]] = bool(o.extra.get("approached"))
         row[_OBJ["gripper_over"]] = bool(o.extra.get("gripper_over"))
-        row[_OBJ["weight_known"]] = o.weight is not None or o.id in known_weights
-        row[_OBJ["stiffness_known"]] = MEASURED_STIFFNESS in o.extra or o.id in known_stiffness
-        row[_OBJ["pending_weight"]] = o.id in goal.pending_weights
-        row[_OBJ["pending_stiffness"]] = o.id in goal.pending_stiffness
-        row[_OBJ["pending_rank"]] = _rank(goal.pending_weights or goal.pending_stiffness, o.id)
+        row[_OBJ["weight_known"]] = o.weight is not None or o.id in known.get("weight", {})
+        for name, key in MEASURED_EXTRA.items():
+            row[_OBJ[f"{name}_known"]] = key in o.extra or o.id in known.get(name, {})
+        row[_OBJ["pending"]] = o.id in goal.pending
+        row[_OBJ["pending_rank"]] = _rank(goal.pending, o.id)
         row[_OBJ["primary"]] = o.id == goal.primary
         row[_OBJ["secondary"]] = o.id == goal.secondary
         row[_OBJ["goal_object"]] = o.id in goal.goal_objects
@@ -180,8 +176,7 @@ def features(program: list[dict], scene: SceneGraph, known_weights: dict[int, fl
         row[_OBJ["on_goal"]] = o.id in goal.met
         row[_OBJ["upright"]] = upright(o)
         row[_OBJ["queried"]] = goal.kind == "answer" and o.id in goal.goal_objects
-        row[_OBJ["held_and_pending"]] = arm.held == o.id and (o.id in goal.pending_weights
-                                                             or o.id in goal.pending_stiffness)
+        row[_OBJ["held_and_pending"]] = arm.held == o.id and o.id in goal.pending
         if goal.stack_order:
             row[_OBJ["stack_position"]] = _rank(goal.stack_order, o.id)
         row[_OBJ["stack_base_of_primary"]] = o.id == goal.secondary
@@ -264,8 +259,7 @@ def random_call(rng: np.random.Generator, scene: SceneGraph) -> ActionCall:
 class Memory:
     """What an agent keeps over an episode: its measurements, the last call and failures per target."""
 
-    measured: dict[int, float] = field(default_factory=dict)
-    stiffness: dict[int, float] = field(default_factory=dict)
+    known: Known = field(default_factory=dict)  # property -> object id -> measured value
     last: ActionCall | None = None
     failures: dict[Any, int] = field(default_factory=dict)
 
@@ -278,18 +272,14 @@ class Memory:
             key = self.last.params.get("target")
             self.failures[key] = self.failures.get(key, 0) + 1
             return True
-        if self.last.name in (WEIGH, SQUEEZE) and isinstance(result.measurement, (int, float)):
-            held = ArmState.of(observation.scene).held
-            if held is not None:
-                store = self.measured if self.last.name == WEIGH else self.stiffness
-                store[held] = float(result.measurement)
+        book(self.known, self.last, result, ArmState.of(observation.scene).held)
         return False
 
 
 def observe_features(memory: Memory, program: list[dict], observation: Observation,
                      failed: bool) -> tuple[np.ndarray, SubGoal, SceneGraph]:
-    scene = known_view(observation, memory.measured, memory.stiffness, memory.last)
-    x, goal = features(program, scene, memory.measured, memory.stiffness, failed)
+    scene = known_view(observation, memory.known, memory.last)
+    x, goal = features(program, scene, memory.known, failed)
     return x, goal, scene
 
 

@@ -13,12 +13,13 @@ from typing import Any
 
 from muble import ConfigError
 from muble.io.action_names import from_original
+from muble.programs.program import QUERY_STEPS
 from muble.io.layout import DatasetLayout
 
 log = logging.getLogger(__name__)
 
 POOL = 200  # instruction files read from the split: enough for every template many times, read in a second
-QUERY_TASKS = ("query_weight",)  # tasks whose recorded target is the answer
+QUERY_TASKS = tuple(QUERY_STEPS)  # tasks whose recorded target is the answer
 
 
 def _objects(scene_file: Path) -> list[str]:

@@ -20,6 +20,7 @@ from typing import Any, Iterable
 
 from muble import (ActionCall, ActionResult, Answer, ConfigError, Instruction, Observation, ObservationMode, Track,
                    get_registry)
+from muble.core.observation import MEASURED_EXTRA
 from muble.core.params import Param, specs
 from muble.core.types import TABLE_PARTS
 
@@ -58,6 +59,10 @@ class PromptTemplate:
         return PLACEHOLDER.sub(lambda m: str(values.get(m.group(1), "")), self.text).strip() + "\n"
 
 
+# The names measured properties get in an object's JSON, where a unit belongs in the name.
+MEASURED_FIELDS = {"stiffness": "stiffness_n_per_m", "com_offset": "com_offset_mm"}
+
+
 def _round(values: Any) -> list[float]:
     return [round(float(v), DECIMALS) for v in values]
 
@@ -73,8 +78,11 @@ def object_entry(o: Any) -> dict[str, Any]:
         entry["extent"] = _round(o.bbox[k] for k in ("x", "y", "z") if k in o.bbox)
     if o.weight is not None:
         entry["weight_g"] = round(float(o.weight), 1)
-    if o.extra.get("stiffness_measured") is not None:
-        entry["stiffness_n_per_m"] = round(float(o.extra["stiffness_measured"]), 1)
+    for name, key in MEASURED_EXTRA.items():  # what the agent measured besides the weight
+        value = o.extra.get(key)
+        if value is not None:
+            entry[MEASURED_FIELDS.get(name, name)] = (value if isinstance(value, bool) else _round(value)
+                                                      if isinstance(value, (list, tuple)) else round(float(value), 3))
     flags = [f for f in FLAGS if o.extra.get(f)]
     if flags:
         entry["state"] = flags

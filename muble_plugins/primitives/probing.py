@@ -14,6 +14,7 @@ import numpy as np
 
 from muble import ActionResult, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph, get_registry
 from muble.core import physical_properties
+from muble.core.observation import MEASURED_EXTRA
 from muble.core.symbolic import ArmState
 from muble.stage.geometry import tilt_deg
 from muble_plugins.primitives import context as ctx
@@ -140,6 +141,7 @@ class Push(PrimitiveAction):
         friction = physical_properties.friction_of(held)
         if friction is None:
             return ActionResult(False, failure_reason=f"object {held.id} has no friction coefficient to measure")
+        held.extra[MEASURED_EXTRA[self.measures]] = friction  # as the physical world's scene graph records it
         return ActionResult(True, measurement=friction)
 
 
@@ -246,6 +248,7 @@ class Balance(_LiftedReading):
         offset = physical_properties.com_offset_mm(held)
         if offset is None:
             return ActionResult(False, failure_reason=f"object {held.id} has no centre of mass to measure")
+        held.extra[MEASURED_EXTRA[self.measures]] = offset
         return ActionResult(True, measurement=offset)
 
 
@@ -342,4 +345,6 @@ class Shake(_LiftedReading):
 
     def known(self, held) -> ActionResult:
         """Whether the lifted object holds loose contents (``physical_properties.CONTENTS``) is known."""
-        return ActionResult(True, measurement=physical_properties.rattles(held))
+        rattles = physical_properties.rattles(held)
+        held.extra[MEASURED_EXTRA[self.measures]] = rattles
+        return ActionResult(True, measurement=rattles)

@@ -17,7 +17,8 @@ from muble_plugins.common.episodes import run_symbolic_episode
 from muble_plugins.common.success import check
 from muble_plugins.common.task_planner import plan_next
 from muble_plugins.tasks.generator import generate_for_template
-from muble_plugins.tasks.templates import ALL_TEMPLATES, STIFFNESS_TEMPLATES, Template, load_templates
+from muble_plugins.tasks.templates import (ALL_TEMPLATES, PHYSICAL_TEMPLATES, STIFFNESS_TEMPLATES, Template,
+                                          load_templates)
 
 MAX_PLAN_STEPS = 100
 
@@ -84,11 +85,15 @@ SHOP_VRB2_CLASS_NAMES = {
     "stack_three": "StackThree", "stack_order": "StackOrder",
 }
 
-# The stiffness family (stiffness_templates.yaml): registered, but not in the default SHOP-VRB2 mix.
+# The stiffness family (stiffness_templates.yaml) and the physical family (physical_templates.yaml): registered,
+# but not in the default SHOP-VRB2 mix.
 STIFFNESS_TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {name: task_class(t) for name, t in
                                                          STIFFNESS_TEMPLATES.items()}
+PHYSICAL_TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {name: task_class(t) for name, t in
+                                                        PHYSICAL_TEMPLATES.items()}
 
 TASK_CLASSES: dict[str, type[ShopVrb2Task]] = {
     **{template_id: task_class(ALL_TEMPLATES[template_id], class_name)
        for template_id, class_name in SHOP_VRB2_CLASS_NAMES.items()},
-    **STIFFNESS_TASK_CLASSES}
+    **STIFFNESS_TASK_CLASSES,
+    **PHYSICAL_TASK_CLASSES}

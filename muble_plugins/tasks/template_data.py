@@ -21,12 +21,17 @@ A template file holds ``templates:``, a list of entries::
       - {type: move_to, input_value: <TP>}
 
 References (``target``, ``input_value``): a parameter name, or a derived value ``{extreme: [O1s, WS]}`` (the
-heaviest/lightest of a set), ``{members_in: [O1s, TP]}`` (the set's objects in a table part), ``{opposite: TP}``.
+heaviest/lightest of a set), ``{members_in: [O1s, TP]}`` (the set's objects in a table part), ``{opposite: TP}``, ``{friction_extreme: [O1s,
+FS]}`` (likewise ``stiffness_extreme``, ``com_offset_extreme``) and ``{having: [O1s, rattles]}`` (the set's objects
+that have a yes/no property).
 Constraint types: ``is`` (an object, or every object of a set, has ``property``), ``max_count``, ``distinct``,
 ``not_tp``, ``tp_set`` (the set's objects in the part: at least one, all with ``property``), ``weight_extreme``,
 ``weight_order``, ``stack_order`` (heaviest first: all but the last are stack bases, all but the first
 stackable), ``related`` (``[A, REL, B]``: B is REL of A), their stiffness counterparts ``stiffness_extreme``,
-``stiffness_order``, ``stiffness_stack_order``, ``among`` (an object, or every object of a set, has an attribute
+``stiffness_order``, ``stiffness_stack_order`` and the same for ``friction`` and ``com_offset``
+(``friction_extreme`` …; each quantity's margin in ``templates.MARGINS``), ``carries`` (an object, or every object of
+a set, has a ground truth of the measured ``property``: ``{type: carries, target: O1, property: friction}``),
+``mixed`` (a set has members with and members without the yes/no ``property``, e.g. ``rattles``), ``among`` (an object, or every object of a set, has an attribute
 ``property`` among ``values``: ``{type: among, target: O1s, property: model, values: [mug1, glass2]}``), and the
 dear ``room`` (``[movers, part]``). A mistake in a file is
 a ``ConfigError`` naming the file, the template and the field.
@@ -44,12 +49,17 @@ from muble import ConfigError
 from muble.core.errors import unknown_name
 from muble.io.instructions_io import program_step
 from muble.programs.descriptions import ATTRIBUTE_STEP, describe
-from muble.programs.program import RELATIONS, STIFFNESS_SUPERLATIVES, WEIGHT_SUPERLATIVES, related
+from muble.programs.program import (COM_SUPERLATIVES, FRICTION_SUPERLATIVES, QUANTITIES, RELATIONS,
+                                    STIFFNESS_SUPERLATIVES, WEIGHT_SUPERLATIVES, related)
 from muble.stage.table import OPPOSITE_PART
 
 # Templates name the four sides of the table, never "centre".
 WORD_DOMAINS = {"table_part": tuple(OPPOSITE_PART), "weight_superlative": WEIGHT_SUPERLATIVES,
-                "stiffness_superlative": STIFFNESS_SUPERLATIVES, "relation": tuple(RELATIONS)}
+                "stiffness_superlative": STIFFNESS_SUPERLATIVES, "friction_superlative": FRICTION_SUPERLATIVES,
+                "com_superlative": COM_SUPERLATIVES, "relation": tuple(RELATIONS)}
+# Measured quantities (besides the weight) that templates compare: <q>_extreme references and constraints,
+# <q>_order and <q>_stack_order constraints, each with the quantity's margin (``templates.MARGINS``).
+COMPARED = ("stiffness", "friction", "com_offset")
 PARAMETER_TYPES = ("object", "objects", *WORD_DOMAINS)
 _TOKEN = re.compile(r"<([A-Za-z0-9_]+)>")
 _OPTIONAL = re.compile(r"\[([^\]]+)\] ?")
@@ -109,14 +119,17 @@ def compile_ref(ref: Any) -> Ref:
             first, second = compile_ref(args[0]), compile_ref(args[1])
             if kind == "extreme":
                 return lambda b, c: c.extreme(first(b, c), second(b, c))
-            if kind == "stiffness_extreme":
-                return lambda b, c: c.stiffness_extreme(first(b, c), second(b, c))
+            if kind.endswith("_extreme") and kind[:-len("_extreme")] in COMPARED:
+                quantity = kind[:-len("_extreme")]
+                return lambda b, c: c.quantity_extreme(quantity, first(b, c), second(b, c))
+            if kind == "having":  # the set's members that have a yes/no quantity: {having: [O1s, rattles]}
+                return lambda b, c: c.having(second(b, c), first(b, c)) or []
             if kind == "members_in":
                 return lambda b, c: [i for i in first(b, c) if second(b, c) in c.parts(i)]
             if kind == "related":
                 return lambda b, c: related(c.index.scene, first(b, c), second(b, c))
-    raise ConfigError(f"unknown reference {ref!r}; use a parameter name or one of extreme, stiffness_extreme, "
-                      "members_in, opposite, related")
+    raise ConfigError(f"unknown reference {ref!r}; use a parameter name or one of extreme, "
+                      f"{', '.join(q + '_extreme' for q in COMPARED)}, having, members_in, opposite, related")
 
 
 def _refs(x: Any) -> list[str]:
@@ -193,7 +206,28 @@ def _distinct(k, refs, kinds):
 
 def _not_tp(k, refs, kinds):
     obj, part = refs
-    return lambda b, c: part(b, c) not in c.parts(obj(b, c))
+    return lambda b, c: all(part(b, c) not in c.parts(i) for i in _members(obj(b, c)))
+
+
+def _quantity(k: dict, yes_no: bool) -> str:
+    """The measured quantity a constraint names (``property``): a yes/no one, or one that carries values."""
+    allowed = tuple(n for n, q in QUANTITIES.items() if (not q.superlatives) == yes_no)
+    return _property(k, allowed if yes_no else tuple(QUANTITIES), "measured property")
+
+
+def _carries(k, refs, kinds):
+    (value,), quantity = refs, _quantity(k, yes_no=False)
+    return lambda b, c: all(c.value(quantity, i) is not None for i in _members(value(b, c)))
+
+
+def _mixed(k, refs, kinds):
+    (value,), quantity = refs, _quantity(k, yes_no=True)
+
+    def check(b, c):
+        group = _members(value(b, c))
+        yes = c.having(quantity, group)
+        return yes is not None and 0 < len(yes) < len(group)
+    return check
 
 
 def _tp_set(k, refs, kinds):
@@ -206,19 +240,19 @@ def _tp_set(k, refs, kinds):
     return check
 
 
-def _pair(method):
+def _pair(method, *first):
     def make(k, refs, kinds):
         group, which = refs
-        return lambda b, c: getattr(c, method)(group(b, c), which(b, c)) is not None
+        return lambda b, c: getattr(c, method)(*first, group(b, c), which(b, c)) is not None
     return make
 
 
-def _ranked(method, stack):
+def _ranked(method, stack, *first):
     def make(k, refs, kinds):
         (group,) = refs
         if stack:
-            return lambda b, c: _ranked_ok(c, getattr(c, method)(group(b, c)))
-        return lambda b, c: getattr(c, method)(group(b, c)) is not None
+            return lambda b, c: _ranked_ok(c, getattr(c, method)(*first, group(b, c)))
+        return lambda b, c: getattr(c, method)(*first, group(b, c)) is not None
     return make
 
 
@@ -242,9 +276,11 @@ CONSTRAINTS: dict[str, tuple[int, Callable[[dict, list, dict], Check]]] = {
     "weight_extreme": (2, _pair("extreme")),
     "weight_order": (1, _ranked("by_weight", stack=False)),
     "stack_order": (1, _ranked("by_weight", stack=True)),
-    "stiffness_extreme": (2, _pair("stiffness_extreme")),
-    "stiffness_order": (1, _ranked("by_stiffness", stack=False)),
-    "stiffness_stack_order": (1, _ranked("by_stiffness", stack=True)),
+    **{f"{q}_extreme": (2, _pair("quantity_extreme", q)) for q in COMPARED},
+    **{f"{q}_order": (1, _ranked("by_quantity", False, q)) for q in COMPARED},
+    **{f"{q}_stack_order": (1, _ranked("by_quantity", True, q)) for q in COMPARED},
+    "carries": (1, _carries),
+    "mixed": (1, _mixed),
     "related": (3, _related),
     "among": (1, _among),
 }

@@ -1,11 +1,13 @@
 """SHOP-VRB2 task templates: phrasings, scene constraints and program skeletons, read from template files.
 
-The ten built-in templates are data (``shopvrb2_templates.yaml``, format in ``template_data``), and so is the
-stiffness family (``stiffness_templates.yaml``), which instructions get only when asked for by name. Each template
+The ten built-in templates are data (``shopvrb2_templates.yaml``, format in ``template_data``), and so are the
+stiffness family (``stiffness_templates.yaml``) and the physical family (``physical_templates.yaml``: friction,
+centre of mass, loose contents), which instructions get only when asked for by name. Each template
 enumerates its *options* for a scene: the object-level choices (which objects, which table part, which weight
 superlative) that satisfy its constraints. Options are cheap tuples; the generator samples some and only then
 picks descriptions and a phrasing. Weight-dependent constraints use the ground-truth weights, with a margin so
-that a measured weight cannot swap the order (stiffness likewise, with a relative margin).
+that a measured weight cannot swap the order; the other measured quantities likewise, each with its margin
+(``MARGINS``: twice the accuracy its primitive is held to, and more).
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from muble.programs.descriptions import SceneIndex
-from muble.programs.program import table_parts_of
+from muble.programs.program import QUANTITIES, table_parts_of
 
 from muble_plugins.common.geometry import room_on_part
 from muble_plugins.tasks.template_data import DataTemplate, read_template_file
@@ -23,6 +25,12 @@ from muble_plugins.tasks.template_data import DataTemplate, read_template_file
 MAX_STACK = 4  # objects in one "stack all" tower (the built-in templates' max_count)
 MAX_COMPARED = 5  # objects weighed to find a heaviest/lightest one (keeps plans within 46 primitives)
 STIFFNESS_MARGIN = 0.25  # stiffnesses a template compares differ by at least this fraction of the smaller
+FRICTION_MARGIN = 0.25  # friction coefficients likewise (push reads them within 10 %)
+COM_MARGIN_MM = 10.0  # centre-of-mass offsets (mm from the centre) differ by at least this (balance: within 5 mm)
+# The margin of each compared quantity but the weight (whose margin is the generator's ``weight_margin``):
+# (relative: a fraction of the smaller value | absolute: in the quantity's unit, margin).
+MARGINS = {"stiffness": (True, STIFFNESS_MARGIN), "friction": (True, FRICTION_MARGIN),
+           "com_offset": (False, COM_MARGIN_MM)}
 
 
 @dataclass(frozen=True)
@@ -90,27 +98,47 @@ class OptionContext:
         gaps = [self.obj(a).weight_gt - self.obj(b).weight_gt for a, b in zip(ranked, ranked[1:])]
         return ranked if all(g >= self.weight_margin for g in gaps) else None
 
-    def stiffness(self, i: int) -> float | None:
-        return self.obj(i).stiffness
+    def value(self, quantity: str, i: int):
+        """The ground truth of ``quantity`` (``muble.programs.program.QUANTITIES``) of object ``i``, or None."""
+        return QUANTITIES[quantity].truth(self.obj(i))
+
+    def _apart(self, quantity: str, high: float, low: float) -> bool:
+        relative, margin = MARGINS[quantity]
+        return high >= low * (1 + margin) if relative else high - low >= margin
 
     @_memo
-    def by_stiffness(self, group: tuple[int, ...]) -> list[int] | None:
-        """Group ids hardest first, or ``None`` when a stiffness is unknown or two are within the margin."""
-        if any(self.stiffness(i) is None for i in group):
+    def by_quantity(self, quantity: str, group: tuple[int, ...]) -> list[int] | None:
+        """Group ids, the largest ``quantity`` first, or ``None`` when one is unknown or two are within the
+        quantity's margin."""
+        values = {i: self.value(quantity, i) for i in group}
+        if any(v is None for v in values.values()):
             return None
-        ranked = sorted(group, key=lambda i: -self.stiffness(i))
-        apart = all(self.stiffness(a) >= self.stiffness(b) * (1 + STIFFNESS_MARGIN) for a, b in zip(ranked, ranked[1:]))
+        rank = QUANTITIES[quantity].rank
+        ranked = sorted(group, key=lambda i: -rank(values[i]))
+        apart = all(self._apart(quantity, rank(values[a]), rank(values[b])) for a, b in zip(ranked, ranked[1:]))
         return ranked if apart else None
 
     @_memo
-    def stiffness_extreme(self, group: tuple[int, ...], which: str) -> int | None:
-        """The hardest or softest object of the group, ``None`` unless it stands apart by the margin."""
-        if any(self.stiffness(i) is None for i in group):
+    def quantity_extreme(self, quantity: str, group: tuple[int, ...], which: str) -> int | None:
+        """The object of the group that ``which`` (a superlative of the quantity: the first picks the largest)
+        names, ``None`` unless it stands apart from the next by the margin (or a value is unknown)."""
+        values = {i: self.value(quantity, i) for i in group}
+        if len(group) < 2 or any(v is None for v in values.values()):
             return None
-        ranked = sorted(group, key=lambda i: -self.stiffness(i))
-        top, second = (ranked[0], ranked[1]) if which == "hardest" else (ranked[-1], ranked[-2])
-        low, high = sorted((self.stiffness(top), self.stiffness(second)))
-        return top if high >= low * (1 + STIFFNESS_MARGIN) else None
+        rank = QUANTITIES[quantity].rank
+        ranked = sorted(group, key=lambda i: -rank(values[i]))
+        top, second = (ranked[0], ranked[1]) if which == QUANTITIES[quantity].superlatives[0] \
+            else (ranked[-1], ranked[-2])
+        low, high = sorted((rank(values[top]), rank(values[second])))
+        return top if self._apart(quantity, high, low) else None
+
+    def having(self, quantity: str, group: tuple[int, ...] | list[int], yes: bool = True) -> list[int] | None:
+        """The members of the group that have the yes/no ``quantity`` (or, ``yes`` false, that do not), None
+        when one of them carries no ground truth of it."""
+        values = [self.value(quantity, i) for i in group]
+        if any(v is None for v in values):
+            return None
+        return [i for i, v in zip(group, values) if bool(v) == yes]
 
     @_memo
     def extreme(self, group: tuple[int, ...], which: str) -> int | None:
@@ -136,4 +164,6 @@ BUILTIN_FILE = Path(__file__).with_name("shopvrb2_templates.yaml")
 TEMPLATES: dict[str, Template] = load_templates(BUILTIN_FILE)  # the SHOP-VRB2 ten: the default mix
 STIFFNESS_FILE = Path(__file__).with_name("stiffness_templates.yaml")
 STIFFNESS_TEMPLATES: dict[str, Template] = load_templates(STIFFNESS_FILE)  # chosen by name only
-ALL_TEMPLATES: dict[str, Template] = {**TEMPLATES, **STIFFNESS_TEMPLATES}
+PHYSICAL_FILE = Path(__file__).with_name("physical_templates.yaml")
+PHYSICAL_TEMPLATES: dict[str, Template] = load_templates(PHYSICAL_FILE)  # chosen by name only
+ALL_TEMPLATES: dict[str, Template] = {**TEMPLATES, **STIFFNESS_TEMPLATES, **PHYSICAL_TEMPLATES}

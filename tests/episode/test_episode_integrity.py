@@ -21,7 +21,7 @@ from muble_plugins.common.synthetic import sample_scene
 
 from tests.episode.probes import INVALID_CALLS, FailingWorld, Scripted, Snoop, hidden_values
 
-# Every registered template (the stiffness family included), so a new one is covered by the snooping test.
+# Every registered template (the stiffness and physical families included), so a new one is covered by the snooping test.
 TEMPLATES = tuple(get_registry().names("task"))
 
 
@@ -29,7 +29,8 @@ def instruction_for(template: str, seed: int = 0, tries: int = 200):
     task = get_registry().create("task", template, {})
     for index in range(tries):
         scene = sample_scene(np.random.default_rng([seed, index]), index,
-                             stiffness_rng=np.random.default_rng([seed, index, 5]))
+                             stiffness_rng=np.random.default_rng([seed, index, 5]),
+                             properties_rng=np.random.default_rng([seed, index, 6]))
         found = task.generate(scene, np.random.default_rng([seed, index, 1]))
         if found:
             return task, found[0], scene
