@@ -137,7 +137,7 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
               "held": None if step.scene_gt is None else ArmState.of(step.scene_gt).held}
              for step in result.steps]
     return {**out, "outcome": result.outcome.value, "primitives": [str(a) for a in result.actions], "steps": steps,
-            "measurements": sum(1 for a in result.actions if a.name in measuring),
+            "measurements": sum(1 for step in result.steps if step.action.name in measuring and step.result.success),
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
             "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None,

@@ -7,8 +7,9 @@ whichever executor or worker count produced them; wall-time figures are kept in 
 Efficiency is told beside success in two numbers. ``spl`` (success weighted by primitive count, after the "success
 weighted by path length" of navigation benchmarks) is the mean over episodes with a ground-truth plan of
 ``success * gt / max(gt, used)``: 1 for an agent that always succeeds with no more primitives than the oracle's
-plan, less for detours, 0 for failures. ``measurement_ratio`` is the measurements (weighing, squeezing) an agent
-made over those the ground-truth plans needed: above 1 it measures more than the task asks, below 1 it guesses.
+plan, less for detours, 0 for failures. ``measurement_ratio`` is the measurements (weighing, squeezing, pushing …) an
+agent made, the measuring primitives that succeeded (a failed one read nothing), over those the ground-truth plans
+needed: above 1 it measures more than the task asks, below 1 it guesses.
 
 An agent that counts its own costs (``stats()``, e.g. tokens and requests of a model behind an endpoint) has them
 summed per task type and overall in ``agent_stats`` (``agent_totals``), with two figures derived from the usual

@@ -413,10 +413,10 @@ class TabletopEnv:
         """Stiffness (N/m) of the object between the fingers (``muble.sim.measure.squeeze``)."""
         return measure.squeeze(self)
 
-    def push(self, strokes, steady: tuple[float, float]) -> probing.PushReading:
+    def push(self, strokes, steady: tuple[float, float], weight_g: float | None = None) -> probing.PushReading:
         """Friction coefficient of the held object on the table, pushed along it by the ``(trajectory,
-        direction)`` strokes (``muble.sim.probing.push``); needs its measured weight."""
-        return probing.push(self, strokes, steady)
+        direction)`` strokes (``muble.sim.probing.push``), its weight ``weight_g`` (default: the measured one)."""
+        return probing.push(self, strokes, steady, weight_g)
 
     def balance(self, tilts=()) -> np.ndarray:
         """Horizontal offset (m, object frame) of the lifted object's centre of mass from its origin, read held

@@ -37,8 +37,9 @@ def mean_wrist_force(env, window: float = WEIGH_WINDOW) -> np.ndarray:
     return total / count
 
 
-def weigh(env, settle: float = WEIGH_SETTLE, window: float = WEIGH_WINDOW) -> float:
-    """Weight in grams of what the hand holds: hold still, read the wrist force, subtract the tare, divide by g.
+def weigh(env, settle: float = WEIGH_SETTLE, window: float = WEIGH_WINDOW, record: bool = True) -> float:
+    """Weight in grams of what the hand holds: hold still, read the wrist force, subtract the tare, divide by g;
+    recorded as the held object's measured weight (``env.measurements``) unless ``record`` is false.
 
     Needs a tare taken with the empty hand (``env.tare()``, before grasping).
     """
@@ -49,7 +50,7 @@ def weigh(env, settle: float = WEIGH_SETTLE, window: float = WEIGH_WINDOW) -> fl
     # Sign measured: a held load adds +z to the world-frame reading of this sensor.
     extra = force - env.tare_force
     grams = float(extra[2] / GRAVITY * 1000.0)
-    if env.held_object is not None:
+    if record and env.held_object is not None:
         env.measurements.setdefault(env.held_object, {})["weight"] = grams
     return grams
 

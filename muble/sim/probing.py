@@ -154,7 +154,7 @@ class PushReading:
     stalled: bool = False
 
 
-def push(env, strokes, steady: tuple[float, float]) -> PushReading:
+def push(env, strokes, steady: tuple[float, float], weight_g: float | None = None) -> PushReading:
     """Friction coefficient between the held object and the table: the object, held where it stands, is pushed
     along the table by each of ``strokes`` (``(trajectory, direction)``: a straight move of the hand, the unit
     horizontal direction it travels), sampled at every physics step while the hand has travelled between
@@ -162,13 +162,13 @@ def push(env, strokes, steady: tuple[float, float]) -> PushReading:
     slowing down).
 
     At steady speed the arm pulls the hand along with the table's friction on the object, ``F·d``, and holds up
-    ``F_z`` of the object's weight ``W`` (the weight measured in this episode, ``weigh``), so the table carries
+    ``F_z`` of the object's weight ``W`` (``weight_g``, else the weight measured in this episode), so the table carries
     ``N = W - F_z`` (more than ``W`` where the hand presses down). The coefficient is ``mean(F·d) / mean(N)`` over
     the steady samples of the strokes the arm kept up with (``PUSH_LAG``). Held in the hand, the object slides as
     fast as the hand, never faster or by fits and starts, and cannot tip: pushed by a finger it hops on its stiff
     contacts at every speed, and its friction falls short of the coefficient while it does."""
     obj_id = _held(env)
-    grams = env.measurements.get(obj_id, {}).get("weight")
+    grams = weight_g if weight_g is not None else env.measurements.get(obj_id, {}).get("weight")
     if grams is None:
         raise PhysicsError(f"object {obj_id} has no measured weight: weigh it before pushing it")
     weight = float(grams) / 1000.0 * GRAVITY

@@ -5,8 +5,7 @@ measurement (a sub-goal: weigh, squeeze, push, balance or shake those objects) o
 object held up, objects on a table part, or a stack. Each goal expands backwards into the primitives whose
 preconditions lead to it: placing needs a lifted object, lifting needs grasping, grasping needs approaching,
 approaching needs the gripper over the object; weighing, balancing and shaking need a lifted object, squeezing
-only a grasped one (it is squeezed where it stands and let go again), and pushing one grasped standing on the
-table whose weight is known (weighed, set down where it was and grasped again) (``MEASURE``). Planning always starts from the observed state, so the oracle can replan after
+and pushing only a grasped one standing where it is (``MEASURE``). Planning always starts from the observed state, so the oracle can replan after
 every primitive.
 """
 from __future__ import annotations
@@ -98,10 +97,8 @@ def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> lis
 
 
 def _push(obj_id: int, arm: ArmState, scene: SceneGraph) -> list[ActionCall]:
-    """Measure the friction of ``obj_id``: pushing divides by its weight, so it is weighed first, then set down
-    where it was (lowering lets go) and grasped again standing, and pushed."""
-    if scene.object(obj_id).weight is None:
-        return hold_up(obj_id, arm) + [ActionCall(WEIGH)]
+    """Measure the friction of ``obj_id``: grasped standing on the table (one held up is set down first, which
+    lets it go), pushed."""
     if arm.held == obj_id and arm.raised:
         return [ActionCall(LOWER)]
     return grasp(obj_id, arm) + [ActionCall(PUSH)]

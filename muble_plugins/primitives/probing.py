@@ -19,6 +19,7 @@ from muble.core.symbolic import ArmState
 from muble.stage.geometry import tilt_deg
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
+from muble_plugins.primitives.common import ATTEMPT, rotated
 
 logger = logging.getLogger(__name__)
 
@@ -37,6 +38,13 @@ PUSH_SPEED = 0.05  # m/s of the hand, steady in the middle of each stroke
 PUSH_STEP = 0.002
 PUSH_SPEED_UP = 0.02
 PUSH_SLOW_DOWN = 0.015
+# m the held object is lifted off the table to be weighed first, when its weight is not measured in this episode;
+# it stays in the hand and is set down where it stood.
+PUSH_WEIGH_LIFT = 0.015
+# A retried push (``attempt`` k) starts from the k-th of the directions, and goes this factor slower and shorter
+# per attempt, down to the least speed and distance: the arm falls behind a push on a high-friction object and
+# keeps up with a slower one, and a shorter stroke fits between close neighbours.
+PUSH_RETRY_SLOWER = 0.8
 
 SHAKE_AMPLITUDE = 0.02  # m either side of where the hand holds the object
 SHAKE_PERIOD = 0.5  # s a swing: 2 Hz, 3 m/s² at the ends of 2 cm, enough to roll a loose ball from wall to wall
@@ -73,12 +81,16 @@ def _lifted(env, action: str) -> tuple[int | None, ActionResult | None]:
 class Push(PrimitiveAction):
     """Friction coefficient (no unit) of the held object on the table: held where it stands on the table, it is
     pushed ``distance`` along ``direction`` at a slow steady ``speed`` and back again; the wrist force along the
-    push divided by the force the table carries (the measured weight less what the hand holds up). Needs the
-    object's weight measured in this episode (``weigh``)."""
+    push divided by the force the table carries (the object's weight less what the hand holds up). The weight is
+    the one measured in this episode (``weigh``); without one, the object is first lifted ``PUSH_WEIGH_LIFT`` in
+    the hand, read still as ``weigh`` reads it, and set down where it stood (that reading serves the push only).
+    ``attempt`` k (a retry) starts from the k-th direction and pushes ``PUSH_RETRY_SLOWER`` slower and shorter per
+    attempt."""
 
     params = (DIRECTION,
               Param("distance", "number", low=0.05, high=0.15, doc="m, there and back"),
-              Param("speed", "number", low=0.03, high=0.1, doc="m/s, steady in the middle of each stroke"))
+              Param("speed", "number", low=0.03, high=0.1, doc="m/s, steady in the middle of each stroke"),
+              ATTEMPT)
     measures = "friction"
     measure_unit = ""
 
@@ -87,16 +99,21 @@ class Push(PrimitiveAction):
         if held is None:
             return ActionResult(False, failure_reason="nothing in the hand to push: grasp an object that stands on "
                                                       "the table first")
-        if "weight" not in env.measurements.get(held, {}):
-            return ActionResult(False, failure_reason=f"object {held} has no measured weight: weigh it first (the "
-                                                      "table's share of it is the friction's normal force)")
         problem = _settle_on_table(env, held)
         if problem:
             return ActionResult(False, failure_reason=problem)
-        distance = float(self.arguments.get("distance", PUSH_DISTANCE))
-        speed = float(self.arguments.get("speed", PUSH_SPEED))
-        direction, strokes = self._plan(env, distance, speed)
-        reading = env.push(strokes, (PUSH_SPEED_UP, distance - PUSH_SLOW_DOWN))
+        grams = env.measurements.get(held, {}).get("weight")
+        if grams is None:
+            grams, problem = _weigh_where_it_stands(env, held)
+            if problem:
+                return ActionResult(False, failure_reason=problem)
+        attempt = int(self.arguments.get("attempt", 0))
+        bounds = {p.name: p.low for p in self.params}
+        retry = PUSH_RETRY_SLOWER ** attempt
+        distance = max(bounds["distance"], float(self.arguments.get("distance", PUSH_DISTANCE)) * retry)
+        speed = max(bounds["speed"], float(self.arguments.get("speed", PUSH_SPEED)) * retry)
+        direction, strokes = self._plan(env, distance, speed, attempt)
+        reading = env.push(strokes, (PUSH_SPEED_UP, distance - PUSH_SLOW_DOWN), grams)
         info = {"object": held, "direction": direction[:2].tolist(), "normal_force": reading.normal,
                 "samples": reading.samples}
         if env.held_object != held:
@@ -109,7 +126,7 @@ class Push(PrimitiveAction):
                                                                  "pushed (it was lifted off it)")
         return ActionResult(True, measurement=reading.friction, info=info)
 
-    def _plan(self, env, distance: float, speed: float):
+    def _plan(self, env, distance: float, speed: float, attempt: int = 0):
         """The first direction the held object can be pushed along and back: (direction, strokes)."""
         world = env.collision_world()  # carrying the held object
         world.allow_contact([env.table().body])  # it slides on the table, the fingers close above it
@@ -117,7 +134,7 @@ class Push(PrimitiveAction):
                                      {"speed": speed, "step": PUSH_STEP, "max_distance": distance + 0.01})
         start_q, pose = env.arm_q(), env.ee_pose()
         reasons = []
-        for direction in _directions(self.arguments.get("direction")):
+        for direction in rotated(_directions(self.arguments.get("direction")), attempt):
             there = PoseGoal(Pose(pose.pos + distance * direction, pose.quat), *tol.VELOCITY)
             back = PoseGoal(pose, *tol.VELOCITY)
             try:
@@ -136,8 +153,6 @@ class Push(PrimitiveAction):
         held = hand.held_object(scene)
         if held is None or hand.raised:
             return ActionResult(False, failure_reason="pushing needs a grasped object standing on the table")
-        if held.weight is None:
-            return ActionResult(False, failure_reason=f"object {held.id} has no measured weight: weigh it first")
         friction = physical_properties.friction_of(held)
         if friction is None:
             return ActionResult(False, failure_reason=f"object {held.id} has no friction coefficient to measure")
@@ -146,10 +161,13 @@ class Push(PrimitiveAction):
 
 
 # m above the table within which a held object is set down on it before it is pushed: a gripper may lift what it
-# grasps by a fraction of a millimetre as its pads close; PUSH_PRESS further down makes sure it rests (the hand's
-# servos give a little, so it then presses with a newton or so), reached within PUSH_SET_DOWN_TOLERANCE.
-PUSH_SET_DOWN = 0.005
+# grasps as its pads close (by a fraction of a millimetre, or by a centimetre where a linkage gripper's pads slide
+# up a tapered side), and a push that weighs first leaves it PUSH_WEIGH_LIFT up where setting it down failed;
+# PUSH_PRESS further down makes sure it rests (the hand's servos give a little, so it then presses with a newton
+# or so), reached within PUSH_SET_DOWN_TOLERANCE.
+PUSH_SET_DOWN = 0.02
 PUSH_PRESS = 0.0002
+PUSH_PRESSES = (PUSH_PRESS, 5 * PUSH_PRESS, 15 * PUSH_PRESS)
 PUSH_SET_DOWN_TOLERANCE = (0.0001, 0.01)
 
 
@@ -162,11 +180,49 @@ def _settle_on_table(env, obj_id: int) -> str | None:
         return problem
     world = env.collision_world()
     world.allow_contact([env.table().body])
-    pose = env.ee_pose()
-    down = PoseGoal(Pose(pose.pos - [0.0, 0.0, gap + PUSH_PRESS], pose.quat), *PUSH_SET_DOWN_TOLERANCE)
-    trajectory = ctx.straight_line_planner(env).plan(env.arm_q(), down, world)
-    env.follow(trajectory, settle=tol.STEP_SETTLE)
+    for press in PUSH_PRESSES:  # a stiff grip may keep it a hair above the table: press further the next time
+        pose = env.ee_pose()
+        down = PoseGoal(Pose(pose.pos - [0.0, 0.0, gap + press], pose.quat), *PUSH_SET_DOWN_TOLERANCE)
+        trajectory = ctx.straight_line_planner(env).plan(env.arm_q(), down, world)
+        env.follow(trajectory, settle=tol.STEP_SETTLE)
+        problem = _not_on_table(env, obj_id)
+        gap = _height_above_table(env, obj_id)
+        if problem is None or not 0.0 < gap <= PUSH_SET_DOWN:
+            return problem
+    # Still held a hair above it: let go, so that it stands on the table, and grasp it again where it stands.
+    from muble_plugins.primitives.gripper import GRIPPER_SETTLE, GRIPPER_SETTLE_MAX
+
+    env.open_gripper()
+    env.hold(GRIPPER_SETTLE)
+    env.close_gripper()
+    env.hold(GRIPPER_SETTLE)
+    waited = GRIPPER_SETTLE
+    while env.held_object is None and waited < GRIPPER_SETTLE_MAX:
+        env.hold(tol.STEP_SETTLE)
+        waited += tol.STEP_SETTLE
+    if env.held_object != obj_id:
+        return f"object {obj_id} slipped out of the hand while it was set down on the table to be pushed"
     return _not_on_table(env, obj_id)
+
+
+def _weigh_where_it_stands(env, obj_id: int) -> tuple[float | None, str | None]:
+    """The held object's weight (g), read lifted ``PUSH_WEIGH_LIFT`` off the table and still, as ``weigh`` reads
+    it (not recorded as a measurement of the episode), then set down where it stood: (grams, None), or (None, why
+    not)."""
+    from muble.sim.measure import weigh
+
+    world = env.collision_world()
+    world.allow_contact([env.table().body])
+    planner = ctx.straight_line_planner(env)
+    pose = env.ee_pose()
+    up = PoseGoal(Pose(pose.pos + [0.0, 0.0, PUSH_WEIGH_LIFT], pose.quat), *tol.FREE)
+    env.follow(planner.plan(env.arm_q(), up, world), settle=tol.STEP_SETTLE)
+    if env.held_object != obj_id or not env.is_lifted(obj_id):
+        return None, f"object {obj_id} did not come off the table in the hand to be weighed before the push"
+    grams = weigh(env, record=False)
+    down = PoseGoal(Pose(pose.pos - [0.0, 0.0, PUSH_PRESS], pose.quat), *PUSH_SET_DOWN_TOLERANCE)
+    env.follow(planner.plan(env.arm_q(), down, world), settle=tol.STEP_SETTLE)
+    return grams, _settle_on_table(env, obj_id)
 
 
 def _height_above_table(env, obj_id: int) -> float:

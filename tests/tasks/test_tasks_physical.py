@@ -90,9 +90,7 @@ def test_oracle_solves_every_physical_instruction_measuring_only_what_it_compare
         prop = NEEDS[step["type"]]
         compared = ins.program[ins.program.index(step) - 1]["output"]
         assert sorted(measured[prop]) == sorted(compared), (ins.instruction, dict(measured), compared)
-        # Nothing else is measured, but the weight of what is pushed (push divides by it).
-        assert set(measured) <= {prop, "weight"}
-        assert sorted(measured.get("weight", [])) == (sorted(compared) if prop == "friction" else [])
+        assert set(measured) == {prop}, "nothing else is measured"
 
 
 def test_properties_stay_hidden_until_measured_and_then_show_what_was_measured(generated):
