@@ -46,6 +46,7 @@ CPU_NOTE = ("Generation is written to give the same files on every CPU (fixed-or
             "another MuBlE generator or object set, other physics versions (mujoco, robosuite, numpy, scipy) or a "
             "decision that a last-bit difference between CPUs still flips (docs/protocol.md, \"The same on every "
             "CPU\"). The shipped files are the protocol's: `muble data` writes them and `muble eval` uses them")
+SPLIT_GROUPS = ("objects", "generator", "dataset")  # the config groups a protocol's splits may set
 PROTOCOL_FILE = "protocol_{split}.json"  # written at the dataset root beside manifest.json
 
 
@@ -79,15 +80,16 @@ def _merge(base: dict[str, Any], extra: dict[str, Any] | None) -> dict[str, Any]
 
 
 def split_config(config: dict[str, Any], split: str) -> dict[str, Any]:
-    """``config`` (resolved, plain) as it produces ``split``: the protocol's common ``objects`` and ``generator``
-    settings, then the split's own, merged over the run's. Unchanged without a protocol or for a split the
+    """``config`` (resolved, plain) as it produces ``split``: the protocol's common ``objects``, ``generator`` and
+    ``dataset`` settings, then the split's own (a family's split names its templates under ``dataset``), merged
+    over the run's. Unchanged without a protocol or for a split the
     protocol does not name (``muble generate`` refuses those before any work)."""
     protocol = protocol_of(config)
     if protocol is None or split not in (protocol.get("splits") or {}):
         return config
     spec = protocol["splits"][split]
     out = dict(config)
-    for group in ("objects", "generator"):
+    for group in SPLIT_GROUPS:
         out[group] = _merge(_merge(config[group], (protocol.get("common") or {}).get(group)), spec.get(group))
     return out
 

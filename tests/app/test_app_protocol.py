@@ -139,7 +139,7 @@ def test_eval_labels_only_the_protocols_data(tmp_path):
 
 # --- regeneration on every CPU setting ---------------------------------------------------------------------------
 # (split, first index, count): in-distribution scenes, a held-out split's, and a jittered camera's and lamps'.
-SAMPLE = [("mini", 0, 3), ("perturbed_views", 0, 1), ("unseen_objects", 7, 1)]
+SAMPLE = [("mini", 0, 3), ("perturbed_views", 0, 1), ("unseen_objects", 7, 1), ("physical", 0, 2)]
 
 
 def _regenerate(tmp_path: Path, label: str, env: dict[str, str], workers: int = 1) -> dict[str, str]:
