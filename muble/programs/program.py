@@ -120,8 +120,9 @@ class _NeedMeasurement(Exception):
 class Quantity:
     """A hidden property a program compares or asks for, known to an agent only once it measured it.
 
-    ``truth`` reads the ground truth of an object (None: the scene gives none), ``measured`` what the agent measured
-    of it (None: not yet), both as the value a query answers; ``rank`` turns a value into the number filters and
+    ``truth`` reads the ground truth of an object (None: the scene gives none) as the value a query answers,
+    ``measured`` what the agent measured of it as the primitive reported it (None: not yet), and ``reading`` turns
+    such a report into that value (a centre of mass's [x, y] mm into its distance from the centre); ``rank`` turns a value into the number filters and
     orders compare. ``superlatives`` are the words of ``filter_<step>``, the first picking the largest value; a
     quantity without them is a yes/no property whose ``filter_<step>`` keeps the objects that have it (``values``:
     the words for yes and no).
@@ -136,6 +137,7 @@ class Quantity:
     orders: tuple[str, ...] = WEIGHT_ORDERS
     values: tuple[str, str] = ()
     rank: Callable[[Any], float] = float
+    reading: Callable[[Any], Any] = lambda value: value
 
 
 def _measured_extra(name: str) -> Callable[[SceneObject], Any]:
@@ -153,7 +155,7 @@ QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
     Quantity("stiffness", "stiffness", "squeeze", lambda o: o.stiffness, _measured_extra("stiffness"), STIFFNESS_SUPERLATIVES),
     Quantity("friction", "friction", "push", physical.friction_of, _measured_extra("friction"), FRICTION_SUPERLATIVES),
     Quantity("com_offset", "com_offset", "balance", lambda o: _offset_mm(physical.com_offset_mm(o)),
-             lambda o: _offset_mm(o.extra.get(MEASURED_EXTRA["com_offset"])), COM_SUPERLATIVES),
+             _measured_extra("com_offset"), COM_SUPERLATIVES, reading=_offset_mm),
     Quantity("rattles", "rattles", "shake", lambda o: None if o.extra.get(physical.CONTENTS) is None else physical.rattles(o),
              _measured_extra("rattles"), values=RATTLE_VALUES, orders=()),
 )}
@@ -180,7 +182,8 @@ class _Context:
                                     f"for it needs a scene whose objects carry one")
             return out
         known = self.known.get(quantity.name, {})
-        out = [known[i] if i in known else quantity.measured(self.by_id[i]) for i in ids]
+        raw = [known[i] if i in known else quantity.measured(self.by_id[i]) for i in ids]
+        out = [None if v is None else quantity.reading(v) for v in raw]
         missing = [i for i, v in zip(ids, out) if v is None]
         if missing:
             raise _NeedMeasurement(quantity.name, missing)

@@ -128,3 +128,17 @@ def test_answers_are_judged_within_the_primitives_accuracy(generated, template, 
     assert check(ins, scene, Answer(wrong(truth))) is Outcome.INCORRECT_ANSWER
     assert check(ins, scene, Answer({ins.program[-2]["output"][0]: right(truth)[0]})) is Outcome.SUCCESS
     assert check(ins, scene, Answer(["maybe"])) is Outcome.INCORRECT_ANSWER
+
+
+def test_measurements_known_to_the_program_count_as_the_primitives_report_them(generated):
+    """A centre of mass is reported as [x, y] mm (``balance``) and compared by its distance from the centre."""
+    name, task, ins, scene = next(g for g in generated if g[0] == "pick_up_com")
+    at = next(k for k, s in enumerate(ins.program) if s["type"] in NEEDS)
+    compared = ins.program[at - 1]["output"]
+    view = SymbolicWorld(scene).observe(None, 0).scene
+    readings = {i: physical_properties.com_offset_mm(scene.object(i)) for i in compared}
+    trace = execute(ins.program, view, known={"com_offset": readings})
+    assert trace.complete and trace.final == ins.program[-1]["output"]
+    swapped = {i: [0.0, 0.0] if i == trace.final[0] else [30.0, 40.0] for i in compared}  # 50 mm off: the others
+    picked = execute(ins.program, view, known={"com_offset": swapped}).final
+    assert picked != trace.final if ins.program[at]["input_value"] == "furthest off-centre" else picked == trace.final
