@@ -4,8 +4,8 @@ contents (``shake``), on sampled SHOP-VRB2 objects with both grippers (docs/phys
 Every object stands alone on the table (x 0.4-0.6 m, y -0.15-0.15 m, its natural pose), built by the object set
 with one property sampled as the scene generator samples it (``muble.core.physical_properties.sampled``):
 - friction coefficient uniform in [0.3, 1.0] (``FRICTION_RANGE``): picked (``move``, ``approach``,
-  ``close_gripper``), lifted and weighed, set back as it was picked (the snapshot before lifting: the hand holds it
-  standing on the table, its measured weight kept), then pushed there and back; right within ±10 %;
+  ``close_gripper``) and pushed there and back as it stands, as an agent does (``push`` weighs it in the hand
+  first); right within ±10 %;
 - centre of mass uniform over a disc of radius ``COM_RADIUS_SHARE`` of the smaller horizontal extent about the base
   centre: picked, lifted, balanced; right within 5 mm (distance between the readings and the true offset);
 - loose contents in half of the closed containers (``CONTENTS_PROBABILITY``), ``CONTENTS_G`` grams (at most
@@ -85,15 +85,12 @@ def measure_one(job: tuple) -> dict:
             result = _act(env, name, **params)
             if not result.success:
                 return {**out, "skipped": f"{name}: {result.failure_reason}"}
-        standing = env.snapshot()
-        result = _act(env, "lift")
-        if not result.success:
-            return {**out, "skipped": f"lift: {result.failure_reason}"}
         if prop == "friction":
-            _act(env, "weigh")
-            env.restore(standing)  # held where it stands again; the measured weight is kept
             result = _act(env, "push")
         else:
+            result = _act(env, "lift")
+            if not result.success:
+                return {**out, "skipped": f"lift: {result.failure_reason}"}
             result = _act(env, "balance" if prop == "com" else "shake")
     except MubleError as e:
         return {**out, "skipped": f"{type(e).__name__}: {str(e)[:160]}"}
