@@ -122,3 +122,27 @@ def test_a_small_trained_planner_solves_unseen_symbolic_episodes(tmp_path):
     assert total >= 25
     assert solved >= 0.8 * total, f"{solved}/{total}"
     assert len(templates) >= 6
+
+
+def test_a_planner_trained_on_the_physical_family_pushes_balances_and_shakes(tmp_path):
+    """trainer.templates names the family: a small planner learns to measure friction, centre of mass and
+    contents (push, balance, shake) and solves most physical instructions of seed-disjoint scenes."""
+    from muble_plugins.tasks.templates import PHYSICAL_TEMPLATES
+
+    family = tuple(PHYSICAL_TEMPLATES)
+    PlannerTrainer(scenes=30, epochs=6, validation_scenes=0, batch_size=64,
+                   templates=list(family)).train(_run(tmp_path / "run", seed=1))
+    agent = LearnedPlannerAgent(checkpoint=str(tmp_path / "run" / "planner.pt"))
+    solved, total, used = 0, 0, set()
+    for index in range(6):
+        scene = scene_for(1, index, True)
+        for instruction in instructions_for(scene, 1, index, True, family):
+            result = run_symbolic_episode(instruction, scene, agent)
+            total += 1
+            solved += result.outcome is Outcome.SUCCESS
+            used |= {a.name for a in result.actions}
+    assert total >= 15
+    assert solved >= 0.8 * total, f"{solved}/{total}"
+    assert {"push", "balance", "shake"} <= used
+    with pytest.raises(ConfigError, match="trainer.templates"):
+        PlannerTrainer(templates=["no_such_template"])
