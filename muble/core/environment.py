@@ -158,16 +158,17 @@ class Environment(Protocol):
     def tare(self) -> np.ndarray:
         """Remember the current wrist force as the zero for weighing."""
 
-    def weigh(self) -> float:
-        """Weight in grams of the object in the hand, from the wrist force sensor."""
+    def weigh(self, record: bool = True) -> float:
+        """Weight in grams of the object in the hand, from the wrist force sensor; recorded in ``measurements``
+        unless ``record`` is false."""
 
     def squeeze(self) -> float:
         """Stiffness (N/m) of the object between the fingers, from force against finger displacement."""
 
-    def push(self, strokes: Any, steady: tuple[float, float]) -> Any:
+    def push(self, strokes: Any, steady: tuple[float, float], weight_g: float | None = None) -> Any:
         """Push the held object, standing on the table, along it: ``strokes`` are ``(trajectory, direction)``
         pairs (straight hand moves, their unit horizontal directions), ``steady`` the travel (m) within each
-        stroke over which the wrist force is read; needs the object's measured weight. Returns a reading with
+        stroke over which the wrist force is read; its weight ``weight_g``, by default the measured one. Returns a reading with
         ``friction`` (the coefficient, NaN without a steady stretch), ``normal`` (N) and ``samples``."""
 
     def balance(self, tilts: Any = ()) -> np.ndarray:

@@ -59,12 +59,11 @@ SCENE_OBJECTS = declare("scene.objects", "a scene sample's object count, models,
 SCENE_LAYOUT = declare("scene.layout", "a scene sample's object placements on the table (index, sample)")
 CAMERA_JITTER = declare("scene.camera_jitter", "a scene's camera offset and turn (index)")
 LAMP_JITTER = declare("scene.lamp_jitter", "a scene's lamp offsets and energies (index)")
-# The hidden physical properties (muble.core.physical_properties), one stream each, drawn per layout tried, per
-# object that carries the property, in scene order.
-SCENE_FRICTION = declare("scene.friction", "a scene sample's friction coefficients of its objects (index, sample)")
-SCENE_COM_OFFSET = declare("scene.com_offset", "a scene sample's centre-of-mass offsets of its objects (index, "
-                           "sample)")
-SCENE_CONTENTS = declare("scene.contents", "a scene sample's loose contents of its closed containers (index, sample)")
+# The hidden physical properties (muble.core.physical_properties), one stream each ("scene.<property>"), drawn
+# per layout tried, per object that carries the property, in scene order.
+PROPERTY_STREAMS = {name: declare(f"scene.{name}", f"a scene sample's {what} (index, sample)") for name, what in (
+    ("friction", "friction coefficients of its objects"), ("com_offset", "centre-of-mass offsets of its objects"),
+    ("contents", "loose contents of its closed containers"))}
 INSTRUCTION = declare("episode.instruction", "the instruction a template draws for a scene (index)")
 TEMPLATE_MIX = declare("split.template_mix", "the order of templates within a block of a split (block)")
 COUNT_MIX = declare("split.count_mix", "the order of object counts within a block of a split (block)")

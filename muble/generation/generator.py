@@ -41,8 +41,7 @@ WEIGHT_RESAMPLES = 30
 # a dataset folder records it, so one made by another version is not resumed into a mix of both.
 GENERATOR_VERSION = 2
 # The stream each hidden physical property (``muble.core.physical_properties.PROPERTIES``) is drawn from.
-PROPERTY_STREAMS = {"friction": streams.SCENE_FRICTION, "com_offset": streams.SCENE_COM_OFFSET,
-                    "contents": streams.SCENE_CONTENTS}
+PROPERTY_STREAMS = streams.PROPERTY_STREAMS
 
 
 @dataclasses.dataclass(frozen=True)

@@ -405,9 +405,10 @@ class TabletopEnv:
             world.hold(self.names.objects[self.held_object])
         return world
 
-    def weigh(self) -> float:
-        """Weight in grams of the object in the hand (``muble.sim.measure.weigh``); needs a tare."""
-        return measure.weigh(self)
+    def weigh(self, record: bool = True) -> float:
+        """Weight in grams of the object in the hand (``muble.sim.measure.weigh``); needs a tare. Recorded in
+        ``measurements`` unless ``record`` is false."""
+        return measure.weigh(self, record=record)
 
     def squeeze(self) -> float:
         """Stiffness (N/m) of the object between the fingers (``muble.sim.measure.squeeze``)."""

@@ -15,6 +15,18 @@ GRIPPER_SETTLE = 0.6  # s for the fingers to travel fully and the weld to engage
 GRIPPER_SETTLE_MAX = 1.2  # s at most, while no object is held yet
 
 
+def close_on_object(env) -> int | None:
+    """Close the fingers and wait for the grasp weld to engage; the object then held, or None."""
+    env.close_gripper()
+    env.hold(GRIPPER_SETTLE)
+    waited = GRIPPER_SETTLE
+    while env.held_object is None and waited < GRIPPER_SETTLE_MAX:
+        # A linkage gripper's jaws may still be closing onto a thin part (a stem, a rim).
+        env.hold(tol.STEP_SETTLE)
+        waited += tol.STEP_SETTLE
+    return env.held_object
+
+
 class CloseGripper(PrimitiveAction):
     """Close the fingers; succeeds when they hold an object (the grasp weld engaged).
 
@@ -24,14 +36,7 @@ class CloseGripper(PrimitiveAction):
     params = (Param("target", "object", doc="the object expected between the fingers"),)
 
     def execute(self, env) -> ActionResult:
-        env.close_gripper()
-        env.hold(GRIPPER_SETTLE)
-        waited = GRIPPER_SETTLE
-        while env.held_object is None and waited < GRIPPER_SETTLE_MAX:
-            # A linkage gripper's jaws may still be closing onto a thin part (a stem, a rim).
-            env.hold(tol.STEP_SETTLE)
-            waited += tol.STEP_SETTLE
-        held = env.held_object
+        held = close_on_object(env)
         if held is None:
             return ActionResult(False, failure_reason="the fingers closed on nothing: approach an object first")
         target = self.arguments.get("target")

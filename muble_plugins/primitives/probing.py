@@ -190,17 +190,11 @@ def _settle_on_table(env, obj_id: int) -> str | None:
         if problem is None or not 0.0 < gap <= PUSH_SET_DOWN:
             return problem
     # Still held a hair above it: let go, so that it stands on the table, and grasp it again where it stands.
-    from muble_plugins.primitives.gripper import GRIPPER_SETTLE, GRIPPER_SETTLE_MAX
+    from muble_plugins.primitives.gripper import GRIPPER_SETTLE, close_on_object
 
     env.open_gripper()
     env.hold(GRIPPER_SETTLE)
-    env.close_gripper()
-    env.hold(GRIPPER_SETTLE)
-    waited = GRIPPER_SETTLE
-    while env.held_object is None and waited < GRIPPER_SETTLE_MAX:
-        env.hold(tol.STEP_SETTLE)
-        waited += tol.STEP_SETTLE
-    if env.held_object != obj_id:
+    if close_on_object(env) != obj_id:
         return f"object {obj_id} slipped out of the hand while it was set down on the table to be pushed"
     return _not_on_table(env, obj_id)
 
@@ -209,8 +203,6 @@ def _weigh_where_it_stands(env, obj_id: int) -> tuple[float | None, str | None]:
     """The held object's weight (g), read lifted ``PUSH_WEIGH_LIFT`` off the table and still, as ``weigh`` reads
     it (not recorded as a measurement of the episode), then set down where it stood: (grams, None), or (None, why
     not)."""
-    from muble.sim.measure import weigh
-
     world = env.collision_world()
     world.allow_contact([env.table().body])
     planner = ctx.straight_line_planner(env)
@@ -219,7 +211,7 @@ def _weigh_where_it_stands(env, obj_id: int) -> tuple[float | None, str | None]:
     env.follow(planner.plan(env.arm_q(), up, world), settle=tol.STEP_SETTLE)
     if env.held_object != obj_id or not env.is_lifted(obj_id):
         return None, f"object {obj_id} did not come off the table in the hand to be weighed before the push"
-    grams = weigh(env, record=False)
+    grams = env.weigh(record=False)
     down = PoseGoal(Pose(pose.pos - [0.0, 0.0, PUSH_PRESS], pose.quat), *PUSH_SET_DOWN_TOLERANCE)
     env.follow(planner.plan(env.arm_q(), down, world), settle=tol.STEP_SETTLE)
     return grams, _settle_on_table(env, obj_id)
