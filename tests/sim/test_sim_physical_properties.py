@@ -210,3 +210,26 @@ def test_sim_a_container_with_contents_is_as_tall_and_as_heavy_as_without(object
         tops.append(env.object_top(0))
         assert env.collision_world().is_valid(env.arm_q())
     assert tops[1] == pytest.approx(tops[0], abs=1e-4)
+
+
+def test_sim_a_loose_ball_spinning_fast_is_no_physics_fault_but_a_runaway_one_is(object_set):
+    """A can that falls over knocks its 1 cm ball to 100 rad/s and more (1 m/s at its surface): the fault detector
+    holds a ball's turning to the speed limit at its surface, everything else as before."""
+    import mujoco
+
+    from muble.core.errors import PhysicsError
+
+    can = _sampled(object_set, "soda can", 5, contents_mass=0.02)
+    env = TabletopEnv(simple_scene([(0.5, 0.05)], [can]), {0: can}, visual=False)
+    m, d = env.model, env.data
+    ball = m.jnt_dofadr[m.joint("obj0_contents_joint").id]
+    can_dof = m.jnt_dofadr[[j for j in range(m.njnt) if m.jnt_bodyid[j] == m.body("obj0").id][0]]
+    d.qvel[ball + 3:ball + 6] = [0.0, 120.0, 0.0]
+    env.faults.check(d)  # 120 rad/s of a ball of at most 1 cm: 1.2 m/s at its surface
+    d.qvel[ball:ball + 3] = [60.0, 0.0, 0.0]
+    with pytest.raises(PhysicsError, match="unstable"):
+        env.faults.check(d)
+    mujoco.mj_resetData(m, d)
+    d.qvel[can_dof + 3:can_dof + 6] = [0.0, 120.0, 0.0]  # the can itself turning that fast is a fault
+    with pytest.raises(PhysicsError, match="unstable"):
+        env.faults.check(d)
