@@ -168,8 +168,8 @@ class Environment(Protocol):
     def push(self, strokes: Any, steady: tuple[float, float], weight_g: float | None = None) -> Any:
         """Push the held object, standing on the table, along it: ``strokes`` are ``(trajectory, direction)``
         pairs (straight hand moves, their unit horizontal directions), ``steady`` the travel (m) within each
-        stroke over which the wrist force is read; its weight ``weight_g``, by default the measured one. Returns a reading with
-        ``friction`` (the coefficient, NaN without a steady stretch), ``normal`` (N) and ``samples``."""
+        stroke over which the wrist force is read; its weight ``weight_g``, by default the measured one. Returns a
+        reading with ``friction`` (the coefficient, NaN without a steady stretch), ``normal`` (N) and ``samples``."""
 
     def balance(self, tilts: Any = ()) -> np.ndarray:
         """Horizontal offset (m, (2,), object frame) of the lifted object's centre of mass from its origin, from

@@ -24,6 +24,8 @@ from __future__ import annotations
 import copy
 from typing import Iterable, Mapping
 
+import numpy as np
+
 from muble.core.interfaces import Instruction
 from muble.core.scene import SceneGraph, SceneObject
 
@@ -41,11 +43,11 @@ _SCENE_VISIBLE = ("split", "image_index", "image_filename", "directions", "camer
                   "robot", "relationships")
 
 
-def _plain(value):
-    """A measured value as plain Python: a bool, a float or a list of floats."""
-    if isinstance(value, (bool, list, tuple)) or type(value).__name__ == "bool_":
-        return [float(v) for v in value] if isinstance(value, (list, tuple)) else bool(value)
-    return float(value)
+def plain_measurement(value) -> bool | float | list[float]:
+    """A primitive's measurement as plain Python: a yes/no, a number, or a list of numbers ([x, y] mm)."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [float(v) for v in value]
+    return bool(value) if isinstance(value, (bool, np.bool_)) else float(value)
 
 
 def agent_object(obj: SceneObject, measured: Mapping[str, float] | None = None,
@@ -55,7 +57,7 @@ def agent_object(obj: SceneObject, measured: Mapping[str, float] | None = None,
     extra = {k: copy.deepcopy(obj.extra[k]) for k in VISIBLE_EXTRA if k in obj.extra}
     for name, key in MEASURED_EXTRA.items():
         if name in measured:
-            extra[key] = _plain(measured[name])
+            extra[key] = plain_measurement(measured[name])
     view = SceneObject(
         id=obj.id, model=obj.model, name=obj.name, shape=obj.shape, size=obj.size, material=obj.material,
         colour=obj.colour, position=obj.position.copy(), orientation=obj.orientation.copy(), weight_gt=None,
@@ -77,7 +79,8 @@ def agent_view(scene: SceneGraph, measured: Mapping[int, Mapping[str, float]] | 
     """A copy of ``scene`` that carries only what an agent may know (see the module doc).
 
     ``measured`` maps object id to the values this agent measured in this episode ({"weight": g,
-    "stiffness": N/m, "friction": …}); ``hidden`` names further properties to withhold (an object set's hidden properties).
+    "stiffness": N/m, "friction": …}); ``hidden`` names further properties to withhold (an object set's hidden
+    properties).
     """
     measured = measured or {}
     hidden = tuple(hidden)

@@ -57,17 +57,6 @@ def _robot(observation: Observation, action: ActionCall | None, weight: float | 
     }
 
 
-def _measures(registry: Any, name: str) -> str | None:
-    """What the primitive registered as ``name`` measures (``PrimitiveAction.measures``); None if unknown."""
-    from muble.core.errors import PluginError
-
-    try:
-        factory = registry.get("primitive", name).record.factory
-    except PluginError:
-        factory = None
-    return getattr(factory, "measures", None)
-
-
 def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths: list[str],
                   camera: str = "front", action_names: str = "registry", registry: Any = None) -> dict[str, Any]:
     """The sequence file: ``observations`` as the agent saw them, ``observations_gt`` with ground truth too.
@@ -86,7 +75,7 @@ def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths:
                                                               for s in episode.steps]
     for i, (action, observation, scene_gt) in enumerate(steps):
         measured = episode.steps[i - 1].result.measurement if i else None
-        if measured is not None and _measures(registry, action.name) == "weight":
+        if measured is not None and registry.measures(action.name) == "weight":
             weight = measured
         robot = _robot(observation, action, weight, action_names)
         # What the agent saw (its measurements only) and, apart, the ground truth at the same moment.

@@ -56,6 +56,12 @@ class Registry:
         except KeyError:
             raise PluginError(unknown_name(kind, name, self.names(kind))) from None
 
+    def measures(self, primitive: str) -> str | None:
+        """The property the primitive registered as ``primitive`` measures (``PrimitiveAction.measures``: weight,
+        stiffness, friction …); None for one that measures nothing or is not registered."""
+        provided = self._by_kind["primitive"].get(primitive)
+        return None if provided is None else getattr(provided.record.factory, "measures", None)
+
     def all(self) -> list[Provided]:
         return [p for kind in KINDS for _, p in sorted(self._by_kind[kind].items())]
 

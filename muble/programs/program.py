@@ -15,10 +15,9 @@ stops execution and reports those objects as measurement sub-goals (``ProgramTra
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
-
-import math
 
 from muble.core import physical_properties as physical
 from muble.core.errors import ConfigError, PlanningError, unknown_name
@@ -120,23 +119,22 @@ class _NeedMeasurement(Exception):
 class Quantity:
     """A hidden property a program compares or asks for, known to an agent only once it measured it.
 
-    ``truth`` reads the ground truth of an object (None: the scene gives none) as the value a query answers,
+    Its program steps are ``filter_<name>``, ``order_<name>`` and ``query_<name>``. ``truth`` reads the ground
+    truth of an object (None: the scene gives none) as the value a query answers and filters and orders compare,
     ``measured`` what the agent measured of it as the primitive reported it (None: not yet), and ``reading`` turns
-    such a report into that value (a centre of mass's [x, y] mm into its distance from the centre); ``rank`` turns a value into the number filters and
-    orders compare. ``superlatives`` are the words of ``filter_<step>``, the first picking the largest value; a
-    quantity without them is a yes/no property whose ``filter_<step>`` keeps the objects that have it (``values``:
-    the words for yes and no).
+    such a report into that value (a centre of mass's [x, y] mm into its distance from the centre).
+    ``superlatives`` are the words of ``filter_<name>``, the first picking the largest value; a quantity without
+    them is a yes/no property whose ``filter_<name>`` keeps the objects that have it (``values``: the words for yes
+    and no), and has no order.
     """
 
     name: str  # the property, as primitives report it (``PrimitiveAction.measures``)
-    step: str  # the program steps' suffix: filter_<step>, order_<step>, query_<step>
     verb: str  # the built-in primitive that measures it, as error messages name it
     truth: Callable[[SceneObject], Any]
     measured: Callable[[SceneObject], Any]
     superlatives: tuple[str, str] = ()
     orders: tuple[str, ...] = WEIGHT_ORDERS
     values: tuple[str, str] = ()
-    rank: Callable[[Any], float] = float
     reading: Callable[[Any], Any] = lambda value: value
 
 
@@ -151,12 +149,12 @@ def _offset_mm(value: Any) -> float | None:
 
 
 QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
-    Quantity("weight", "weight", "weigh", lambda o: o.weight_gt, lambda o: o.weight, WEIGHT_SUPERLATIVES),
-    Quantity("stiffness", "stiffness", "squeeze", lambda o: o.stiffness, _measured_extra("stiffness"), STIFFNESS_SUPERLATIVES),
-    Quantity("friction", "friction", "push", physical.friction_of, _measured_extra("friction"), FRICTION_SUPERLATIVES),
-    Quantity("com_offset", "com_offset", "balance", lambda o: _offset_mm(physical.com_offset_mm(o)),
-             _measured_extra("com_offset"), COM_SUPERLATIVES, reading=_offset_mm),
-    Quantity("rattles", "rattles", "shake", lambda o: None if o.extra.get(physical.CONTENTS) is None else physical.rattles(o),
+    Quantity("weight", "weigh", lambda o: o.weight_gt, lambda o: o.weight, WEIGHT_SUPERLATIVES),
+    Quantity("stiffness", "squeeze", lambda o: o.stiffness, _measured_extra("stiffness"), STIFFNESS_SUPERLATIVES),
+    Quantity("friction", "push", physical.friction_of, _measured_extra("friction"), FRICTION_SUPERLATIVES),
+    Quantity("com_offset", "balance", lambda o: _offset_mm(physical.com_offset_mm(o)), _measured_extra("com_offset"),
+             COM_SUPERLATIVES, reading=_offset_mm),
+    Quantity("rattles", "shake", lambda o: None if o.extra.get(physical.CONTENTS) is None else physical.rattles(o),
              _measured_extra("rattles"), values=RATTLE_VALUES, orders=()),
 )}
 
@@ -241,7 +239,7 @@ def _quantity_steps(q: Quantity) -> dict[str, Callable]:
             want = which == q.values[0]
             return [i for i, v in zip(ids, measured) if bool(v) == want]
         pick = max if which == q.superlatives[0] else min
-        return [ids[pick(range(len(ids)), key=lambda k: q.rank(measured[k]))]]
+        return [ids[pick(range(len(ids)), key=lambda k: measured[k])]]
 
     def order_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
         ids = _ids(prev, step, index)
@@ -249,20 +247,20 @@ def _quantity_steps(q: Quantity) -> dict[str, Callable]:
         if order not in q.orders:
             raise PlanningError(unknown_name(f"{q.name} order", str(order), q.orders))
         measured = ctx.values(q, ids)
-        ranked = sorted(range(len(ids)), key=lambda k: q.rank(measured[k]), reverse=order == "descending")
+        ranked = sorted(range(len(ids)), key=lambda k: measured[k], reverse=order == "descending")
         return [ids[k] for k in ranked]
 
     def query_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[Any]:
         return list(ctx.values(q, _ids(prev, step, index)))
 
-    steps = {f"filter_{q.step}": filter_step, f"query_{q.step}": query_step}
+    steps = {f"filter_{q.name}": filter_step, f"query_{q.name}": query_step}
     if q.orders:
-        steps[f"order_{q.step}"] = order_step
+        steps[f"order_{q.name}"] = order_step
     return steps
 
 
 QUANTITY_STEPS: dict[str, dict[str, Callable]] = {name: _quantity_steps(q) for name, q in QUANTITIES.items()}
-QUERY_STEPS: dict[str, str] = {f"query_{q.step}": name for name, q in QUANTITIES.items()}  # step -> property
+QUERY_STEPS: dict[str, str] = {f"query_{name}": name for name in QUANTITIES}  # step -> the property it asks for
 
 
 def _step_pass_targets(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from muble import ActionCall, ActionResult, SceneGraph, get_registry
-from muble.core.observation import MEASURED_EXTRA
+from muble.core.observation import MEASURED_EXTRA, plain_measurement
 from muble.core.symbolic import ArmState
 
 from muble_plugins.common.symbolic import APPROACH, MOVE
@@ -12,32 +12,21 @@ from muble_plugins.common.symbolic import APPROACH, MOVE
 Known = dict[str, dict[int, object]]  # property (``PrimitiveAction.measures``) -> object id -> measured value
 
 
-def measures(name: str) -> str | None:
-    """The property the registered primitive ``name`` measures (``PrimitiveAction.measures``), None if none."""
-    registry = get_registry()
-    if name not in registry.names("primitive"):
-        return None
-    return getattr(registry.get("primitive", name).record.factory, "measures", None)
-
-
 def book(known: Known, last: ActionCall | None, result: ActionResult | None, held: int | None) -> None:
     """Book the measurement a successful measuring primitive (``last``) made of the ``held`` object."""
     if last is None or result is None or not result.success or held is None or result.measurement is None:
         return
-    prop = measures(last.name)
+    prop = get_registry().measures(last.name)
     if prop is not None:
-        value = result.measurement
-        known.setdefault(prop, {})[held] = (bool(value) if isinstance(value, bool) else
-                                            [float(v) for v in value] if isinstance(value, (list, tuple))
-                                            else float(value))
+        known.setdefault(prop, {})[held] = plain_measurement(result.measurement)
 
 
 def fill_known(scene: SceneGraph, known: Known, last: ActionCall | None, result: ActionResult | None) -> None:
     """Fill an agent's copy of the observed ``scene`` with what it knows: the weights and other properties it
-    measured (``known``), and the gripper's hover state. After a failed primitive (``result`` of ``last``) the hover and grasp-pose
-    flags are cleared, so the plan starts over from hovering (a failed grasp or put-down leaves the hand where it
-    should not stay); a world that reports no hover flags has them filled in from the last primitive. The oracle
-    and the learned planner keep the same books, so the planner's labels fit."""
+    measured (``known``), and the gripper's hover state. After a failed primitive (``result`` of ``last``) the hover
+    and grasp-pose flags are cleared, so the plan starts over from hovering (a failed grasp or put-down leaves the
+    hand where it should not stay); a world that reports no hover flags has them filled in from the last primitive.
+    The oracle and the learned planner keep the same books, so the planner's labels fit."""
     weights = known.get("weight", {})
     for o in scene.objects:
         if o.weight is None and o.id in weights:

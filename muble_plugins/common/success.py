@@ -111,8 +111,8 @@ def _values_match(answer: Any, expected: list[float], ids: list[int] | None, tol
 
 
 def queried_ids(instruction: Instruction, scene: SceneGraph) -> list[int] | None:
-    """The objects a query program (``query_weight``, ``query_friction`` …) measures, in its order: the recorded output
-    of the step before, or the program run on ``scene``."""
+    """The objects a query program (``query_weight``, ``query_friction`` …) measures, in its order: the recorded
+    output of the step before, or the program run on ``scene``."""
     if len(instruction.program) < 2:
         return None
     before = instruction.program[-2].get("output")

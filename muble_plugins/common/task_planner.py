@@ -5,8 +5,8 @@ measurement (a sub-goal: weigh, squeeze, push, balance or shake those objects) o
 object held up, objects on a table part, or a stack. Each goal expands backwards into the primitives whose
 preconditions lead to it: placing needs a lifted object, lifting needs grasping, grasping needs approaching,
 approaching needs the gripper over the object; weighing, balancing and shaking need a lifted object, squeezing
-and pushing only a grasped one standing where it is (``MEASURE``). Planning always starts from the observed state, so the oracle can replan after
-every primitive.
+and pushing only a grasped one standing where it is (``MEASURE``). Planning always starts from the observed
+state, so the oracle can replan after every primitive.
 """
 from __future__ import annotations
 
@@ -96,7 +96,7 @@ def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> lis
     return _deliver(scene, obj_id, _carried_to(scene, obj_id, arm, base_id), base_id, arm)
 
 
-def _push(obj_id: int, arm: ArmState, scene: SceneGraph) -> list[ActionCall]:
+def _push(obj_id: int, arm: ArmState) -> list[ActionCall]:
     """Measure the friction of ``obj_id``: grasped standing on the table (one held up is set down first, which
     lets it go), pushed."""
     if arm.held == obj_id and arm.raised:
@@ -107,11 +107,11 @@ def _push(obj_id: int, arm: ArmState, scene: SceneGraph) -> list[ActionCall]:
 # How each hidden property is measured (``PrimitiveAction.measures`` of the built-in primitives): the primitives
 # that measure it of an object, from the arm's state.
 MEASURE = {
-    "weight": lambda obj_id, arm, scene: hold_up(obj_id, arm) + [ActionCall(WEIGH)],
-    "stiffness": lambda obj_id, arm, scene: grasp(obj_id, arm) + [ActionCall(SQUEEZE)],
+    "weight": lambda obj_id, arm: hold_up(obj_id, arm) + [ActionCall(WEIGH)],
+    "stiffness": lambda obj_id, arm: grasp(obj_id, arm) + [ActionCall(SQUEEZE)],
     "friction": _push,
-    "com_offset": lambda obj_id, arm, scene: hold_up(obj_id, arm) + [ActionCall(BALANCE)],
-    "rattles": lambda obj_id, arm, scene: hold_up(obj_id, arm) + [ActionCall(SHAKE)],
+    "com_offset": lambda obj_id, arm: hold_up(obj_id, arm) + [ActionCall(BALANCE)],
+    "rattles": lambda obj_id, arm: hold_up(obj_id, arm) + [ActionCall(SHAKE)],
 }
 
 
@@ -127,7 +127,7 @@ def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, f
                     known_stiffness=known_stiffness)
     if trace.pending:
         target = arm.held if arm.held in trace.pending else trace.pending[0]
-        return Plan(MEASURE[trace.pending_property](target, arm, scene))
+        return Plan(MEASURE[trace.pending_property](target, arm))
     final_step = program[-1]
     kind, result = final_step["type"], trace.final
     if kind in QUERY_STEPS:

@@ -20,6 +20,7 @@ from muble.stage.geometry import tilt_deg
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import ATTEMPT, rotated
+from muble_plugins.primitives.gripper import GRIPPER_SETTLE, close_on_object
 
 logger = logging.getLogger(__name__)
 
@@ -190,8 +191,6 @@ def _settle_on_table(env, obj_id: int) -> str | None:
         if problem is None or not 0.0 < gap <= PUSH_SET_DOWN:
             return problem
     # Still held a hair above it: let go, so that it stands on the table, and grasp it again where it stands.
-    from muble_plugins.primitives.gripper import GRIPPER_SETTLE, close_on_object
-
     env.open_gripper()
     env.hold(GRIPPER_SETTLE)
     if close_on_object(env) != obj_id:

@@ -21,9 +21,9 @@ A template file holds ``templates:``, a list of entries::
       - {type: move_to, input_value: <TP>}
 
 References (``target``, ``input_value``): a parameter name, or a derived value ``{extreme: [O1s, WS]}`` (the
-heaviest/lightest of a set), ``{members_in: [O1s, TP]}`` (the set's objects in a table part), ``{opposite: TP}``, ``{friction_extreme: [O1s,
-FS]}`` (likewise ``stiffness_extreme``, ``com_offset_extreme``) and ``{having: [O1s, rattles]}`` (the set's objects
-that have a yes/no property).
+heaviest/lightest of a set), ``{members_in: [O1s, TP]}`` (the set's objects in a table part), ``{opposite: TP}``,
+``{friction_extreme: [O1s, FS]}`` (likewise ``stiffness_extreme``, ``com_offset_extreme``) and ``{having: [O1s,
+rattles]}`` (the set's objects that have a yes/no property).
 Constraint types: ``is`` (an object, or every object of a set, has ``property``), ``max_count``, ``distinct``,
 ``not_tp``, ``tp_set`` (the set's objects in the part: at least one, all with ``property``), ``weight_extreme``,
 ``weight_order``, ``stack_order`` (heaviest first: all but the last are stack bases, all but the first
@@ -31,8 +31,8 @@ stackable), ``related`` (``[A, REL, B]``: B is REL of A), their stiffness counte
 ``stiffness_order``, ``stiffness_stack_order`` and the same for ``friction`` and ``com_offset``
 (``friction_extreme`` …; each quantity's margin in ``templates.MARGINS``), ``carries`` (an object, or every object of
 a set, has a ground truth of the measured ``property``: ``{type: carries, target: O1, property: friction}``),
-``mixed`` (a set has members with and members without the yes/no ``property``, e.g. ``rattles``), ``among`` (an object, or every object of a set, has an attribute
-``property`` among ``values``: ``{type: among, target: O1s, property: model, values: [mug1, glass2]}``), and the
+``mixed`` (a set has members with and members without the yes/no ``property``, e.g. ``rattles``), ``among`` (an
+object, or every object of a set, has an attribute ``property`` among ``values``: ``{type: among, target: O1s, property: model, values: [mug1, glass2]}``), and the
 dear ``room`` (``[movers, part]``). A mistake in a file is
 a ``ConfigError`` naming the file, the template and the field.
 """

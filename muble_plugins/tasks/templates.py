@@ -107,29 +107,33 @@ class OptionContext:
         return high >= low * (1 + margin) if relative else high - low >= margin
 
     @_memo
-    def by_quantity(self, quantity: str, group: tuple[int, ...]) -> list[int] | None:
-        """Group ids, the largest ``quantity`` first, or ``None`` when one is unknown or two are within the
-        quantity's margin."""
+    def _largest_first(self, quantity: str, group: tuple[int, ...]) -> tuple[list[int], dict] | None:
+        """The group's ids, the largest ``quantity`` first, with their values; ``None`` when one is unknown."""
         values = {i: self.value(quantity, i) for i in group}
         if any(v is None for v in values.values()):
             return None
-        rank = QUANTITIES[quantity].rank
-        ranked = sorted(group, key=lambda i: -rank(values[i]))
-        apart = all(self._apart(quantity, rank(values[a]), rank(values[b])) for a, b in zip(ranked, ranked[1:]))
+        return sorted(group, key=lambda i: -values[i]), values
+
+    def by_quantity(self, quantity: str, group: tuple[int, ...]) -> list[int] | None:
+        """Group ids, the largest ``quantity`` first, or ``None`` when one is unknown or two are within the
+        quantity's margin."""
+        found = self._largest_first(quantity, group)
+        if found is None:
+            return None
+        ranked, values = found
+        apart = all(self._apart(quantity, values[a], values[b]) for a, b in zip(ranked, ranked[1:]))
         return ranked if apart else None
 
-    @_memo
     def quantity_extreme(self, quantity: str, group: tuple[int, ...], which: str) -> int | None:
         """The object of the group that ``which`` (a superlative of the quantity: the first picks the largest)
         names, ``None`` unless it stands apart from the next by the margin (or a value is unknown)."""
-        values = {i: self.value(quantity, i) for i in group}
-        if len(group) < 2 or any(v is None for v in values.values()):
+        found = self._largest_first(quantity, group) if len(group) >= 2 else None
+        if found is None:
             return None
-        rank = QUANTITIES[quantity].rank
-        ranked = sorted(group, key=lambda i: -rank(values[i]))
+        ranked, values = found
         top, second = (ranked[0], ranked[1]) if which == QUANTITIES[quantity].superlatives[0] \
             else (ranked[-1], ranked[-2])
-        low, high = sorted((rank(values[top]), rank(values[second])))
+        low, high = sorted((values[top], values[second]))
         return top if self._apart(quantity, high, low) else None
 
     def having(self, quantity: str, group: tuple[int, ...] | list[int], yes: bool = True) -> list[int] | None:

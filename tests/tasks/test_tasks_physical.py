@@ -25,7 +25,7 @@ SCENES = 150
 MEASURING = {q.verb: name for name, q in QUANTITIES.items()}  # primitive -> the property it measures
 NEW = ("friction", "com_offset", "rattles")
 # Program step -> the new property it needs measured.
-NEEDS = {f"{kind}_{QUANTITIES[p].step}": p for p in NEW for kind in ("filter", "order", "query")}
+NEEDS = {f"{kind}_{p}": p for p in NEW for kind in ("filter", "order", "query")}
 
 
 @pytest.fixture(scope="module")
