@@ -30,6 +30,7 @@ class MotionReport:
     duration: float = 0.0
     final_error: float = 0.0
     unintended_contacts: set[tuple[str, str]] = field(default_factory=set)
+    stopped: bool = False  # a guarded move ended early by its stop condition
 
 
 def grip_geometry(env: Environment):
@@ -105,10 +106,12 @@ def touching_bodies(env, bodies: set[int]) -> set[int]:
 
 
 def execute(env, trajectory: Trajectory, world: CollisionWorld, allowed: set[int] = frozenset(),
-            settle: float = 0.2) -> MotionReport:
+            settle: float = 0.2, stop=None) -> MotionReport:
     """Track ``trajectory`` and count, in physics, contacts of the arm or held object with anything else.
 
     ``allowed`` bodies (grasp target, support) may be touched. Contacts are read after every control sample.
+    ``stop(env)``, where given, ends the motion early (a guarded move) when it returns True: the report's
+    ``stopped`` says so, and the arm holds where it stopped (no settle).
     """
     m = env.model
     robot = world.robot_bodies
@@ -129,11 +132,12 @@ def execute(env, trajectory: Trajectory, world: CollisionWorld, allowed: set[int
             if other in allowed or (mine in held and other in robot):
                 continue
             report.unintended_contacts.add((m.body(mine).name, m.body(other).name))
-        return False
+        return stop is not None and bool(stop(e))
 
     result = env.follow(trajectory, settle=settle, stop=watch)
     watch(env)
     report.duration, report.final_error = result.duration, result.final_error
+    report.stopped = bool(result.stopped_early)
     if report.unintended_contacts:
         logger.info("unintended contacts while moving: %s", sorted(report.unintended_contacts))
     return report

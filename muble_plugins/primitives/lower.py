@@ -313,17 +313,62 @@ def _retreat(env, held_body: int, between: np.ndarray) -> ctx.MotionReport:
             break
         report = placement.merge(report, _straight(env, world, drift, pose.quat, held_body))
         env.hold(tol.STEP_SETTLE)
-    return placement.merge(report, _straight(env, world, np.array([0.0, 0.0, RETREAT]), pose.quat, held_body))
+    for _ in range(UNHOOK_TRIES):
+        start_z = float(d.xpos[held_body][2])
+        rise = _straight(env, world, np.array([0.0, 0.0, RETREAT]), pose.quat, held_body,
+                         stop=lambda e: e.data.xpos[held_body][2] - start_z > CAUGHT_RISE)
+        report = placement.merge(report, rise)
+        if not rise.stopped:
+            break
+        report = placement.merge(report, _unhook(env, world, held_body, pose.quat, start_z))
+    return report
 
 
-def _straight(env, world, step, quat, held_body) -> ctx.MotionReport:
+# m the released object may rise with the empty hand before it counts as caught on a finger (a bowl's rim
+# wedged on a fingertip, lifted off what it was set on), and the tries to free it before the hand rises regardless.
+CAUGHT_RISE = 0.004
+UNHOOK_TRIES = 2
+UNHOOK_STEP = 0.01  # m the hand moves sideways, off the wall it is caught on, once the object rests again
+
+
+def _unhook(env, world, held_body: int, quat, start_z: float) -> ctx.MotionReport:
+    """Free a finger caught on the released object: back down until the object rests where it was let go, the
+    fingers opened fully, then sideways by ``UNHOOK_STEP`` along the push of its contacts on the hand (off the
+    wall the finger is pressed against)."""
+    d = env.data
+    logger.info("the released object rises with the hand, caught on a finger: setting it back and freeing it")
+    back = _straight(env, world, np.array([0.0, 0.0, start_z - float(d.xpos[held_body][2]) - 0.001]), quat,
+                     held_body)
+    env.set_gripper(-1.0)
+    env.hold(tol.SETTLE)
+    push = _push_on_hand(env, held_body) * [1.0, 1.0, 0.0]
+    if np.linalg.norm(push) < 1e-9:
+        return back
+    step = UNHOOK_STEP * push / np.linalg.norm(push)
+    return placement.merge(back, _straight(env, world, step, quat, held_body))
+
+
+def _push_on_hand(env, body: int) -> np.ndarray:
+    """The sum of the contact normals, weighted by penetration, with which ``body`` pushes on the hand."""
+    m, d = env.model, env.data
+    fingers = _finger_bodies(env)
+    total = np.zeros(3)
+    for c in d.contact[: d.ncon]:
+        b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
+        if {b1, b2} & {body} and {b1, b2} & fingers:
+            normal = c.frame[:3] if b1 == body else -c.frame[:3]  # MuJoCo's normal points from geom 1 to geom 2
+            total += max(-c.dist, 0.0) * normal
+    return total
+
+
+def _straight(env, world, step, quat, held_body, stop=None) -> ctx.MotionReport:
     goal = PoseGoal(Pose(env.ee_pose().pos + step, quat), *tol.FREE)
     try:
         path = ctx.straight_line_planner(env).plan(env.arm_q(), goal, world)
     except PlanningError as e:
         logger.info("no straight move by %s after letting go (%s); the hand stays", np.round(step, 3), e)
         return ctx.MotionReport()
-    return ctx.execute(env, path, world, allowed={held_body})
+    return ctx.execute(env, path, world, allowed={held_body}, stop=stop)
 
 
 # s a put-down object may take to come to rest after the hand let go: something set down on a round or tilted
