@@ -19,6 +19,8 @@ from muble.core.environment import Environment, EnvironmentNames, TableTop
 from muble.core.interfaces import (
     Agent,
     CollisionWorld,
+    Disturbance,
+    DisturbanceEvent,
     Instruction,
     MotionPlanner,
     ObjectSet,
@@ -56,7 +58,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "SEG_BACKGROUND", "SEG_ROBOT", "SEG_TABLE", "ActionCall", "ActionResult", "Agent", "Answer", "CollisionWorld",
-    "ConfigError", "Environment", "EnvironmentNames", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
+    "ConfigError", "Disturbance", "DisturbanceEvent", "Environment", "EnvironmentNames", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
     "ObservationMode", "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
     "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
     "Sensor", "TableTop", "Task", "Track", "Trainer", "TrainingRun", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",

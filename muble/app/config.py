@@ -44,6 +44,14 @@ class SensorsConfig:
 
 
 @dataclass
+class DisturbancesConfig:
+    """Which disturbance plugins act during episodes: registry name -> its options (a mapping, like sensors; empty:
+    the world never pushes back)."""
+
+    enabled: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
 class OutputConfig:
     dir: str = "${hydra:runtime.output_dir}"
     gif: bool = True
@@ -139,6 +147,7 @@ class MubleConfig:
     sensors: SensorsConfig = MISSING
     agent: Any = MISSING
     generator: Any = MISSING
+    disturbances: DisturbancesConfig = field(default_factory=DisturbancesConfig)
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
@@ -166,6 +175,7 @@ def register_configs(registry: Registry) -> None:
     register_generator_config()
     cs.store(group="robot", name="robot_schema", node=RobotConfig)
     cs.store(group="sensors", name="sensors_schema", node=SensorsConfig)
+    cs.store(group="disturbances", name="disturbances_schema", node=DisturbancesConfig)
     for kind, group in GROUP_OF_KIND.items():
         for name in registry.names(kind):
             record = registry.get(kind, name).record

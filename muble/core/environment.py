@@ -105,6 +105,13 @@ class Environment(Protocol):
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
         """Force (N) and torque (N·m) the arm exerts on the hand, world frame."""
 
+    # ---- the world acting on its own (disturbances)
+    control_listeners: list[Callable[[Any], None]]  # each called with the environment after every control step
+
+    def apply_force(self, obj_id: int, force: np.ndarray, point: np.ndarray | None = None) -> None:
+        """Apply ``force`` (N, world frame) to the object at ``point`` (world; default its centre of mass) from the
+        next physics step on, until replaced (a zero force ends it); the physics integrates it."""
+
     # ---- geometry of what is there now
     def table(self) -> TableTop: ...
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import contextlib
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -315,6 +315,68 @@ class Trainer(ABC):
         """Train; return the run's figures (losses, held-out accuracy, seconds for data and for training)."""
 
 
+@dataclass
+class DisturbanceEvent:
+    """What a disturbance did, as the episode record keeps it.
+
+    ``step`` is the primitive (1-based) during or after which it fired; ``trigger`` says what fired it;
+    ``force`` (N, world frame) is the largest force applied and ``impulse`` (N·s) the total, where it pushed;
+    ``detail`` holds what else it did (the gripper's opening, the reading it spoiled, where it pushed to)."""
+
+    kind: str
+    step: int
+    trigger: str
+    object: int | None = None
+    force: list[float] | None = None
+    impulse: list[float] | None = None
+    duration: float = 0.0
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        for key in ("force", "impulse"):
+            if out[key] is not None:
+                out[key] = [round(float(v), 4) for v in out[key]]
+        out["duration"] = round(float(out["duration"]), 4)
+        return out
+
+
+class Disturbance(ABC):
+    """A physical event the world applies during an episode while the agent still acts (plugin kind
+    ``disturbance``, docs/closed_loop.md). It never writes a pose: it acts through MuJoCo (a force on an object,
+    ``Environment.apply_force``; a grip that loosens) and the world moves as the physics says.
+
+    The physical world calls it around every primitive: ``before`` it runs, ``on_control`` after every control
+    step while it runs (a slip while lifting), ``after`` it, before the agent observes (which may change the result
+    the agent gets: a reading that failed). Each returns the ``DisturbanceEvent`` it applied, if any, which goes
+    into the episode record and never into an observation: the agent sees only the consequences. Firing only during
+    or right after a primitive, a disturbance always leaves the agent at least one decision after it.
+
+    ``reset`` gets the episode's generator on the disturbance's own stream and the initial ground-truth scene:
+    draw the trigger there (which primitive, which object, how hard), nowhere else. ``planned`` says whether it
+    is planned to fire in this episode (the record counts planned against fired)."""
+
+    kind: str = ""  # the registered name, set by the world from the registry
+    planned: bool = True
+
+    def reset(self, rng: np.random.Generator, scene: "SceneGraph") -> None:
+        """Draw this episode's trigger. Optional; by default nothing is drawn."""
+
+    def before(self, env: "Environment", action: ActionCall, step: int) -> DisturbanceEvent | None:
+        """Before the ``step``-th primitive runs."""
+        return None
+
+    def on_control(self, env: "Environment") -> DisturbanceEvent | None:
+        """After every control step while a primitive runs. Keep it cheap."""
+        return None
+
+    def after(self, env: "Environment", action: ActionCall, result: ActionResult,
+              step: int) -> tuple[ActionResult, DisturbanceEvent | None]:
+        """Right after the ``step``-th primitive, before the agent observes: the result the agent gets (changed
+        only by a disturbance of the reading) and the event, if one fired."""
+        return result, None
+
+
 INTERFACES: dict[str, type] = {
     "renderer": Renderer,
     "planner": MotionPlanner,
@@ -324,4 +386,5 @@ INTERFACES: dict[str, type] = {
     "object_set": ObjectSet,
     "agent": Agent,
     "trainer": Trainer,
+    "disturbance": Disturbance,
 }

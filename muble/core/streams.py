@@ -67,3 +67,12 @@ PROPERTY_STREAMS = {name: declare(f"scene.{name}", f"a scene sample's {what} (in
 INSTRUCTION = declare("episode.instruction", "the instruction a template draws for a scene (index)")
 TEMPLATE_MIX = declare("split.template_mix", "the order of templates within a block of a split (block)")
 COUNT_MIX = declare("split.count_mix", "the order of object counts within a block of a split (block)")
+
+
+def disturbance_stream(kind: str, seed: int, index: int) -> np.random.Generator:
+    """The generator of the disturbance registered as ``kind`` for episode ``index`` of a run seeded ``seed``: its
+    own purpose, ``episode.disturbance.<kind>``, declared on first use (muble.core.interfaces.Disturbance)."""
+    name = f"episode.disturbance.{kind}"
+    if name not in PURPOSES:
+        declare(name, f"when, where and how hard the '{kind}' disturbance acts in an episode (index)")
+    return stream(name, seed, index)

@@ -37,6 +37,9 @@ def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) 
         components[kind] = registry.create(kind, node.name, node)
     components["sensors"] = {name: registry.create("sensor", name, options or {})
                              for name, options in cfg.sensors.enabled.items()}
+    enabled = cfg.get("disturbances", {}).get("enabled", {}) or {}
+    components["disturbances"] = {name: registry.create("disturbance", name, options or {})
+                                  for name, options in enabled.items()}
     return components
 
 
@@ -50,7 +53,8 @@ def episode_runner(cfg: DictConfig, components: dict[str, object]):
                           "(with evaluation.render, or muble run's keyframes)")
     return EpisodeRunner(get_registry(), robot, components["planner"], components["agent"],
                          components["object_set"], cfg.objects.name, components["sensors"], components["renderer"],
-                         tuple(cfg.episode.cameras), cfg.episode.max_steps, track=track, mode=mode)
+                         tuple(cfg.episode.cameras), cfg.episode.max_steps, track=track, mode=mode,
+                         disturbances=components.get("disturbances") or {}, seed=int(cfg.get("seed", 0)))
 
 
 def benchmark_settings(cfg: Any) -> tuple[str, str]:

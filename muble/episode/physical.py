@@ -13,7 +13,7 @@ import logging
 from typing import Any, Sequence
 
 from muble.core.errors import PlanningError
-from muble.core.interfaces import Renderer
+from muble.core.interfaces import Disturbance, DisturbanceEvent, Renderer
 from muble.core.observation import agent_view
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Frame, Observation
@@ -32,8 +32,12 @@ class PhysicalWorld:
     """
 
     def __init__(self, env: Any, registry: Any, renderer: Renderer | None = None,
-                 cameras: Sequence[str] = ("front",), hidden: Sequence[str] = ()):
+                 cameras: Sequence[str] = ("front",), hidden: Sequence[str] = (),
+                 disturbances: Sequence[Disturbance] = ()):
         self.env = env
+        self.disturbances = tuple(disturbances)
+        self.events: list[DisturbanceEvent] = []  # what the disturbances did (the record's, never the agent's)
+        self.steps = 0
         self.registry = registry
         self.renderer = renderer
         self.cameras = tuple(cameras)
@@ -64,14 +68,41 @@ class PhysicalWorld:
     def apply(self, action: ActionCall) -> ActionResult:
         primitive = self.registry.create("primitive", action.name, action.params)
         held = self.env.held_object
+        self.steps += 1
+        step = self.steps
+        for d in self.disturbances:
+            self._fired(d.before(self.env, action, step))
+        listeners = [self._listener(d) for d in self.disturbances
+                     if type(d).on_control is not Disturbance.on_control]
+        self.env.control_listeners.extend(listeners)
         try:
             result = primitive.execute(self.env)
         except PlanningError as e:
             log.info("%s failed to plan: %s", action, e)
-            return ActionResult(False, failure_reason=f"planning: {e}")
+            result = ActionResult(False, failure_reason=f"planning: {e}")
+        finally:
+            for listener in listeners:
+                self.env.control_listeners.remove(listener)
         if result.success:
             self._track(action, getattr(primitive, "hand_at_target", None), held)
+        for d in self.disturbances:
+            result, event = d.after(self.env, action, result, step)
+            self._fired(event)
         return result
+
+    def _listener(self, disturbance: Disturbance):
+        def listen(env: Any) -> None:
+            self._fired(disturbance.on_control(env))
+        return listen
+
+    def _fired(self, event: DisturbanceEvent | None) -> bool:
+        if event is None:
+            return False
+        log.debug("disturbance: %s", event)
+        self.events.append(event)
+        if event.object is not None and event.object in (self.over, self.approached):
+            self.approached = self.over = None  # the hand is no longer over or at the object that was moved
+        return True
 
     def _track(self, action: ActionCall, hand_at: str | None, held_before: int | None) -> None:
         """Where the hand is, symbolically, after a successful primitive."""

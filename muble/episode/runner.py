@@ -95,6 +95,9 @@ class EpisodeOutput:
     keyframes: list[np.ndarray] = field(default_factory=list)
     sequence: dict[str, Any] = field(default_factory=dict)
     timing: Timing = field(default_factory=Timing)
+    # What the disturbances did (``DisturbanceEvent.to_dict``) and how many were planned: the record's alone.
+    disturbances: list[dict[str, Any]] = field(default_factory=list)
+    disturbances_planned: int = 0
 
 
 class _TimedRenderer(Renderer):
@@ -184,8 +187,24 @@ class EpisodeRunner:
     max_steps: int = 100
     track: str = "program"  # what the agent is told (muble.episode.modes)
     mode: str = "graph"
+    # Registry name -> disturbance (``muble.core.disturbances``), each drawing from its own stream for
+    # (``seed``, the episode's key).
+    disturbances: dict[str, Any] = field(default_factory=dict)
+    seed: int = 0
 
-    def execute(self, scene: SceneGraph, instruction: Instruction, task: Task) -> EpisodeOutput:
+    def _disturbances(self, scene: SceneGraph, key: int) -> list[Any]:
+        from muble.core.streams import disturbance_stream
+
+        out = []
+        for name, disturbance in self.disturbances.items():
+            disturbance.kind = name
+            disturbance.reset(disturbance_stream(name, self.seed, key), copy.deepcopy(scene))
+            out.append(disturbance)
+        return out
+
+    def execute(self, scene: SceneGraph, instruction: Instruction, task: Task,
+                key: int | None = None) -> EpisodeOutput:
+        """Run ``instruction`` on ``scene``; ``key`` (default: the scene's index) keys the disturbances' streams."""
         from muble.core.errors import InitialStateError
         from muble.core.types import Outcome
         from muble.sim.build import object_models
@@ -224,7 +243,9 @@ class EpisodeRunner:
             renderer = _TimedRenderer(self.renderer, timing) if self.renderer is not None else None
             if renderer is not None:
                 renderer.setup(env.sync_scene_graph(), env.model)
-            world = PhysicalWorld(env, self.registry, renderer, self.cameras, hidden=hidden)
+            disturbances = self._disturbances(env.sync_scene_graph(), scene.image_index if key is None else key)
+            world = PhysicalWorld(env, self.registry, renderer, self.cameras, hidden=hidden,
+                                  disturbances=disturbances)
             keyframes: list[np.ndarray] = []
 
             def keep(step: StepRecord) -> None:
@@ -249,7 +270,9 @@ class EpisodeRunner:
                 self.renderer.close()
         timing.total = time.perf_counter() - start
         timing.physics = timing.total - timing.planning - timing.rendering
-        return EpisodeOutput(scene, instruction, result, keyframes, timing=timing)
+        return EpisodeOutput(scene, instruction, result, keyframes, timing=timing,
+                             disturbances=[e.to_dict() for e in world.events],
+                             disturbances_planned=sum(bool(d.planned) for d in disturbances))
 
 
 def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool = True,

@@ -17,7 +17,7 @@ from typing import Any
 
 from muble.core.errors import MubleError, PhysicsError, SceneValidationError, unknown_name
 from muble.core.types import Outcome
-from muble.dataset.production import IndexJob, cached_components
+from muble.dataset.production import IndexJob, cached_components, split_seed
 from muble.core.symbolic import ArmState
 from muble.episode.plain import plain
 from muble.evaluation.report import UNKNOWN
@@ -114,8 +114,9 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     output_dir = (cfg.get("output") or {}).get("dir")
     if output_dir and hasattr(agent, "output_dir"):
         agent.output_dir = Path(output_dir)
+    runner.seed = split_seed(int(cfg.get("seed") or 0), job.split)  # the split's own disturbance draws
     try:
-        output = runner.execute(scene, instruction, task)
+        output = runner.execute(scene, instruction, task, key=job.index)
     except SceneValidationError as e:  # the runner could not build the scene: an object model or mass refused
         return _failed(out, Outcome.INVALID_DATA, f"{scene_file}: {_describe(job, e)}", scene_name)
     except PhysicsError as e:  # built, but does not start at rest or breaks the simulation
@@ -141,7 +142,9 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
             "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None,
-            "agent_stats": agent_stats(agent)}
+            "agent_stats": agent_stats(agent),
+            **({"disturbances": output.disturbances, "disturbances_planned": output.disturbances_planned}
+               if runner.disturbances else {})}
 
 
 def agent_stats(agent: Any) -> dict[str, float] | None:

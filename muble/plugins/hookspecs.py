@@ -60,6 +60,12 @@ def muble_register_trainers() -> list[PluginRecord]:
 
 
 @hookspec
+def muble_register_disturbances() -> list[PluginRecord]:
+    """Disturbances (``muble.core.interfaces.Disturbance``): physical events during an episode, e.g.
+    ``PluginRecord("slip", Slip, config=SlipConfig, takes_config=True)``."""
+
+
+@hookspec
 def muble_config_searchpath() -> list[str]:
     """Hydra search path entries holding the plugin's config yaml, e.g. ``["pkg://my_plugin.conf"]``.
 

@@ -14,6 +14,7 @@ KINDS: dict[str, str] = {
     "object_set": "muble_register_object_sets",
     "agent": "muble_register_agents",
     "trainer": "muble_register_trainers",
+    "disturbance": "muble_register_disturbances",
 }
 
 

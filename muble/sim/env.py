@@ -131,6 +131,7 @@ class TabletopEnv:
         self.sensors: dict[str, Sensor] = dict(sensors or {})
         # Only sensors that override on_step are called per control step (the physics loop stays cheap).
         self._stepping_sensors = [x for x in self.sensors.values() if type(x).on_step is not Sensor.on_step]
+        self.control_listeners: list[Callable[["TabletopEnv"], None]] = []  # called after every control step
 
         self.action_space = control_space()
         self.gripper_command = -1.0
@@ -228,6 +229,8 @@ class TabletopEnv:
         self.grasp.update(self.data, closing=self.gripper_command > 0.0)
         for sensor in self._stepping_sensors:
             sensor.on_step(self)
+        for listener in self.control_listeners:
+            listener(self)
 
     def follow(self, trajectory: Trajectory, rate: float | None = None, settle: float = 0.0,
                stop: Callable[["TabletopEnv"], bool] | None = None) -> FollowResult:
@@ -428,6 +431,21 @@ class TabletopEnv:
         """Shake the lifted object between two arm configurations; whether it rattles
         (``muble.sim.probing.shake``)."""
         return probing.shake(self, ends, period, cycles)
+
+    def apply_force(self, obj_id: int, force: np.ndarray, point: np.ndarray | None = None) -> None:
+        """Apply ``force`` (N, world frame) to the object at ``point`` (world; default its centre of mass) from the
+        next physics step on, until another call replaces it (a zero force ends it). The physics integrates it:
+        nothing is moved directly, and ``snapshot``/``restore`` keep it with the state."""
+        body = self.grasp.body_of[obj_id]
+        self.data.xfrc_applied[body] = 0.0
+        force = np.asarray(force, dtype=float)
+        if not np.any(force):
+            return
+        at = self.data.xipos[body] if point is None else np.asarray(point, dtype=float)
+        # MuJoCo applies xfrc_applied at the body's centre of mass: a force elsewhere adds its moment about it.
+        torque = np.cross(at - self.data.xipos[body], force)
+        self.data.xfrc_applied[body, :3] = force
+        self.data.xfrc_applied[body, 3:] = torque
 
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
         """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame."""

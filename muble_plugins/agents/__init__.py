@@ -11,8 +11,8 @@ def muble_register_agents() -> list[PluginRecord]:
     from muble_plugins.agents.random_agent import RandomAgent, RandomConfig
 
     return [
-        PluginRecord("oracle", OracleAgent, "executes the ground-truth program, replanning after every primitive",
-                     OracleConfig),
+        PluginRecord("oracle", OracleAgent, "executes the ground-truth program, replanning after every primitive "
+                     "(agent.closed_loop=false: planned once, the open-loop control)", OracleConfig, takes_config=True),
         PluginRecord("random", RandomAgent, "uniformly random primitives on random objects", RandomConfig,
                      takes_config=True),
     ]

@@ -6,7 +6,7 @@ import dataclasses
 import logging
 from dataclasses import dataclass
 
-from muble import (ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, Task, Track,
+from muble import (ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, SceneGraph, Task, Track,
                    get_registry)
 
 from muble.core.symbolic import ArmState
@@ -18,7 +18,9 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class OracleConfig:
-    pass
+    # False: the open-loop control (docs/closed_loop.md): the plan is made once from the first observation and the
+    # primitives' own expected effects, never re-checked against what is observed; a failed primitive is retried.
+    closed_loop: bool = True
 
 
 class OracleAgent(Agent):
@@ -44,7 +46,9 @@ class OracleAgent(Agent):
 
     privileged = True
 
-    def __init__(self, task: Task | None = None) -> None:
+    def __init__(self, config: OracleConfig | None = None, task: Task | None = None) -> None:
+        self.closed_loop = (config or OracleConfig()).closed_loop
+        self.belief: SceneGraph | None = None  # open loop: the world as planned, from the first observation on
         self.task = task
         self.tasks: dict[str, Task] = {}
         self.known: Known = {}  # what this agent's measuring primitives reported, by property and object
@@ -58,6 +62,7 @@ class OracleAgent(Agent):
         self.answered = False
         self.last = None
         self.failures = {}
+        self.belief = None if self.closed_loop else copy.deepcopy(observation.scene)
 
     def _task(self, instruction: Instruction) -> Task:
         if self.task is not None:
@@ -81,6 +86,9 @@ class OracleAgent(Agent):
                 log.info("%s failed (%s); retrying differently", self.last, result.failure_reason)
             else:
                 book(self.known, self.last, result, ArmState.of(observation.scene).held)
+                self._expect(self.last)
+        if self.belief is not None:  # open loop: plan on the world as expected, not as observed
+            observation = dataclasses.replace(observation, scene=self.belief)
         step = self._task(instruction).next_actions(instruction, self._known(observation))
         if isinstance(step, Answer):
             if self.answered:
@@ -89,6 +97,16 @@ class OracleAgent(Agent):
             return step
         self.last = self._retry(step[0]) if step else None
         return self.last
+
+    def _expect(self, action: ActionCall) -> None:
+        """Open loop: the belief takes the succeeded primitive's expected effect (its symbolic model); what a
+        measuring primitive reports is in the books already."""
+        if self.belief is None or get_registry().measures(action.name) is not None:
+            return
+        primitive = get_registry().create("primitive", action.name, action.params)
+        expected = copy.deepcopy(self.belief)
+        if primitive.symbolic_effect(expected).success:
+            self.belief = expected
 
     @staticmethod
     def _target(action: ActionCall) -> object:

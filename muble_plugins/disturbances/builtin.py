@@ -1,0 +1,306 @@
+"""The built-in disturbances: a grip that loosens while lifting, an object bumped across the table, a reading that
+fails once. Each acts through MuJoCo (the gripper's actuators, a force on the object) and never writes a pose."""
+from __future__ import annotations
+
+import itertools
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from muble import ActionCall, ActionResult, Disturbance, DisturbanceEvent, bounded, get_registry
+from muble.stage.rest import at_rest
+from muble.stage.free_place import free_mask
+from muble.stage.table import part_box
+from muble_plugins.primitives.placement import footprint, obstacles
+
+logger = logging.getLogger(__name__)
+
+G = 9.81
+
+
+# ---- slip ----------------------------------------------------------------------------------------------------------
+@dataclass
+class SlipConfig:
+    lifts: int = bounded(1, ge=1)  # it slips during one of the first `lifts` lifts of a held object (drawn)
+    min_height: float = bounded(0.015, ge=0.005, le=0.1)  # m above where it was grasped that it slips at (drawn)
+    max_height: float = bounded(0.03, ge=0.005, le=0.1)
+
+
+class Slip(Disturbance):
+    """While a held object is lifted, the grip loosens: the fingers open and the object drops back from
+    ``min_height``..``max_height`` above where it was grasped onto what it stood on. The lift then fails as the
+    object slipped out of the hand; the agent sees the object back down and the hand empty."""
+
+    def __init__(self, config: SlipConfig) -> None:
+        if config.max_height < config.min_height:
+            raise ValueError(f"slip: max_height {config.max_height} is below min_height {config.min_height}")
+        self.config = config
+        self.nth = 1
+        self.height = config.min_height
+        self.lifts = 0
+        self.armed: tuple[int, int] | None = None  # (step, object) while the chosen lift runs
+        self.fired = False
+
+    def reset(self, rng: np.random.Generator, scene) -> None:
+        self.nth = int(rng.integers(1, self.config.lifts + 1))
+        self.height = float(rng.uniform(self.config.min_height, self.config.max_height))
+        self.lifts, self.armed, self.fired = 0, None, False
+
+    def before(self, env, action: ActionCall, step: int) -> DisturbanceEvent | None:
+        self.armed = None
+        if self.fired or action.name != "lift" or env.held_object is None:
+            return None
+        self.lifts += 1
+        if self.lifts == self.nth:
+            self.armed = (step, env.held_object)
+        return None
+
+    def on_control(self, env) -> DisturbanceEvent | None:
+        if self.armed is None or self.fired or env.held_object is None:
+            return None
+        step, held = self.armed
+        grasped_at = env.cache.get("slip.grasp_z")
+        z = float(env.object_pose(held).pos[2])
+        if grasped_at is None or grasped_at[0] != (step, held):
+            env.cache["slip.grasp_z"] = grasped_at = ((step, held), z)
+        risen = z - grasped_at[1]
+        if risen < self.height:
+            return None
+        env.set_gripper(-1.0)  # the fingers let go: the weld of the grasp model releases, the object falls
+        self.fired, self.armed = True, None
+        logger.info("slip: object %d slips out of the hand %.1f cm up", held, risen * 100)
+        return DisturbanceEvent("slip", step, f"lift {self.nth} of a held object, {risen * 100:.1f} cm up",
+                                held, detail={"height_m": round(risen, 4), "gripper": "opened"})
+
+
+# ---- bump ----------------------------------------------------------------------------------------------------------
+@dataclass
+class BumpConfig:
+    put_downs: int = bounded(1, ge=1)  # it knocks the object of one of the first `put_downs` table put-downs (drawn)
+    min_distance: float = bounded(0.05, ge=0.02, le=0.4)  # m the object is knocked (drawn between these)
+    max_distance: float = bounded(0.12, ge=0.02, le=0.4)
+    speed: float = bounded(0.2, gt=0.0, le=1.0)  # m/s at most while it slides
+    clearance: float = bounded(0.02, ge=0.0, le=0.2)  # m kept from every other object along the way and at the end
+
+
+class Bump(Disturbance):
+    """An object just set down on the table is knocked sideways to another free place on the table: a horizontal
+    force low on the object (so that it slides standing, as a nudge at its base would move it) drives it over
+    ``min_distance``..``max_distance`` in a drawn direction that keeps ``clearance`` from every other object and
+    stays on the table's parts; then it comes to rest. The place is chosen from the drawn direction onwards, in
+    steps of 15 degrees, the first that is free at the drawn distance, else nearer (down to ``min_distance``);
+    where none is free it waits for the next put-down on the table."""
+
+    def __init__(self, config: BumpConfig) -> None:
+        if config.max_distance < config.min_distance:
+            raise ValueError(f"bump: max_distance {config.max_distance} is below min_distance {config.min_distance}")
+        self.config = config
+        self.nth, self.distance, self.angle = 1, config.min_distance, 0.0
+        self.put_downs = 0
+        self.held_before: int | None = None
+        self.fired = False
+
+    def reset(self, rng: np.random.Generator, scene) -> None:
+        self.nth = int(rng.integers(1, self.config.put_downs + 1))
+        self.distance = float(rng.uniform(self.config.min_distance, self.config.max_distance))
+        self.angle = float(rng.uniform(0.0, 2 * np.pi))
+        self.put_downs, self.held_before, self.fired = 0, None, False
+
+    def before(self, env, action: ActionCall, step: int) -> DisturbanceEvent | None:
+        self.held_before = env.held_object
+        return None
+
+    def after(self, env, action: ActionCall, result: ActionResult, step: int):
+        obj = self.held_before
+        if self.fired or action.name != "lower" or not result.success or obj is None or env.held_object is not None:
+            return result, None
+        if not _on_table(env, obj):
+            return result, None
+        self.put_downs += 1
+        if self.put_downs < self.nth:
+            return result, None
+        goal = self._goal(env, obj)
+        if goal is None:
+            logger.info("bump: no free place %.0f cm from object %d", self.distance * 100, obj)
+            return result, None
+        self.fired = True
+        start = env.object_pose(obj).pos.copy()
+        push = slide_to(env, obj, goal, self.config.speed)
+        end = env.object_pose(obj).pos
+        logger.info("bump: object %d knocked %.1f cm", obj, 100 * float(np.linalg.norm(end[:2] - start[:2])))
+        return result, DisturbanceEvent(
+            "bump", step, f"put-down {self.nth} on the table", obj, force=push["peak"].tolist(),
+            impulse=push["impulse"].tolist(), duration=push["duration"],
+            detail={"from": np.round(start[:2], 4).tolist(), "to": np.round(goal, 4).tolist(),
+                    "ended": np.round(end[:2], 4).tolist()})
+
+    def _goal(self, env, obj: int) -> np.ndarray | None:
+        """The first free place along the drawn direction, turned in 15 degree steps, at the drawn distance, else
+        nearer: the object's footprint there keeps ``clearance`` from every other's, and on the way there it comes
+        no nearer to one than ``PATH_GAP`` (``clearance`` where it starts that clear)."""
+        body = env.model.body(env.names.objects[obj]).id
+        here = env.object_pose(obj).pos[:2]
+        outline = footprint(env, body) - here
+        others = obstacles(env, obj)
+        lo, hi = _table_region(env)
+        start_free = bool(free_mask(here[None], outline, others, self.config.clearance)[0])
+        distances = np.linspace(self.distance, self.config.min_distance, 3)
+        for distance, turn in itertools.product(distances, np.radians(np.arange(0, 360, 15))):
+            a = self.angle + turn
+            goal = here + distance * np.array([np.cos(a), np.sin(a)])
+            if np.any(goal < lo) or np.any(goal > hi):
+                continue
+            way = here + np.linspace(0.0, 1.0, max(2, int(distance / 0.01)))[1:, None] * (goal - here)
+            if not free_mask(goal[None], outline, others, self.config.clearance)[0]:
+                continue
+            if free_mask(way, outline, others, self.config.clearance if start_free else PATH_GAP).all():
+                return goal
+        return None
+
+
+PATH_GAP = 0.003  # m kept from every other object on the way, where the object starts nearer than the clearance
+
+
+def _table_region(env) -> tuple[np.ndarray, np.ndarray]:
+    """The box (x, y) spanned by the table's named parts: where a placed object stays reachable."""
+    boxes = [part_box(env, part) for part in ("left", "right", "front", "back")]
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
+def _on_table(env, obj: int) -> bool:
+    """The object stands on the table itself (not on another object)."""
+    m, d = env.model, env.data
+    body = m.body(env.names.objects[obj]).id
+    table = env.table().body
+    touching = set()
+    for c in d.contact[: d.ncon]:
+        b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
+        if body in (b1, b2):
+            touching.add(b2 if b1 == body else b1)
+    objects = {m.body(name).id for name in env.names.objects.values()}
+    return table in touching and not (touching & objects)
+
+
+# s the slide may take at most; gains of the force that drives it (per kg)
+SLIDE_TIME = 3.0
+SLIDE_KP = 4.0  # 1/s: desired speed per metre still to go
+SLIDE_KV = 25.0  # 1/s: acceleration per m/s of speed error
+SLIDE_TOLERANCE = 0.005  # m from the goal where the force ends
+# m above the object's lowest point where the force acts: at the height of the table's friction on it, so that the
+# two make no moment that would tip it (a tall glass pushed at a quarter of its height falls over).
+PUSH_HEIGHT = 0.003
+
+
+def slide_to(env, obj: int, goal: np.ndarray, speed: float) -> dict:
+    """Drive ``obj`` over the table to ``goal`` (x, y) with a horizontal force low on it, then let it come to
+    rest; returns the peak force, the impulse (N·s) and the time the force acted. The force carries the
+    object's weight times its friction with the table beside a speed servo, capped at three times its weight."""
+    m = env.model
+    body = m.body(env.names.objects[obj]).id
+    mass = float(m.body_subtreemass[body])
+    mu = _table_friction(env, body)
+    impulse, peak, t = np.zeros(3), np.zeros(3), 0.0
+    dt = float(getattr(env, "control_dt", 0.05))
+    bottom = env.object_top(obj) - env.object_bbox(obj)["z"]
+    while t < SLIDE_TIME:
+        pos = env.data.xipos[body]
+        error = goal - pos[:2]
+        if np.linalg.norm(error) < SLIDE_TOLERANCE:
+            break
+        velocity = _linear_velocity(env, body)[:2]
+        want = SLIDE_KP * error
+        if np.linalg.norm(want) > speed:
+            want *= speed / np.linalg.norm(want)
+        accel = SLIDE_KV * (want - velocity)
+        direction = want / max(float(np.linalg.norm(want)), 1e-9)
+        force2 = mass * (accel + mu * G * direction)
+        cap = 3.0 * mass * G
+        if np.linalg.norm(force2) > cap:
+            force2 *= cap / np.linalg.norm(force2)
+        force = np.array([force2[0], force2[1], 0.0])
+        point = np.array([pos[0], pos[1], bottom + PUSH_HEIGHT])
+        env.apply_force(obj, force, point)
+        env.advance(dt)
+        impulse += force * dt
+        if np.linalg.norm(force) > np.linalg.norm(peak):
+            peak = force
+        t += dt
+    env.apply_force(obj, np.zeros(3))
+    waited = 0.0
+    while waited < 1.5:
+        env.advance(0.1)
+        waited += 0.1
+        if at_rest(float(np.linalg.norm(_linear_velocity(env, body)))):
+            break
+    return {"peak": peak, "impulse": impulse, "duration": t}
+
+
+def _linear_velocity(env, body: int) -> np.ndarray:
+    """The body's linear velocity (m/s, world frame) at its centre of mass."""
+    import mujoco
+
+    out = np.zeros(6)
+    mujoco.mj_objectVelocity(env.model, env.data, mujoco.mjtObj.mjOBJ_BODY, body, out, 0)
+    return out[3:]
+
+
+def _table_friction(env, body: int) -> float:
+    """The sliding friction between the body and the table (MuJoCo's contact friction: the larger of the two)."""
+    m = env.model
+    table_geom = m.geom(env.names.table_geom).id
+    geoms = np.flatnonzero(m.geom_bodyid == body)
+    own = max(float(m.geom_friction[g, 0]) for g in geoms) if len(geoms) else 1.0
+    return max(own, float(m.geom_friction[table_geom, 0]))
+
+
+# ---- sensor dropout ------------------------------------------------------------------------------------------------
+@dataclass
+class SensorDropoutConfig:
+    readings: int = bounded(1, ge=1)  # one of the first `readings` measurements fails (drawn)
+
+
+class SensorDropout(Disturbance):
+    """A measuring primitive's reading is unstable once: it fails with the reason "reading unstable", and what it
+    measured is forgotten (the agent has to measure again)."""
+
+    def __init__(self, config: SensorDropoutConfig) -> None:
+        self.config = config
+        self.nth = 1
+        self.readings = 0
+        self.kept: dict | None = None
+        self.fired = False
+
+    def reset(self, rng: np.random.Generator, scene) -> None:
+        self.nth = int(rng.integers(1, self.config.readings + 1))
+        self.readings, self.kept, self.fired = 0, None, False
+
+    def before(self, env, action: ActionCall, step: int) -> DisturbanceEvent | None:
+        measures = get_registry().measures(action.name) if isinstance(action.name, str) else None
+        self.kept = None if self.fired or measures is None else \
+            {i: dict(values) for i, values in env.measurements.items()}
+        return None
+
+    def after(self, env, action: ActionCall, result: ActionResult, step: int):
+        if self.kept is None or not result.success:
+            return result, None
+        self.readings += 1
+        if self.readings != self.nth:
+            return result, None
+        self.fired = True
+        env.measurements.clear()
+        env.measurements.update(self.kept)  # the unstable reading is not kept
+        failed = ActionResult(False, failure_reason="reading unstable: the sensor did not settle; measure again",
+                              info=dict(result.info or {}))
+        return failed, DisturbanceEvent("sensor_dropout", step, f"measurement {self.nth}", _target(env, action),
+                                        detail={"primitive": action.name})
+
+
+def _target(env, action: ActionCall) -> int | None:
+    target = action.params.get("target")
+    if isinstance(target, (int, np.integer)):
+        return int(target)
+    return env.held_object
+
+
+__all__ = ["Bump", "BumpConfig", "SensorDropout", "SensorDropoutConfig", "Slip", "SlipConfig"]
