@@ -49,6 +49,9 @@ class DisturbancesConfig:
     the world never pushes back)."""
 
     enabled: dict[str, Any] = field(default_factory=dict)
+    # How many of the enabled disturbances that apply to an episode's instruction act in it, drawn per episode
+    # (stream episode.disturbance_mix) from [low, high]; empty: every one that applies.
+    per_episode: list[int] = bounded(default_factory=list, ge=0, each=True)
 
 
 @dataclass

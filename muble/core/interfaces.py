@@ -359,6 +359,11 @@ class Disturbance(ABC):
     kind: str = ""  # the registered name, set by the world from the registry
     planned: bool = True
 
+    def applies(self, instruction: Instruction) -> bool:
+        """Whether the disturbance can act in an episode of ``instruction`` (a slip needs something lifted, a
+        toppled stack a stack): a split plans only those that can. Optional; by default every episode."""
+        return True
+
     def reset(self, rng: np.random.Generator, scene: "SceneGraph") -> None:
         """Draw this episode's trigger. Optional; by default nothing is drawn."""
 

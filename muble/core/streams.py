@@ -64,6 +64,7 @@ LAMP_JITTER = declare("scene.lamp_jitter", "a scene's lamp offsets and energies 
 PROPERTY_STREAMS = {name: declare(f"scene.{name}", f"a scene sample's {what} (index, sample)") for name, what in (
     ("friction", "friction coefficients of its objects"), ("com_offset", "centre-of-mass offsets of its objects"),
     ("contents", "loose contents of its closed containers"))}
+DISTURBANCE_MIX = declare("episode.disturbance_mix", "which of the enabled disturbances act in an episode (index)")
 INSTRUCTION = declare("episode.instruction", "the instruction a template draws for a scene (index)")
 TEMPLATE_MIX = declare("split.template_mix", "the order of templates within a block of a split (block)")
 COUNT_MIX = declare("split.count_mix", "the order of object counts within a block of a split (block)")

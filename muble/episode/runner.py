@@ -191,14 +191,24 @@ class EpisodeRunner:
     # (``seed``, the episode's key).
     disturbances: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
+    disturbances_per_episode: tuple[int, ...] = ()  # (low, high): how many of those that apply act; () all
 
-    def _disturbances(self, scene: SceneGraph, key: int) -> list[Any]:
-        from muble.core.streams import disturbance_stream
-
+    def _disturbances(self, scene: SceneGraph, instruction: Instruction, key: int) -> list[Any]:
+        """The disturbances that act in this episode, each reset on its own stream: those that apply to the
+        instruction, all of them or, with ``disturbances_per_episode``, a number of them drawn from
+        ``episode.disturbance_mix``."""
+        applicable = [name for name, d in self.disturbances.items() if d.applies(instruction)]
+        if self.disturbances_per_episode and applicable:
+            low, high = (list(self.disturbances_per_episode) * 2)[:2]
+            rng = streams.stream(streams.DISTURBANCE_MIX, self.seed, key)
+            count = int(rng.integers(min(low, len(applicable)), min(high, len(applicable)) + 1))
+            chosen = set(rng.choice(len(applicable), size=count, replace=False).tolist())
+            applicable = [name for i, name in enumerate(applicable) if i in chosen]
         out = []
-        for name, disturbance in self.disturbances.items():
+        for name in applicable:
+            disturbance = self.disturbances[name]
             disturbance.kind = name
-            disturbance.reset(disturbance_stream(name, self.seed, key), copy.deepcopy(scene))
+            disturbance.reset(streams.disturbance_stream(name, self.seed, key), copy.deepcopy(scene))
             out.append(disturbance)
         return out
 
@@ -243,7 +253,8 @@ class EpisodeRunner:
             renderer = _TimedRenderer(self.renderer, timing) if self.renderer is not None else None
             if renderer is not None:
                 renderer.setup(env.sync_scene_graph(), env.model)
-            disturbances = self._disturbances(env.sync_scene_graph(), scene.image_index if key is None else key)
+            disturbances = self._disturbances(env.sync_scene_graph(), instruction,
+                                              scene.image_index if key is None else key)
             world = PhysicalWorld(env, self.registry, renderer, self.cameras, hidden=hidden,
                                   disturbances=disturbances)
             keyframes: list[np.ndarray] = []

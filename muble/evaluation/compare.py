@@ -20,7 +20,8 @@ from typing import Any
 
 from muble.core.errors import ConfigError
 from muble.core.types import Outcome
-from muble.evaluation.report import OVERALL, UNKNOWN, percent_interval
+from muble.evaluation.closed_loop import recovery_by_kind, share
+from muble.evaluation.report import OVERALL, UNKNOWN, markdown_table, percent_interval, text_table
 from muble.evaluation.stats import mcnemar_exact, wilson
 
 FORMAT = "muble-compare"
@@ -65,6 +66,17 @@ def _rate(episodes: list[dict[str, Any]]) -> dict[str, Any]:
             "rate": successes / len(episodes) if episodes else None, "ci": [low, high]}
 
 
+def _recovery(episodes: list[dict[str, Any]]) -> dict[str, dict[str, Any]] | None:
+    """Per disturbance kind and overall, success among the episodes in which a disturbance fired, in ``_rate``'s
+    form; None for a run without disturbances (its results file lists no ``disturbance_kinds``)."""
+    if not any("disturbance_kinds" in e for e in episodes):
+        return None
+    disturbed = [(e["disturbance_kinds"], _success(e)) for e in episodes if e.get("disturbance_kinds")]
+    rows = {**recovery_by_kind(disturbed), OVERALL: share(sum(ok for _, ok in disturbed), len(disturbed))}
+    return {group: {"episodes": r["episodes"], "successes": r["successes"], "rate": r["rate"],
+                    "ci": [r["ci_low"], r["ci_high"]]} for group, r in rows.items()}
+
+
 def _template_order(runs: list[Run]) -> list[str]:
     """Task types in the order the runs' summaries list them (the template mix), others after, ``unknown`` last."""
     order: list[str] = []
@@ -99,7 +111,8 @@ def _warnings(runs: list[Run]) -> list[str]:
 def compare(runs: list[Run]) -> dict[str, Any]:
     """The comparison of ``runs`` (at least one): each run's success per task type and overall with its Wilson
     interval, every pair's shared episodes, discordant counts and McNemar p-value, overall and per task type, and
-    warnings. Raises ``ConfigError`` when two runs share no episode."""
+    warnings; where a run had disturbances, ``recovery`` (per run, per disturbance kind and overall, ``None`` for a
+    run without). Raises ``ConfigError`` when two runs share no episode."""
     templates = _template_order(runs)
     episodes = {run.label: run.episodes() for run in runs}
     success: dict[str, dict[str, Any]] = {}
@@ -107,6 +120,7 @@ def compare(runs: list[Run]) -> dict[str, Any]:
         mine = list(episodes[run.label].values())
         success[run.label] = {t: _rate([e for e in mine if e["template"] == t]) for t in templates}
         success[run.label][OVERALL] = _rate(mine)
+    recovery = {run.label: _recovery(list(episodes[run.label].values())) for run in runs}
     warnings = _warnings(runs)
     pairs = []
     for one, other in itertools.combinations(runs, 2):
@@ -129,7 +143,9 @@ def compare(runs: list[Run]) -> dict[str, Any]:
             "runs": [{"label": run.label, "folder": str(run.folder), "agent": run.results.get("agent"),
                       "splits": list(run.results["splits"]), **{f: run.results.get(f) for f in SETTINGS}}
                      for run in runs],
-            "warnings": warnings, "templates": templates, "success": success, "pairs": pairs}
+            "warnings": warnings, "templates": templates, "success": success, "pairs": pairs,
+            # Only where a run had disturbances: other comparisons are as they were.
+            **({"recovery": recovery} if any(recovery.values()) else {})}
 
 
 def chart_groups(comparison: dict[str, Any]) -> dict[str, dict[str, tuple[float, float, float] | None]]:
@@ -153,24 +169,25 @@ def _p(value: float) -> str:
     return f"{value:.3g}"
 
 
-def _text_table(header: list[str], rows: list[list[str]], rule_before_last: bool = True) -> list[str]:
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-
-    def line(cells: list[str]) -> str:
-        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))).rstrip()
-
-    rule = "  ".join("-" * w for w in widths)
-    body = [line(r) for r in rows]
-    if rule_before_last and len(body) > 1:
-        body.insert(len(body) - 1, rule)
-    return [line(header), rule, *body]
-
-
 def _success_rows(comparison: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     labels = [run["label"] for run in comparison["runs"]]
     rows = [[group] + [_cell(comparison["success"][label][group]) for label in labels]
             for group in [*comparison["templates"], OVERALL]]
     return ["task type", *labels], rows
+
+
+def _recovery_rows(comparison: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """Per disturbance kind and overall, each run's recovery rate (``-`` for a run without disturbances)."""
+    labels = [run["label"] for run in comparison["runs"]]
+    recovery = comparison["recovery"]
+    kinds = sorted({kind for rows in recovery.values() if rows for kind in rows if kind != OVERALL})
+    rows = [[group] + [_cell(recovery[label][group]) if group in (recovery[label] or {}) else "-" for label in labels]
+            for group in [*kinds, OVERALL]]
+    return ["disturbance kind", *labels], rows
+
+
+RECOVERY_NOTE = ("success among the episodes in which a disturbance fired, per disturbance kind and overall (95% "
+                 "Wilson interval, n episodes)")
 
 
 def _pair_rows(pair: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
@@ -181,32 +198,26 @@ def _pair_rows(pair: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
 
 
 def text(comparison: dict[str, Any]) -> str:
-    """The comparison as printed: the success table, then one table per pair, then the warnings."""
+    """The comparison as printed: the success table, the recovery table of runs with disturbances, then one table
+    per pair, then the warnings."""
     lines = [f"success rate by task type (95% Wilson interval, n episodes), {len(comparison['runs'])} runs:"]
     lines += [f"  {run['label']}: agent {run['agent']}, {run['folder']}" for run in comparison["runs"]]
-    lines += ["", *_text_table(*_success_rows(comparison))]
+    lines += ["", *text_table(*_success_rows(comparison))]
+    if "recovery" in comparison:
+        lines += ["", f"recovery rate after disturbances: {RECOVERY_NOTE}:", *text_table(*_recovery_rows(comparison))]
     for pair in comparison["pairs"]:
         o = pair[OVERALL]
         lines += ["", f"{pair['first']} vs {pair['second']}: {o['shared']} shared episodes, {o['b']} solved only by "
                       f"{pair['first']}, {o['c']} only by {pair['second']}; exact McNemar p = {_p(o['p_value'])}",
-                  *_text_table(*_pair_rows(pair))]
+                  *text_table(*_pair_rows(pair))]
     if comparison["warnings"]:
         lines += [""] + [f"warning: {w}" for w in comparison["warnings"]]
     return "\n".join(lines)
 
 
-def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
-    out = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * (len(header) - 1)]
-    for i, row in enumerate(rows):
-        cells = [c.replace("|", r"\|") for c in row]
-        if i == len(rows) - 1 and row[0] == OVERALL:
-            cells = [f"**{c}**" for c in cells]
-        out.append("| " + " | ".join(cells) + " |")
-    return out
-
-
 def markdown(comparison: dict[str, Any], chart: str | None = CHART) -> str:
-    """``compare.md``: the runs, warnings, the success table with the chart, and the paired tests."""
+    """``compare.md``: the runs, warnings, the success table with the chart, the recovery table of runs with
+    disturbances, and the paired tests."""
     lines = [f"# Comparison of {len(comparison['runs'])} evaluation runs", "",
              "| run | agent | folder | protocol | track | mode | data sha256 |", "|---|---|---|---|---|---|---|"]
     for run in comparison["runs"]:
@@ -220,13 +231,16 @@ def markdown(comparison: dict[str, Any], chart: str | None = CHART) -> str:
         lines += ["", "**Warnings:**", ""] + [f"- {w}" for w in comparison["warnings"]]
     lines += ["", "## Success by task type", "",
               "Success rate, its 95% Wilson score interval and the number of episodes n.", "",
-              *_md_table(*_success_rows(comparison))]
+              *markdown_table(*_success_rows(comparison))]
     if chart:
         lines += ["", f"![success rate per task type with 95% intervals]({chart})"]
+    if "recovery" in comparison:
+        lines += ["", "## Recovery after disturbances", "", f"Recovery rate: {RECOVERY_NOTE}.", "",
+                  *markdown_table(*_recovery_rows(comparison))]
     lines += ["", "## Paired comparisons", "",
               "Over the episodes both runs have (same split and index): b episodes only the first run solved, c only "
               "the second; the p-value is the exact two-sided McNemar test (binomial on b + c discordant episodes)."]
     for pair in comparison["pairs"]:
-        lines += ["", f"### {pair['first']} vs {pair['second']}", "", *_md_table(*_pair_rows(pair))]
+        lines += ["", f"### {pair['first']} vs {pair['second']}", "", *markdown_table(*_pair_rows(pair))]
     lines.append("")
     return "\n".join(lines)

@@ -15,6 +15,10 @@ An agent that counts its own costs (``stats()``, e.g. tokens and requests of a m
 summed per task type and overall in ``agent_stats`` (``agent_totals``), with two figures derived from the usual
 names: tokens per success (``tokens_in`` + ``tokens_out`` over the successes) and the parse-failure rate
 (``parse_failures`` over ``replies``).
+
+A run with disturbances has its closed-loop metrics (``muble.evaluation.closed_loop``: recovery, detection delay,
+extra primitives) in a ``closed_loop`` block of each row and in tables after the success table; a run without has
+neither, and its report is what it was before disturbances existed.
 """
 from __future__ import annotations
 
@@ -22,6 +26,7 @@ from collections import Counter
 from typing import Any, Iterable
 
 from muble.core.types import Outcome
+from muble.evaluation.closed_loop import closed_loop
 from muble.evaluation.stats import wilson
 
 OVERALL = "overall"
@@ -74,13 +79,19 @@ def agent_totals(records: list[dict[str, Any]]) -> dict[str, Any] | None:
 
 
 def _row(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """One row of the results table: counts, rate with its Wilson 95% interval, efficiency, outcome counts."""
+    """One row of the results table: counts, rate with its Wilson 95% interval, efficiency, outcome counts, and
+    ``closed_loop`` (``muble.evaluation.closed_loop.closed_loop``) only where a record comes from a run with
+    disturbances."""
     counts = Counter(r["outcome"] for r in records)
     successes = counts[Outcome.SUCCESS.value]
     low, high = wilson(successes, len(records))
-    return {"episodes": len(records), "successes": successes, "success_rate": _rate(successes, len(records)),
-            "ci_low": low, "ci_high": high, "spl": spl(records), "measurement_ratio": measurement_ratio(records),
-            "outcomes": {o: counts[o] for o in OUTCOMES}}
+    row = {"episodes": len(records), "successes": successes, "success_rate": _rate(successes, len(records)),
+           "ci_low": low, "ci_high": high, "spl": spl(records), "measurement_ratio": measurement_ratio(records),
+           "outcomes": {o: counts[o] for o in OUTCOMES}}
+    closed = closed_loop(records)
+    if closed is not None:
+        row["closed_loop"] = closed
+    return row
 
 
 def summarize(records: Iterable[dict[str, Any]], templates: list[str] | None = None) -> dict[str, Any]:
@@ -128,9 +139,95 @@ def _ratio(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
 
 
+def text_table(header: list[str], rows: list[list[str]], rule_before_last: bool = True) -> list[str]:
+    """Lines of a plain-text table: the first column left-aligned, the others right-aligned, a rule under the
+    header and (``rule_before_last``) above the last row, the overall one."""
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+
+    def line(cells: list[str]) -> str:
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))).rstrip()
+
+    rule = "  ".join("-" * w for w in widths)
+    body = [line(r) for r in rows]
+    if rule_before_last and len(body) > 1:
+        body.insert(len(body) - 1, rule)
+    return [line(header), rule, *body]
+
+
+def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """Lines of a Markdown table, numbers right-aligned; a last row named ``overall`` in bold."""
+    out = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * (len(header) - 1)]
+    for i, row in enumerate(rows):
+        cells = [c.replace("|", r"\|") for c in row]
+        if i == len(rows) - 1 and row[0] == OVERALL:
+            cells = [f"**{c}**" for c in cells]
+        out.append("| " + " | ".join(cells) + " |")
+    return out
+
+
+def _percent(rate: float | None) -> str:
+    return "-" if rate is None else f"{100 * rate:.1f}%"
+
+
+def _closed_loop_rows(summary: dict[str, Any]) -> tuple[list[str], list[list[str]]] | None:
+    """The closed-loop table: per task type with disturbance records and overall, the disturbed and recovered
+    episodes, the recovery rate with its interval, fired over planned disturbances, the mean detection delay, the
+    events never addressed and the mean extra primitives; None for a run without disturbances."""
+    if not summary[OVERALL].get("closed_loop"):
+        return None
+    groups = [(t, s["closed_loop"]) for t, s in summary["templates"].items() if s.get("closed_loop")]
+    rows = [[name, str(c["disturbed"]), str(c["recovered"]), _percent(c["recovery_rate"]),
+             percent_interval(c["ci_low"], c["ci_high"]), f"{c['disturbances_fired']}/{c['disturbances_planned']}",
+             _ratio(c["detection_delay"]), str(c["unaddressed"]), _ratio(c["extra_primitives"])]
+            for name, c in [*groups, (OVERALL, summary[OVERALL]["closed_loop"])]]
+    return ["task type", "disturbed", "recovered", "recovery rate", "95% CI", "fired/planned", "detection delay",
+            "unaddressed", "extra primitives"], rows
+
+
+def _kind_rows(summary: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """Recovery per disturbance kind, overall: episodes it fired in, successes among them, rate and interval."""
+    kinds = summary[OVERALL]["closed_loop"]["recovery_by_kind"]
+    rows = [[kind, str(k["episodes"]), str(k["successes"]), _percent(k["rate"]),
+             percent_interval(k["ci_low"], k["ci_high"])] for kind, k in kinds.items()]
+    return ["disturbance kind", "episodes", "recovered", "recovery rate", "95% CI"], rows
+
+
+CLOSED_LOOP_NOTE = ("disturbed: episodes in which a disturbance fired; recovery rate: successes among them (95% "
+                    "Wilson interval); detection delay: mean primitives between a disturbance and the first action "
+                    "that addresses it (unaddressed: events never addressed); extra primitives: mean primitives "
+                    "beyond the ground-truth plan in recovered episodes")
+
+
+def closed_loop_table(summary: dict[str, Any]) -> str:
+    """The closed-loop tables of a run with disturbances (empty for one without): per task type and overall,
+    then recovery per disturbance kind."""
+    closed = _closed_loop_rows(summary)
+    if closed is None:
+        return ""
+    lines = ["closed loop (recovery: successes among the episodes in which a disturbance fired, 95% Wilson interval; "
+             "detection delay and extra primitives: means in primitives; docs/evaluation.md):", *text_table(*closed)]
+    kinds = _kind_rows(summary)
+    if kinds[1]:
+        lines += ["", *text_table(*kinds, rule_before_last=False)]
+    return "\n".join(lines)
+
+
+def closed_loop_markdown(summary: dict[str, Any]) -> list[str]:
+    """Markdown lines of ``closed_loop_table`` (none for a run without disturbances)."""
+    closed = _closed_loop_rows(summary)
+    if closed is None:
+        return []
+    lines = ["", f"Closed loop: {CLOSED_LOOP_NOTE}.", "", *markdown_table(*closed)]
+    kinds = _kind_rows(summary)
+    if kinds[1]:
+        lines += ["", *markdown_table(*kinds)]
+    return lines
+
+
 def success_table(summary: dict[str, Any], title: str = "") -> str:
     """The results table: one row per task type and an overall row: success rate in percent with its 95% Wilson
-    interval, then SPL and the measurement ratio (``-`` where no ground-truth plan says what was needed)."""
+    interval, then SPL and the measurement ratio (``-`` where no ground-truth plan says what was needed); for a run
+    with disturbances, the closed-loop tables after it (``closed_loop_table``)."""
     rows = list(summary["templates"].items()) + [(OVERALL, summary[OVERALL])]
     width = max(len("task type"), *(len(name) for name, _ in rows))
     cis = [percent_interval(s["ci_low"], s["ci_high"]) for _, s in rows]
@@ -145,7 +242,8 @@ def success_table(summary: dict[str, Any], title: str = "") -> str:
             lines.append(rule)
         lines.append(f"{name.ljust(width)}  {s['episodes']:8d}  {s['successes']:9d}  {100 * s['success_rate']:11.1f}%"
                      f"  {ci.ljust(ci_width)}  {_ratio(s.get('spl')):>4}  {_ratio(s.get('measurement_ratio')):>11}")
-    return "\n".join(lines)
+    closed = closed_loop_table(summary)
+    return "\n".join(lines + (["", closed] if closed else []))
 
 
 def failure_table(summary: dict[str, Any]) -> str:
@@ -218,6 +316,7 @@ def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
                   f"**{_ratio(o.get('spl'))}** | **{_ratio(o.get('measurement_ratio'))}** |", "",
                   "| failure class | episodes |", "|---|---:|"]
         lines += [f"| {c} | {n} |" for c, n in summary["failures"].items()]
+        lines += closed_loop_markdown(summary)
         if summary.get("skipped"):
             lines += ["", f"{len(summary['skipped'])} indices skipped: no template of the mix applied to their scene."]
         bad = summary.get("bad_entries", [])

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from muble.core.errors import ConfigError
+from muble.evaluation.closed_loop import fired_kinds
 from muble.evaluation.report import OVERALL
 
 RESULTS_FILE = "results.json"
@@ -21,8 +22,10 @@ VERSION = 1
 
 
 def _summary_row(row: dict[str, Any]) -> dict[str, Any]:
+    # The closed-loop block only for runs with disturbances: other runs' files are as they were.
     return {"episodes": row["episodes"], "successes": row["successes"], "rate": row["success_rate"],
-            "ci": [row["ci_low"], row["ci_high"]], "spl": row["spl"], "measurement_ratio": row["measurement_ratio"]}
+            "ci": [row["ci_low"], row["ci_high"]], "spl": row["spl"], "measurement_ratio": row["measurement_ratio"],
+            **({"closed_loop": row["closed_loop"]} if "closed_loop" in row else {})}
 
 
 def _episode(record: dict[str, Any]) -> dict[str, Any]:
@@ -31,7 +34,9 @@ def _episode(record: dict[str, Any]) -> dict[str, Any]:
             "primitives_used": len(record["primitives"]),
             "ground_truth_primitives": record.get("ground_truth_primitives", 0),
             "measurements": record.get("measurements"),
-            "ground_truth_measurements": record.get("ground_truth_measurements")}
+            "ground_truth_measurements": record.get("ground_truth_measurements"),
+            **({"disturbance_kinds": fired_kinds(record), "disturbances_planned": record.get("disturbances_planned", 0)}
+               if "disturbances" in record else {})}
 
 
 def results_document(*, run: dict[str, Any], manifest: dict[str, Any],

@@ -5,13 +5,15 @@
 for sorting and filtering tables (``site_assets/site.js``) and no server of MuBlE's:
 
 - ``index.html``: one row per run and split (agent, track, mode, protocol, split, success with its Wilson 95%
-  interval, efficiency, measurement ratio, tokens per success), sortable and filterable;
-- ``runs/<run>/<split>/index.html``: success per task type with intervals (an SVG plot), the failure taxonomy and
-  the episodes, filterable by template and outcome;
+  interval, efficiency, measurement ratio, tokens per success; the recovery rate after disturbances where a run
+  had them), sortable and filterable;
+- ``runs/<run>/<split>/index.html``: success per task type with intervals (an SVG plot), the closed-loop metrics
+  of a run with disturbances, the failure taxonomy and the episodes, filterable by template and outcome;
 - ``runs/<run>/<split>/<index>.html``: the instruction and (program track) its program, every decision with its
-  result, failure reason and measurement, measurements beside the true values (read from the scene file when the
-  site is built, never shown to an agent), the keyframes as a strip and a GIF, the LLM's dialogue for ``agent=llm``,
-  and links to the same episode in every other run on the same data.
+  result, failure reason and measurement, the disturbances that fired (marked on the decisions and keyframes),
+  measurements beside the true values (read from the scene file when the site is built, never shown to an agent),
+  the keyframes as a strip and a GIF, the LLM's dialogue for ``agent=llm``, and links to the same episode in every
+  other run on the same data.
 
 Images are files the pages reference (keyframes hard-linked or copied from the run, a GIF made from them), so a
 page of a 1,000-episode run stays small.
@@ -29,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from muble.core.errors import ConfigError
+from muble.evaluation.closed_loop import detection_delay, parse_action
 
 ASSETS = Path(__file__).with_name("site_assets")
 RECORDS = "episodes_{split}.jsonl"
@@ -46,7 +49,6 @@ def measured_properties() -> dict[str, tuple[str, str]]:
         if prop:
             out[name] = (str(prop), str(getattr(factory, "measure_unit", "") or ""))
     return out
-_ACTION = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)\((?P<args>.*)\)$")
 
 
 @dataclass
@@ -114,18 +116,6 @@ def number(value: Any, digits: int = 3) -> str:
     if isinstance(value, float):
         return f"{value:.{digits}g}"
     return html.escape(str(value))
-
-
-def parse_action(text: str) -> tuple[str, dict[str, str]]:
-    """``weigh(target=3)`` -> (``weigh``, {``target``: ``3``}); text that is not a call -> (text, {})."""
-    m = _ACTION.match(text.strip())
-    if not m:
-        return text, {}
-    args = {}
-    for part in re.split(r",\s*(?=[A-Za-z_][A-Za-z0-9_]*=)", m.group("args")) if m.group("args") else []:
-        key, _, value = part.partition("=")
-        args[key.strip()] = value.strip()
-    return m.group("name"), args
 
 
 def success_svg(rows: list[tuple[str, dict[str, Any]]], width: int = 700) -> str:
@@ -234,6 +224,31 @@ def measured_against_truth(steps: list[dict[str, Any]], scene: dict[str, Any] | 
             error = (measured - true) / true
         rows.append({"action": step["action"], "what": label, "unit": unit, "measured": measured, "true": true,
                      "error": error})
+    return rows
+
+
+# --- disturbances ------------------------------------------------------------------------------------------------
+def disturbance_rows(record: dict[str, Any], frames: list[str]) -> list[dict[str, Any]]:
+    """The episode's disturbances as its page lists them: each event of the record with the primitive it fired
+    during or right after (``step``, 1-based, and its text), its detection delay (None: never addressed) and the
+    keyframes before and after that primitive (``frames[step - 1]`` and ``frames[step]``: the first keyframe is the
+    scene before any primitive), where every keyframe of the record is on the page."""
+    events = record.get("disturbances") or []
+    if not events:
+        return []
+    from muble.evaluation.episodes import measuring_primitives
+
+    primitives = record.get("primitives") or [s.get("action", "") for s in record.get("steps") or []]
+    measuring = measuring_primitives()
+    aligned = len(frames) == len(record.get("keyframes") or []) > 0
+    rows = []
+    for n, event in enumerate(events, 1):
+        step = int(event.get("step", 0))
+        rows.append({**event, "id": f"disturbance-{n}", "step": step,
+                     "primitive": primitives[step - 1] if 0 < step <= len(primitives) else None,
+                     "delay": detection_delay(event, primitives, measuring),
+                     "before": frames[step - 1] if aligned and 0 < step <= len(frames) else None,
+                     "after": frames[step] if aligned and 0 <= step < len(frames) else None})
     return rows
 
 
@@ -353,10 +368,10 @@ def build_site(folders: list[str | Path], out: str | Path) -> dict[str, Any]:
                 successes = overall["successes"]
                 board.append({"run": run, "split": split, "overall": overall, "href": f"runs/{run.slug}/{split}/",
                               "tokens_per_success": (sum(tokens) / successes if successes and any(tokens)
-                                                     else None)})
+                                                     else None), "closed_loop": overall.get("closed_loop")})
                 pages += _write_run(env, stage, run, split, records, summary, pairs, truth)
-        (stage / "index.html").write_text(env.get_template("index.html").render(board=board, runs=runs, root=""),
-                                          encoding="utf-8")
+        (stage / "index.html").write_text(env.get_template("index.html").render(
+            board=board, runs=runs, root="", closed_loop=any(row["closed_loop"] for row in board)), encoding="utf-8")
     return {"runs": len(runs), "episodes": pages}
 
 
@@ -382,6 +397,7 @@ def _write_run(env, stage: Path, run: Run, split: str, records: list[dict[str, A
         scene = truth.scene(run, split, index)
         page = env.get_template("episode.html").render(
             root="../../../", run=run, split=split, record=record, steps=steps, frames=frames, gif=gif,
+            disturbances=disturbance_rows(record, frames),
             truth=measured_against_truth(steps, scene, measures), program=truth.program(run, split, index),
             dialogue=dialogue(run, split, index, record.get("template", "")),
             same=[(o, s, f"../../../runs/{o.slug}/{s}/{index:06d}.html") for o, s in others

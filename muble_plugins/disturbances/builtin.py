@@ -19,6 +19,23 @@ logger = logging.getLogger(__name__)
 G = 9.81
 
 
+def _steps(instruction) -> set[str]:
+    return {str(step.get("type")) for step in instruction.program}
+
+
+# Program steps that have the robot pick an object up (and so lift it): moving, stacking, picking up, and every
+# step that compares or asks for a hidden property, which is measured in the hand.
+HANDLING_STEPS = {"move_to", "stack", "pick_up"}
+
+
+def _measured_step(step: str) -> bool:
+    """A program step that compares or asks for a hidden property (``filter_weight``, ``query_friction`` …)."""
+    from muble.programs.program import QUANTITIES
+
+    kind, _, name = step.partition("_")
+    return kind in ("filter", "order", "query") and name in QUANTITIES
+
+
 # ---- slip ----------------------------------------------------------------------------------------------------------
 @dataclass
 class SlipConfig:
@@ -41,6 +58,10 @@ class Slip(Disturbance):
         self.lifts = 0
         self.armed: tuple[int, int] | None = None  # (step, object) while the chosen lift runs
         self.fired = False
+
+    def applies(self, instruction) -> bool:
+        steps = _steps(instruction)
+        return bool(steps & HANDLING_STEPS) or any(_measured_step(t) for t in steps)
 
     def reset(self, rng: np.random.Generator, scene) -> None:
         self.nth = int(rng.integers(1, self.config.lifts + 1))
@@ -100,6 +121,9 @@ class Bump(Disturbance):
         self.put_downs = 0
         self.held_before: int | None = None
         self.fired = False
+
+    def applies(self, instruction) -> bool:
+        return "move_to" in _steps(instruction)
 
     def reset(self, rng: np.random.Generator, scene) -> None:
         self.nth = int(rng.integers(1, self.config.put_downs + 1))
@@ -182,13 +206,8 @@ def _on_table(env, obj: int) -> bool:
     return table in touching and not (touching & objects)
 
 
-# s the slide may take at most; gains of the force that drives it (per kg)
-SLIDE_TIME = 3.0
-SLIDE_KP = 4.0  # 1/s: desired speed per metre still to go
-SLIDE_KV = 25.0  # 1/s: acceleration per m/s of speed error
-SLIDE_TOLERANCE = 0.005  # m from the goal where the force ends
-# m above the object's lowest point where the force acts: at the height of the table's friction on it, so that the
-# two make no moment that would tip it (a tall glass pushed at a quarter of its height falls over).
+# m above the object's lowest point where a slide's force acts: at the height of the table's friction on it, so
+# that the two make no moment that would tip it (a tall glass pushed at a quarter of its height falls over).
 PUSH_HEIGHT = 0.003
 
 
@@ -196,44 +215,91 @@ def slide_to(env, obj: int, goal: np.ndarray, speed: float) -> dict:
     """Drive ``obj`` over the table to ``goal`` (x, y) with a horizontal force low on it, then let it come to
     rest; returns the peak force, the impulse (N·s) and the time the force acted. The force carries the
     object's weight times its friction with the table beside a speed servo, capped at three times its weight."""
-    m = env.model
-    body = m.body(env.names.objects[obj]).id
-    mass = float(m.body_subtreemass[body])
-    mu = _table_friction(env, body)
-    impulse, peak, t = np.zeros(3), np.zeros(3), 0.0
-    dt = float(getattr(env, "control_dt", 0.05))
+    push = Push(env, obj)
     bottom = env.object_top(obj) - env.object_bbox(obj)["z"]
-    while t < SLIDE_TIME:
-        pos = env.data.xipos[body]
-        error = goal - pos[:2]
-        if np.linalg.norm(error) < SLIDE_TOLERANCE:
-            break
-        velocity = _linear_velocity(env, body)[:2]
-        want = SLIDE_KP * error
-        if np.linalg.norm(want) > speed:
-            want *= speed / np.linalg.norm(want)
-        accel = SLIDE_KV * (want - velocity)
-        direction = want / max(float(np.linalg.norm(want)), 1e-9)
-        force2 = mass * (accel + mu * G * direction)
-        cap = 3.0 * mass * G
-        if np.linalg.norm(force2) > cap:
-            force2 *= cap / np.linalg.norm(force2)
-        force = np.array([force2[0], force2[1], 0.0])
-        point = np.array([pos[0], pos[1], bottom + PUSH_HEIGHT])
-        env.apply_force(obj, force, point)
-        env.advance(dt)
-        impulse += force * dt
-        if np.linalg.norm(force) > np.linalg.norm(peak):
-            peak = force
-        t += dt
-    env.apply_force(obj, np.zeros(3))
-    waited = 0.0
-    while waited < 1.5:
-        env.advance(0.1)
-        waited += 0.1
-        if at_rest(float(np.linalg.norm(_linear_velocity(env, body)))):
-            break
-    return {"peak": peak, "impulse": impulse, "duration": t}
+    push.drive(lambda pos: np.append(goal, pos[2]), speed, planar=True, height=bottom + PUSH_HEIGHT)
+    return push.done()
+
+
+def knock_off(env, obj: int, over: float, goal: np.ndarray, speed: float) -> dict:
+    """Knock ``obj`` off what it stands on onto the table at ``goal`` (x, y): a force at its centre of mass that
+    carries its weight lifts it until its bottom is ``over`` (world z), moves it across, and lowers it until it
+    touches the table; then it comes to rest. Returns the push's figures as ``slide_to`` does."""
+    push = Push(env, obj)
+    body = push.body
+    bottom = env.object_top(obj) - env.object_bbox(obj)["z"]
+    rise = max(0.0, over - bottom)
+    start = env.data.xipos[body].copy()
+    up = start + [0.0, 0.0, rise]
+    push.drive(lambda pos: up, speed, planar=False)
+    across = np.array([goal[0], goal[1], up[2]])
+    push.drive(lambda pos: across, speed, planar=False)
+    table_top = env.table().top_z
+    down = np.array([goal[0], goal[1], table_top - 0.01])  # below reach: stopped by the table, not by the servo
+    push.drive(lambda pos: down, 0.5 * speed, planar=False, until=lambda: env.touches_support(obj))
+    return push.done()
+
+
+# s a push may take at most per leg; gains of the force that drives it (per kg)
+SLIDE_TIME = 3.0
+SLIDE_KP = 4.0  # 1/s: desired speed per metre still to go
+SLIDE_KV = 25.0  # 1/s: acceleration per m/s of speed error
+SLIDE_TOLERANCE = 0.005  # m from the goal where the force ends
+
+
+class Push:
+    """A force servo on one object: ``drive`` moves it towards a goal at a bounded speed, by a force through
+    MuJoCo applied each control step (horizontal and low on it for a slide, with friction fed forward; at its
+    centre of mass and carrying its weight for a lift), and ``done`` ends the force and lets it come to rest."""
+
+    def __init__(self, env, obj: int) -> None:
+        self.env, self.obj = env, obj
+        self.body = env.model.body(env.names.objects[obj]).id
+        self.mass = float(env.model.body_subtreemass[self.body])
+        self.mu = _table_friction(env, self.body)
+        self.impulse, self.peak, self.t = np.zeros(3), np.zeros(3), 0.0
+        self.dt = float(getattr(env, "control_dt", 0.05))
+
+    def drive(self, goal_at, speed: float, planar: bool, height: float | None = None, until=None) -> None:
+        env, body, mass = self.env, self.body, self.mass
+        axes = 2 if planar else 3
+        start = self.t
+        while self.t - start < SLIDE_TIME:
+            pos = env.data.xipos[body].copy()
+            error = (goal_at(pos) - pos)[:axes]
+            if np.linalg.norm(error) < SLIDE_TOLERANCE or (until is not None and until()):
+                break
+            want = SLIDE_KP * error
+            if np.linalg.norm(want) > speed:
+                want *= speed / np.linalg.norm(want)
+            accel = SLIDE_KV * (want - _linear_velocity(env, body)[:axes])
+            if planar:
+                direction = want / max(float(np.linalg.norm(want)), 1e-9)
+                force = np.append(mass * (accel + self.mu * G * direction), 0.0)
+                point = np.array([pos[0], pos[1], height])
+            else:
+                force = mass * (accel + [0.0, 0.0, G])
+                point = None
+            cap = 3.0 * mass * G
+            if np.linalg.norm(force) > cap:
+                force *= cap / np.linalg.norm(force)
+            env.apply_force(self.obj, force, point)
+            env.advance(self.dt)
+            self.impulse += force * self.dt
+            if np.linalg.norm(force) > np.linalg.norm(self.peak):
+                self.peak = force
+            self.t += self.dt
+
+    def done(self) -> dict:
+        env = self.env
+        env.apply_force(self.obj, np.zeros(3))
+        waited = 0.0
+        while waited < 1.5:
+            env.advance(0.1)
+            waited += 0.1
+            if at_rest(float(np.linalg.norm(_linear_velocity(env, self.body)))):
+                break
+        return {"peak": self.peak, "impulse": self.impulse, "duration": self.t}
 
 
 def _linear_velocity(env, body: int) -> np.ndarray:
@@ -254,6 +320,83 @@ def _table_friction(env, body: int) -> float:
     return max(own, float(m.geom_friction[table_geom, 0]))
 
 
+# ---- topple --------------------------------------------------------------------------------------------------------
+@dataclass
+class ToppleConfig:
+    stackings: int = bounded(1, ge=1)  # it knocks off the top of one of the first `stackings` put-downs on an object
+    speed: float = bounded(0.2, gt=0.0, le=1.0)  # m/s at most while it is pushed off
+    clearance: float = bounded(0.02, ge=0.0, le=0.2)  # m between it and every other object where it ends
+
+
+KNOCK_CLEARANCE = 0.015  # m the knocked-off object's bottom passes over the top of what it stood on
+
+
+class Topple(Disturbance):
+    """The top object of a stack just made is knocked off onto the table: a force at its centre of mass lifts it
+    out of or off what it stood on (``knock_off``), carries it across in a drawn direction (turned in 15 degree
+    steps until a free place on the table is found) and sets it down there, standing as it stood."""
+
+    def __init__(self, config: ToppleConfig) -> None:
+        self.config = config
+        self.nth, self.angle = 1, 0.0
+        self.stackings = 0
+        self.held_before: int | None = None
+        self.fired = False
+
+    def applies(self, instruction) -> bool:
+        return "stack" in _steps(instruction)
+
+    def reset(self, rng: np.random.Generator, scene) -> None:
+        self.nth = int(rng.integers(1, self.config.stackings + 1))
+        self.angle = float(rng.uniform(0.0, 2 * np.pi))
+        self.stackings, self.held_before, self.fired = 0, None, False
+
+    def before(self, env, action: ActionCall, step: int) -> DisturbanceEvent | None:
+        self.held_before = env.held_object
+        return None
+
+    def after(self, env, action: ActionCall, result: ActionResult, step: int):
+        top, base = self.held_before, action.params.get("target")
+        if self.fired or action.name != "lower" or not result.success or top is None \
+                or not isinstance(base, (int, np.integer)) or env.held_object is not None:
+            return result, None
+        self.stackings += 1
+        if self.stackings < self.nth:
+            return result, None
+        goal = self._goal(env, top, int(base))
+        if goal is None:
+            logger.info("topple: no free place beside object %d for object %d", base, top)
+            return result, None
+        self.fired = True
+        start = env.object_pose(top).pos.copy()
+        push = knock_off(env, top, env.object_top(int(base)) + KNOCK_CLEARANCE, goal, self.config.speed)
+        end = env.object_pose(top).pos
+        logger.info("topple: object %d knocked off object %d", top, base)
+        return result, DisturbanceEvent(
+            "topple", step, f"stacking {self.nth}", top, force=push["peak"].tolist(), impulse=push["impulse"].tolist(),
+            duration=push["duration"], detail={"base": int(base), "from": np.round(start[:2], 4).tolist(),
+                                               "to": np.round(goal, 4).tolist(), "ended": np.round(end, 4).tolist()})
+
+    def _goal(self, env, top: int, base: int) -> np.ndarray | None:
+        """The nearest place along the drawn direction (then turned by 15 degree steps) where the top object's
+        footprint keeps ``clearance`` from every other object's, the base's included, on the table's parts."""
+        body = env.model.body(env.names.objects[top]).id
+        here = env.object_pose(top).pos[:2]
+        outline = footprint(env, body) - here
+        others = obstacles(env, top)
+        lo, hi = _table_region(env)
+        for turn in np.radians(np.arange(0, 360, 15)):
+            a = self.angle + turn
+            direction = np.array([np.cos(a), np.sin(a)])
+            for distance in np.arange(0.02, 0.3, 0.01):
+                goal = here + distance * direction
+                if np.any(goal < lo) or np.any(goal > hi):
+                    break
+                if free_mask(goal[None], outline, others, self.config.clearance)[0]:
+                    return goal
+        return None
+
+
 # ---- sensor dropout ------------------------------------------------------------------------------------------------
 @dataclass
 class SensorDropoutConfig:
@@ -270,6 +413,9 @@ class SensorDropout(Disturbance):
         self.readings = 0
         self.kept: dict | None = None
         self.fired = False
+
+    def applies(self, instruction) -> bool:
+        return any(_measured_step(t) for t in _steps(instruction))
 
     def reset(self, rng: np.random.Generator, scene) -> None:
         self.nth = int(rng.integers(1, self.config.readings + 1))

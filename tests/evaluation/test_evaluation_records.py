@@ -155,7 +155,7 @@ class _Runner:
     def __init__(self, error: Exception):
         self.error = error
 
-    def execute(self, scene, instruction, task):
+    def execute(self, scene, instruction, task, key=None):
         raise self.error
 
 
