@@ -19,6 +19,7 @@ from muble.core.types import ObservationMode, Track
 from muble.episode.components import GROUP_OF_KIND
 from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 from muble.plugins.registry import Registry
+from muble.sim.sensor_noise import WristNoise
 
 HYDRA_VERSION_BASE = "1.3"
 CONFIG_MODULE = "muble_conf"
@@ -52,6 +53,12 @@ class DisturbancesConfig:
     # How many of the enabled disturbances that apply to an episode's instruction act in it, drawn per episode
     # (stream episode.disturbance_mix) from [low, high]; empty: every one that applies.
     per_episode: list[int] = bounded(default_factory=list, ge=0, each=True)
+
+
+@dataclass
+class NoiseConfig(WristNoise):
+    """How the wrist force/torque sensor errs while episodes run (``muble.sim.sensor_noise``): white noise per
+    output sample and a bias that drifts, for force and torque; all zero (``noise=none``): a perfect sensor."""
 
 
 @dataclass
@@ -151,6 +158,7 @@ class MubleConfig:
     agent: Any = MISSING
     generator: Any = MISSING
     disturbances: DisturbancesConfig = field(default_factory=DisturbancesConfig)
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
@@ -179,6 +187,7 @@ def register_configs(registry: Registry) -> None:
     cs.store(group="robot", name="robot_schema", node=RobotConfig)
     cs.store(group="sensors", name="sensors_schema", node=SensorsConfig)
     cs.store(group="disturbances", name="disturbances_schema", node=DisturbancesConfig)
+    cs.store(group="noise", name="noise_schema", node=NoiseConfig)
     for kind, group in GROUP_OF_KIND.items():
         for name in registry.names(kind):
             record = registry.get(kind, name).record

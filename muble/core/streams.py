@@ -64,6 +64,8 @@ LAMP_JITTER = declare("scene.lamp_jitter", "a scene's lamp offsets and energies 
 PROPERTY_STREAMS = {name: declare(f"scene.{name}", f"a scene sample's {what} (index, sample)") for name, what in (
     ("friction", "friction coefficients of its objects"), ("com_offset", "centre-of-mass offsets of its objects"),
     ("contents", "loose contents of its closed containers"))}
+SENSOR_WRIST_NOISE = declare("sensor.wrist_noise", "the wrist force/torque sensor's drifting bias and white noise "
+                             "in an episode (index; muble.sim.sensor_noise)")
 DISTURBANCE_MIX = declare("episode.disturbance_mix", "which of the enabled disturbances act in an episode (index)")
 INSTRUCTION = declare("episode.instruction", "the instruction a template draws for a scene (index)")
 TEMPLATE_MIX = declare("split.template_mix", "the order of templates within a block of a split (block)")

@@ -47,6 +47,8 @@ CPU_NOTE = ("Generation is written to give the same files on every CPU (fixed-or
             "decision that a last-bit difference between CPUs still flips (docs/protocol.md, \"The same on every "
             "CPU\"). The shipped files are the protocol's: `muble data` writes them and `muble eval` uses them")
 SPLIT_GROUPS = ("objects", "generator", "dataset")  # the config groups a protocol's splits may set
+# ... and those that act only while its episodes run (muble eval), not on its files: the world pushing back.
+EPISODE_GROUPS = ("disturbances", "noise")
 PROTOCOL_FILE = "protocol_{split}.json"  # written at the dataset root beside manifest.json
 
 
@@ -79,7 +81,7 @@ def _merge(base: dict[str, Any], extra: dict[str, Any] | None) -> dict[str, Any]
     return out
 
 
-def split_config(config: dict[str, Any], split: str) -> dict[str, Any]:
+def split_config(config: dict[str, Any], split: str, groups: tuple[str, ...] = SPLIT_GROUPS) -> dict[str, Any]:
     """``config`` (resolved, plain) as it produces ``split``: the protocol's common ``objects``, ``generator`` and
     ``dataset`` settings, then the split's own (a family's split names its templates under ``dataset``), merged
     over the run's. Unchanged without a protocol or for a split the
@@ -89,9 +91,17 @@ def split_config(config: dict[str, Any], split: str) -> dict[str, Any]:
         return config
     spec = protocol["splits"][split]
     out = dict(config)
-    for group in SPLIT_GROUPS:
-        out[group] = _merge(_merge(config[group], (protocol.get("common") or {}).get(group)), spec.get(group))
+    for group in groups:
+        out[group] = _merge(_merge(config.get(group) or {}, (protocol.get("common") or {}).get(group)),
+                            spec.get(group))
     return out
+
+
+def episode_config(config: dict[str, Any], split: str) -> dict[str, Any]:
+    """``config`` (resolved, plain) as the episodes of ``split`` run: the protocol split's ``EPISODE_GROUPS``
+    (its disturbances, its sensor noise) merged over the run's; unchanged without a protocol or for a split that
+    sets none. A frozen split's episodes are the same whatever the command line says of these groups."""
+    return split_config(config, split, EPISODE_GROUPS)
 
 
 def select_split(cfg: Any) -> str | None:

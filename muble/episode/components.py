@@ -55,7 +55,8 @@ def episode_runner(cfg: DictConfig, components: dict[str, object]):
                          components["object_set"], cfg.objects.name, components["sensors"], components["renderer"],
                          tuple(cfg.episode.cameras), cfg.episode.max_steps, track=track, mode=mode,
                          disturbances=components.get("disturbances") or {}, seed=int(cfg.get("seed", 0)),
-                         disturbances_per_episode=tuple(cfg.get("disturbances", {}).get("per_episode", ()) or ()))
+                         disturbances_per_episode=tuple(cfg.get("disturbances", {}).get("per_episode", ()) or ()),
+                         noise=OmegaConf.to_container(cfg.noise, resolve=True) if cfg.get("noise") else None)
 
 
 def benchmark_settings(cfg: Any) -> tuple[str, str]:

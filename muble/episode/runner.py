@@ -192,6 +192,9 @@ class EpisodeRunner:
     disturbances: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
     disturbances_per_episode: tuple[int, ...] = ()  # (low, high): how many of those that apply act; () all
+    # The wrist sensor's error (``muble.sim.sensor_noise.WristNoise`` or a mapping of its fields; None: perfect),
+    # drawn from its own stream for (``seed``, the episode's key).
+    noise: Any = None
 
     def _disturbances(self, scene: SceneGraph, instruction: Instruction, key: int) -> list[Any]:
         """The disturbances that act in this episode, each reset on its own stream: those that apply to the
@@ -214,7 +217,8 @@ class EpisodeRunner:
 
     def execute(self, scene: SceneGraph, instruction: Instruction, task: Task,
                 key: int | None = None) -> EpisodeOutput:
-        """Run ``instruction`` on ``scene``; ``key`` (default: the scene's index) keys the disturbances' streams."""
+        """Run ``instruction`` on ``scene``; ``key`` (default: the scene's index) keys the disturbances' and the
+        sensor noise's streams."""
         from muble.core.errors import InitialStateError
         from muble.core.types import Outcome
         from muble.sim.build import object_models
@@ -233,7 +237,8 @@ class EpisodeRunner:
             raise SceneValidationError(f"object set '{self.object_set_name}' cannot build the scene's objects: "
                                        f"{type(e).__name__}: {e}") from e
         try:
-            env = TabletopEnv(scene, models, self.robot, self.sensors)
+            env = TabletopEnv(scene, models, self.robot, self.sensors, noise=self.noise,
+                              noise_stream=(self.seed, scene.image_index if key is None else key))
         except SceneValidationError:
             raise
         except ValueError as e:

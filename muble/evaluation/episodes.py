@@ -18,6 +18,7 @@ from typing import Any
 from muble.core.errors import MubleError, PhysicsError, SceneValidationError, unknown_name
 from muble.core.types import Outcome
 from muble.dataset.production import IndexJob, cached_components, split_seed
+from muble.dataset.protocol import episode_config
 from muble.core.symbolic import ArmState
 from muble.episode.plain import plain
 from muble.evaluation.report import UNKNOWN
@@ -101,7 +102,7 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     from muble.evaluation.files import uses_files
     from muble.plugins.registry import get_registry
 
-    cfg = job.config
+    cfg = episode_config(job.config, job.split)  # a protocol split's disturbances and sensor noise
     layout = DatasetLayout(Path(cfg["dataset"]["root"]), job.split)
     loaded = _from_files(job, out) if uses_files(cfg["dataset"]) else _from_dataset(job, out, layout)
     if isinstance(loaded, dict):

@@ -12,6 +12,10 @@ offset, loose contents): in ``"measured"`` mode a step that needs one of an obje
 stops execution and reports those objects as measurement sub-goals (``ProgramTrace.pending``). In
 ``"ground_truth"`` mode the values come from the scene's ground truth (``weight_gt``, ``stiffness``, the
 ``muble.core.physical_properties`` keys), as generation and the reference checks need.
+
+Measured values may be uncertain (a noisy sensor): ``execute(..., recheck=...)`` hands every comparison a filter or
+an order makes (the pairs of objects whose order decided its output) to ``recheck``, which names the objects to
+measure again before the comparison counts; the trace then reports them as pending with ``again`` set.
 """
 from __future__ import annotations
 
@@ -84,6 +88,7 @@ class ProgramTrace:
     steps: int = 0
     pending_property: str | None = None
     pending: tuple[int, ...] = ()
+    again: bool = False  # the pending objects were measured, but a comparison among them is not decided yet
 
     @property
     def pending_weights(self) -> tuple[int, ...]:
@@ -110,9 +115,16 @@ class ProgramTrace:
 class _NeedMeasurement(Exception):
     """Internal: a step needs the ``quantity`` of objects ``ids`` that are not measured yet."""
 
-    def __init__(self, quantity: str, ids: list[int]):
+    def __init__(self, quantity: str, ids: list[int], again: bool = False):
         self.quantity = quantity
         self.ids = tuple(ids)
+        self.again = again
+
+
+# What a caller asks of a comparison between measured values (``execute``'s ``recheck``): given the property and the
+# pairs of objects whose order a step relied on, the objects to measure again before that order counts (empty: it
+# is decided).
+Recheck = Callable[[str, list[tuple[int, int]]], "tuple[int, ...] | list[int]"]
 
 
 @dataclass(frozen=True)
@@ -160,14 +172,25 @@ QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
 
 
 class _Context:
-    def __init__(self, scene: SceneGraph, weights: str, known: dict[str, dict[int, Any]]):
+    def __init__(self, scene: SceneGraph, weights: str, known: dict[str, dict[int, Any]],
+                 recheck: Recheck | None = None):
         if weights not in WEIGHT_MODES:
             raise ConfigError(unknown_name("weight mode", weights, WEIGHT_MODES))
         self.scene = scene
         self.by_id = {o.id: o for o in scene.objects}
         self.ground_truth = weights == "ground_truth"
         self.known = known
+        self.recheck = None if self.ground_truth else recheck
         self.chains: list[Any] = []
+
+    def settle(self, quantity: Quantity, pairs: list[tuple[int, int]]) -> None:
+        """Raise ``_NeedMeasurement`` (again) for the objects ``recheck`` wants measured again before the order of
+        ``pairs`` counts."""
+        if self.recheck is None or not pairs:
+            return
+        again = tuple(self.recheck(quantity.name, pairs))
+        if again:
+            raise _NeedMeasurement(quantity.name, list(again), again=True)
 
     def values(self, quantity: Quantity, ids: list[int]) -> list[Any]:
         """The ``quantity`` of objects ``ids``: ground truth, or what was measured (raises ``_NeedMeasurement``
@@ -239,7 +262,9 @@ def _quantity_steps(q: Quantity) -> dict[str, Callable]:
             want = which == q.values[0]
             return [i for i, v in zip(ids, measured) if bool(v) == want]
         pick = max if which == q.superlatives[0] else min
-        return [ids[pick(range(len(ids)), key=lambda k: measured[k])]]
+        chosen = pick(range(len(ids)), key=lambda k: measured[k])
+        ctx.settle(q, [(ids[chosen], ids[k]) for k in range(len(ids)) if k != chosen])
+        return [ids[chosen]]
 
     def order_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
         ids = _ids(prev, step, index)
@@ -248,6 +273,7 @@ def _quantity_steps(q: Quantity) -> dict[str, Callable]:
             raise PlanningError(unknown_name(f"{q.name} order", str(order), q.orders))
         measured = ctx.values(q, ids)
         ranked = sorted(range(len(ids)), key=lambda k: measured[k], reverse=order == "descending")
+        ctx.settle(q, [(ids[a], ids[b]) for a, b in zip(ranked, ranked[1:])])
         return [ids[k] for k in ranked]
 
     def query_step(ctx: _Context, step: dict, prev: Any, index: int) -> list[Any]:
@@ -309,19 +335,20 @@ STIFFNESS_STEPS = frozenset(QUANTITY_STEPS["stiffness"])
 def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = "measured",
             known_weights: dict[int, float] | None = None,
             known_stiffness: dict[int, float] | None = None,
-            known: dict[str, dict[int, Any]] | None = None) -> ProgramTrace:
+            known: dict[str, dict[int, Any]] | None = None, recheck: Recheck | None = None) -> ProgramTrace:
     """Run ``program`` on ``scene``.
 
     ``known`` adds measurements not yet written into the scene graph (property -> object id -> value, as the
     primitive reported it); ``known_weights`` (object id -> grams) and ``known_stiffness`` (N/m) are its weight
-    and stiffness parts.
+    and stiffness parts. ``recheck`` (measured mode only) is asked of every comparison of measured values: the
+    objects it names are reported as pending, with ``again`` set.
     Raises ``PlanningError`` when the program cannot run on this scene (unknown object, no target) and
     ``ConfigError`` for an unknown step type.
     """
     values = {name: dict(v) for name, v in (known or {}).items()}
     values.setdefault("weight", {}).update(known_weights or {})
     values.setdefault("stiffness", {}).update(known_stiffness or {})
-    ctx = _Context(scene, weights, values)
+    ctx = _Context(scene, weights, values, recheck)
     trace = ProgramTrace(steps=len(program))
     prev: Any = None
     for index, step in enumerate(program):
@@ -334,7 +361,7 @@ def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = 
         try:
             out = run(ctx, step, prev, index)
         except _NeedMeasurement as need:
-            trace.pending_property, trace.pending = need.quantity, need.ids
+            trace.pending_property, trace.pending, trace.again = need.quantity, need.ids, need.again
             return trace
         except KeyError as e:
             raise PlanningError(f"step {index} ({kind}) refers to object {e} that this scene lacks") from None

@@ -22,6 +22,7 @@ from muble.sim.collision_world import MujocoCollisionWorld
 from muble.sim.control import OSC_OUTPUT_MAX, ArmServos, OperationalSpace, gripper_endpoints
 from muble.sim.faults import FaultDetector
 from muble.sim.grasp import GRASP_MODES, GraspModel
+from muble.sim.sensor_noise import WristNoise, wrist_sensor_noise
 from muble.sim.spaces import control_space
 from muble.sim.world import build_world
 from muble.stage.table import STAGES
@@ -87,10 +88,15 @@ class TabletopEnv:
     ``robot`` is a ``muble.app.config.RobotConfig`` (or anything with the same attributes); keyword overrides
     replace its fields (``TabletopEnv(scene, models, name="Sawyer", grasp="friction")``). ``stage=NAME`` builds
     the scene on another stage than the one its file names.
+
+    ``noise`` gives the wrist force/torque sensor's error (``muble.sim.sensor_noise.WristNoise``, a mapping of its
+    fields, or None: a perfect sensor), drawn from the stream of ``noise_stream`` (the run's seed, the episode's
+    key).
     """
 
     def __init__(self, scene: SceneGraph, models: dict[int, ObjectModel], robot: Any = None,
-                 sensors: dict[str, Sensor] | None = None, *, visual: bool = True, **overrides: Any):
+                 sensors: dict[str, Sensor] | None = None, *, visual: bool = True, noise: Any = None,
+                 noise_stream: tuple[int, int] = (0, 0), **overrides: Any):
         cfg = _robot_settings(robot, overrides)
         cfg["controller"] = CONTROLLER_ALIASES.get(cfg["controller"], cfg["controller"])
         if cfg["controller"] not in CONTROLLERS:
@@ -136,6 +142,10 @@ class TabletopEnv:
         self.action_space = control_space()
         self.gripper_command = -1.0
         self.tare_force: np.ndarray | None = None
+        # The wrist sensor's stated figures (its datasheet, which the robot's software may know) and its error over
+        # the episode; None for a perfect sensor, whose readings are MuJoCo's own.
+        self.sensor_noise = WristNoise.of(noise)
+        self._wrist_noise = wrist_sensor_noise(self.sensor_noise, *noise_stream)
         # Measured values per scene id ({"weight": g, "stiffness": N/m, "friction", "com_offset": [x, y] mm,
         # "rattles": bool}), filled by muble.sim.measure and muble.sim.probing.
         self.measurements: dict[int, dict[str, float]] = {}
@@ -159,6 +169,8 @@ class TabletopEnv:
         self.grasp.jaws.reset()
         self.osc.goal_quat = None
         self.tare_force = None
+        if self._wrist_noise is not None:
+            self._wrist_noise.reset()
         self.measurements = {}
         self.steps = 0
         self.broken = None
@@ -448,15 +460,25 @@ class TabletopEnv:
         self.data.xfrc_applied[body, 3:] = torque
 
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
-        """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame."""
+        """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame, as the wrist sensor
+        reads them (with its error, ``noise``, if it has one)."""
         rot = self.data.site_xmat[self.ft_site_id].reshape(3, 3)
-        force = rot @ self.data.sensordata[self.force_adr:self.force_adr + 3]
-        torque = rot @ self.data.sensordata[self.torque_adr:self.torque_adr + 3]
-        return force, torque
+        force = self.data.sensordata[self.force_adr:self.force_adr + 3]
+        torque = self.data.sensordata[self.torque_adr:self.torque_adr + 3]
+        if self._wrist_noise is not None:
+            error = self._wrist_noise.error(self.data.time)  # in the sensor's frame, as its gauges err
+            force, torque = force + error[:3], torque + error[3:]
+        return rot @ force, rot @ torque
 
     def tare(self) -> np.ndarray:
-        """Remember the current wrist force (hand alone) as the zero for weighing; returns it."""
-        self.tare_force = self.wrist_wrench()[0].copy()
+        """Remember the current wrist force (hand alone, held still) as the zero for weighing; returns it. A noisy
+        sensor's zero averages its output over ``muble.sim.sensor_noise.TARE_WINDOW``."""
+        if self._wrist_noise is None:
+            self.tare_force = self.wrist_wrench()[0].copy()
+        else:
+            rot = self.data.site_xmat[self.ft_site_id].reshape(3, 3)
+            error = self._wrist_noise.zero_error(self.data.time)
+            self.tare_force = rot @ (self.data.sensordata[self.force_adr:self.force_adr + 3] + error[:3])
         return self.tare_force
 
     def snapshot(self) -> Snapshot:

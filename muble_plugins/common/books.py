@@ -1,6 +1,16 @@
 """The books an agent keeps on what it observed, and how it retries a failed primitive: the oracle
-(``muble_plugins.agents.oracle``) and the learned planner (``muble_plugins.learned``) keep them alike."""
+(``muble_plugins.agents.oracle``) and the learned planner (``muble_plugins.learned``) keep them alike.
+
+A sensor may err (``noise=wrist_ft``): an agent may then keep every reading of a property (``Readings``) and use
+their mean, and decide a comparison between two objects only once their means differ by more than the readings'
+scatter allows (``Certainty``); until then it measures again.
+"""
 from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass
+from typing import Mapping
 
 from muble import ActionCall, ActionResult, SceneGraph, get_registry
 from muble.core.observation import MEASURED_EXTRA, plain_measurement
@@ -10,29 +20,60 @@ from muble_plugins.common.symbolic import APPROACH, MOVE
 
 
 Known = dict[str, dict[int, object]]  # property (``PrimitiveAction.measures``) -> object id -> measured value
+Readings = dict[str, dict[int, list]]  # property -> object id -> every reading made of it, in order
 
 
-def book(known: Known, last: ActionCall | None, result: ActionResult | None, held: int | None) -> None:
-    """Book the measurement a successful measuring primitive (``last``) made of the ``held`` object."""
+def mean_reading(readings: list) -> object:
+    """The value an agent uses of several readings of one property: their mean (of each coordinate, for a list
+    such as [x, y] mm), the most frequent of yes/no readings (the latest on a tie); one reading as it is."""
+    if len(readings) == 1:
+        return readings[0]
+    if isinstance(readings[0], bool):
+        counts = Counter(readings)
+        return readings[-1] if counts[True] == counts[False] else counts[True] > counts[False]
+    if isinstance(readings[0], list):
+        return [math.fsum(r[k] for r in readings) / len(readings) for k in range(len(readings[0]))]
+    return math.fsum(readings) / len(readings)
+
+
+def book(known: Known, last: ActionCall | None, result: ActionResult | None, held: int | None,
+         readings: Readings | None = None) -> None:
+    """Book the measurement a successful measuring primitive (``last``) made of the ``held`` object. With
+    ``readings``, every reading is kept there and ``known`` holds their mean; without, the latest replaces the
+    one before."""
     if last is None or result is None or not result.success or held is None or result.measurement is None:
         return
     prop = get_registry().measures(last.name)
-    if prop is not None:
-        known.setdefault(prop, {})[held] = plain_measurement(result.measurement)
+    if prop is None:
+        return
+    value = plain_measurement(result.measurement)
+    if readings is not None:
+        kept = readings.setdefault(prop, {}).setdefault(held, [])
+        kept.append(value)
+        value = mean_reading(kept)
+    known.setdefault(prop, {})[held] = value
 
 
-def fill_known(scene: SceneGraph, known: Known, last: ActionCall | None, result: ActionResult | None) -> None:
+def fill_known(scene: SceneGraph, known: Known, last: ActionCall | None, result: ActionResult | None,
+               readings: Readings | None = None) -> None:
     """Fill an agent's copy of the observed ``scene`` with what it knows: the weights and other properties it
     measured (``known``), and the gripper's hover state. After a failed primitive (``result`` of ``last``) the hover
     and grasp-pose flags are cleared, so the plan starts over from hovering (a failed grasp or put-down leaves the
     hand where it should not stay); a world that reports no hover flags has them filled in from the last primitive.
-    The oracle and the learned planner keep the same books, so the planner's labels fit."""
+    The oracle and the learned planner keep the same books, so the planner's labels fit.
+
+    The scene shows the latest reading of what was measured; where ``readings`` holds several of an object, their
+    mean (``known``) takes its place."""
     weights = known.get("weight", {})
+
+    def several(name: str, obj_id: int) -> bool:
+        return readings is not None and len(readings.get(name, {}).get(obj_id, ())) > 1
+
     for o in scene.objects:
-        if o.weight is None and o.id in weights:
+        if o.id in weights and (o.weight is None or several("weight", o.id)):
             o.weight = weights[o.id]
         for name, key in MEASURED_EXTRA.items():
-            if key not in o.extra and o.id in known.get(name, {}):
+            if o.id in known.get(name, {}) and (key not in o.extra or several(name, o.id)):
                 o.extra[key] = known[name][o.id]
     reported = any("gripper_over" in o.extra or "approached" in o.extra for o in scene.objects)
     if last is not None and result is not None and not result.success:
@@ -57,3 +98,50 @@ def primitive_params(name: str) -> set[str]:
     if name not in registry.names("primitive"):
         return set()
     return {p.name for p in specs(registry.get("primitive", name).record.factory.params)}
+
+
+# Key of ``SceneGraph.extra`` under which an agent's own copy of the observed scene carries its ``Certainty`` for the
+# task planner (``muble_plugins.common.task_planner.plan_next``); an observed scene never has it.
+CERTAINTY = "certainty"
+
+
+@dataclass(frozen=True)
+class Certainty:
+    """When an agent counts a comparison of two measured values as decided, from its books.
+
+    One reading of a property errs with the standard deviation ``noise[property]`` (what the sensor's datasheet
+    implies; a property not named, or 0, is read exactly). The mean of n readings then errs by noise/√n, and the
+    difference of two objects' means by noise·√(1/n_a + 1/n_b): the comparison is decided when the means differ by
+    more than ``sigmas`` times that. Until then the object read fewer times (the less certain) is measured again,
+    up to ``max_readings`` readings of each; beyond that the means decide. ``readings`` are the agent's books
+    (kept up to date by ``book``)."""
+
+    noise: Mapping[str, float]
+    readings: Readings
+    sigmas: float = 2.5
+    max_readings: int = 5
+
+    def measure_again(self, prop: str, pairs: list[tuple[int, int]]) -> tuple[int, ...]:
+        """The objects to measure again before the order of ``pairs`` (object ids) by ``prop`` counts: those of the
+        first undecided pair with the fewest readings (both on a tie) that may still be read again; empty when every
+        pair is decided (a ``muble.programs.program.Recheck``)."""
+        sd = float(self.noise.get(prop, 0.0) or 0.0)
+        if not sd > 0:
+            return ()
+        books = self.readings.get(prop, {})
+        for a, b in pairs:
+            first, second = books.get(a, ()), books.get(b, ())
+            if not (first and second and _numbers(first) and _numbers(second)):
+                continue  # not this agent's readings (or not numbers): nothing to weigh them against
+            gap = abs(math.fsum(first) / len(first) - math.fsum(second) / len(second))
+            if gap > self.sigmas * sd * math.sqrt(1.0 / len(first) + 1.0 / len(second)):
+                continue
+            open_ = {obj_id: len(kept) for obj_id, kept in ((a, first), (b, second)) if len(kept) < self.max_readings}
+            if open_:
+                fewest = min(open_.values())
+                return tuple(obj_id for obj_id, n in open_.items() if n == fewest)
+        return ()
+
+
+def _numbers(values) -> bool:
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)

@@ -96,40 +96,26 @@ class Slip(Disturbance):
 
 
 # ---- bump ----------------------------------------------------------------------------------------------------------
-@dataclass
-class BumpConfig:
-    put_downs: int = bounded(1, ge=1)  # it knocks the object of one of the first `put_downs` table put-downs (drawn)
-    min_distance: float = bounded(0.05, ge=0.02, le=0.4)  # m the object is knocked (drawn between these)
-    max_distance: float = bounded(0.12, ge=0.02, le=0.4)
-    speed: float = bounded(0.2, gt=0.0, le=1.0)  # m/s at most while it slides
-    clearance: float = bounded(0.02, ge=0.0, le=0.2)  # m kept from every other object along the way and at the end
+class AfterPutDown(Disturbance):
+    """A disturbance of what the agent just let go of: it acts after the ``nth`` (drawn from 1..``count``)
+    successful ``lower`` whose released object ``counts`` (on the table, on another object); where ``act`` finds
+    nothing to do, the next such put-down is tried. Subclasses draw their own values in ``draw``."""
 
+    trigger = "put-down"
 
-class Bump(Disturbance):
-    """An object just set down on the table is knocked sideways to another free place on the table: a horizontal
-    force low on the object (so that it slides standing, as a nudge at its base would move it) drives it over
-    ``min_distance``..``max_distance`` in a drawn direction that keeps ``clearance`` from every other object and
-    stays on the table's parts; then it comes to rest. The place is chosen from the drawn direction onwards, in
-    steps of 15 degrees, the first that is free at the drawn distance, else nearer (down to ``min_distance``);
-    where none is free it waits for the next put-down on the table."""
-
-    def __init__(self, config: BumpConfig) -> None:
-        if config.max_distance < config.min_distance:
-            raise ValueError(f"bump: max_distance {config.max_distance} is below min_distance {config.min_distance}")
-        self.config = config
-        self.nth, self.distance, self.angle = 1, config.min_distance, 0.0
-        self.put_downs = 0
+    def __init__(self, count: int) -> None:
+        self.count = count
+        self.nth, self.seen = 1, 0
         self.held_before: int | None = None
         self.fired = False
 
-    def applies(self, instruction) -> bool:
-        return "move_to" in _steps(instruction)
-
     def reset(self, rng: np.random.Generator, scene) -> None:
-        self.nth = int(rng.integers(1, self.config.put_downs + 1))
-        self.distance = float(rng.uniform(self.config.min_distance, self.config.max_distance))
-        self.angle = float(rng.uniform(0.0, 2 * np.pi))
-        self.put_downs, self.held_before, self.fired = 0, None, False
+        self.nth = int(rng.integers(1, self.count + 1))
+        self.seen, self.held_before, self.fired = 0, None, False
+        self.draw(rng)
+
+    def draw(self, rng: np.random.Generator) -> None:
+        """Draw this episode's values (after ``nth``, from the same stream)."""
 
     def before(self, env, action: ActionCall, step: int) -> DisturbanceEvent | None:
         self.held_before = env.held_object
@@ -139,42 +125,87 @@ class Bump(Disturbance):
         obj = self.held_before
         if self.fired or action.name != "lower" or not result.success or obj is None or env.held_object is not None:
             return result, None
-        if not _on_table(env, obj):
+        if not self.counts(env, obj, action):
             return result, None
-        self.put_downs += 1
-        if self.put_downs < self.nth:
+        self.seen += 1
+        if self.seen < self.nth:
             return result, None
+        event = self.act(env, obj, action, step)
+        self.fired = event is not None
+        return result, event
+
+    def counts(self, env, obj: int, action: ActionCall) -> bool:
+        raise NotImplementedError
+
+    def act(self, env, obj: int, action: ActionCall, step: int) -> DisturbanceEvent | None:
+        raise NotImplementedError
+
+
+@dataclass
+class BumpConfig:
+    put_downs: int = bounded(1, ge=1)  # it knocks the object of one of the first `put_downs` table put-downs (drawn)
+    min_distance: float = bounded(0.05, ge=0.02, le=0.4)  # m the object is knocked (drawn between these)
+    max_distance: float = bounded(0.12, ge=0.02, le=0.4)
+    speed: float = bounded(0.2, gt=0.0, le=1.0)  # m/s at most while it slides
+    clearance: float = bounded(0.02, ge=0.0, le=0.2)  # m kept from every other object along the way and at the end
+
+
+class Bump(AfterPutDown):
+    """An object just set down on the table is knocked sideways to another free place on the table: a horizontal
+    force low on the object (so that it slides standing, as a nudge at its base would move it) drives it about
+    ``min_distance``..``max_distance`` (drawn, with the direction) to a free place on the table (``_goal``: out of
+    the part it was put in where one is free); then it comes to rest. Where no place is free it waits for the next
+    put-down on the table."""
+
+    def __init__(self, config: BumpConfig) -> None:
+        if config.max_distance < config.min_distance:
+            raise ValueError(f"bump: max_distance {config.max_distance} is below min_distance {config.min_distance}")
+        super().__init__(config.put_downs)
+        self.config = config
+        self.distance, self.angle = config.min_distance, 0.0
+
+    def applies(self, instruction) -> bool:
+        return "move_to" in _steps(instruction)
+
+    def draw(self, rng: np.random.Generator) -> None:
+        self.distance = float(rng.uniform(self.config.min_distance, self.config.max_distance))
+        self.angle = float(rng.uniform(0.0, 2 * np.pi))
+
+    def counts(self, env, obj: int, action: ActionCall) -> bool:
+        return _on_table(env, obj)
+
+    def act(self, env, obj: int, action: ActionCall, step: int) -> DisturbanceEvent | None:
         goal = self._goal(env, obj)
         if goal is None:
             logger.info("bump: no free place %.0f cm from object %d", self.distance * 100, obj)
-            return result, None
-        self.fired = True
+            return None
         start = env.object_pose(obj).pos.copy()
         push = slide_to(env, obj, goal, self.config.speed)
         end = env.object_pose(obj).pos
         logger.info("bump: object %d knocked %.1f cm", obj, 100 * float(np.linalg.norm(end[:2] - start[:2])))
-        return result, DisturbanceEvent(
-            "bump", step, f"put-down {self.nth} on the table", obj, force=push["peak"].tolist(),
-            impulse=push["impulse"].tolist(), duration=push["duration"],
-            detail={"from": np.round(start[:2], 4).tolist(), "to": np.round(goal, 4).tolist(),
-                    "ended": np.round(end[:2], 4).tolist()})
+        return _pushed("bump", step, f"put-down {self.nth} on the table", obj, push, start, goal, end)
 
     def _goal(self, env, obj: int) -> np.ndarray | None:
-        """The first free place along the drawn direction, turned in 15 degree steps, at the drawn distance, else
-        nearer: the object's footprint there keeps ``clearance`` from every other's, and on the way there it comes
-        no nearer to one than ``PATH_GAP`` (``clearance`` where it starts that clear)."""
+        """A free place for the object: its footprint there keeps ``clearance`` from every other's, and on the way
+        there it comes no nearer to one than ``PATH_GAP`` (``clearance`` where it starts that clear). Places out of
+        the table parts it stands in come first (a knock that matters to where it was put), each group in order
+        of the distance's closeness to the drawn one, then of the turn from the drawn direction (15 degree steps)."""
         body = env.model.body(env.names.objects[obj]).id
         here = env.object_pose(obj).pos[:2]
         outline = footprint(env, body) - here
         others = obstacles(env, obj)
         lo, hi = _table_region(env)
+        parts = _parts(env, here)
         start_free = bool(free_mask(here[None], outline, others, self.config.clearance)[0])
-        distances = np.linspace(self.distance, self.config.min_distance, 3)
-        for distance, turn in itertools.product(distances, np.radians(np.arange(0, 360, 15))):
-            a = self.angle + turn
-            goal = here + distance * np.array([np.cos(a), np.sin(a)])
+        reach = np.arange(self.config.min_distance, FARTHEST_BUMP + 1e-9, 0.01)
+        distances = [self.distance, *reach[np.argsort(np.abs(reach - self.distance), kind="stable")]]
+        candidates = [here + d * np.array([np.cos(self.angle + t), np.sin(self.angle + t)])
+                      for d, t in itertools.product(distances, np.radians(np.arange(0, 360, 15)))]
+        candidates.sort(key=lambda goal: bool(_parts(env, goal) & parts))  # stable: the order above within each
+        for goal in candidates:
             if np.any(goal < lo) or np.any(goal > hi):
                 continue
+            distance = float(np.linalg.norm(goal - here))
             way = here + np.linspace(0.0, 1.0, max(2, int(distance / 0.01)))[1:, None] * (goal - here)
             if not free_mask(goal[None], outline, others, self.config.clearance)[0]:
                 continue
@@ -183,12 +214,30 @@ class Bump(Disturbance):
         return None
 
 
+TABLE_PARTS = ("left", "right", "front", "back")
+
+
+def _parts(env, xy: np.ndarray) -> set[str]:
+    """The named table parts (``TABLE_PARTS``) whose region holds the point ``xy``."""
+    boxes = env.cache.setdefault("disturbances.part_boxes", {p: part_box(env, p) for p in TABLE_PARTS})
+    return {p for p, (lo, hi) in boxes.items() if np.all(xy >= lo) and np.all(xy <= hi)}
+
+
+FARTHEST_BUMP = 0.2  # m an object is knocked at most, where no place at the drawn distance is free
 PATH_GAP = 0.003  # m kept from every other object on the way, where the object starts nearer than the clearance
+
+
+def _pushed(kind: str, step: int, trigger: str, obj: int, push: dict, start: np.ndarray, goal: np.ndarray,
+            end: np.ndarray) -> DisturbanceEvent:
+    return DisturbanceEvent(kind, step, trigger, obj, force=push["peak"].tolist(), impulse=push["impulse"].tolist(),
+                            duration=push["duration"],
+                            detail={"from": np.round(start[:2], 4).tolist(), "to": np.round(goal, 4).tolist(),
+                                    "ended": np.round(end, 4).tolist()})
 
 
 def _table_region(env) -> tuple[np.ndarray, np.ndarray]:
     """The box (x, y) spanned by the table's named parts: where a placed object stays reachable."""
-    boxes = [part_box(env, part) for part in ("left", "right", "front", "back")]
+    boxes = [part_box(env, part) for part in TABLE_PARTS]
     return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
 
@@ -331,51 +380,38 @@ class ToppleConfig:
 KNOCK_CLEARANCE = 0.015  # m the knocked-off object's bottom passes over the top of what it stood on
 
 
-class Topple(Disturbance):
+class Topple(AfterPutDown):
     """The top object of a stack just made is knocked off onto the table: a force at its centre of mass lifts it
     out of or off what it stood on (``knock_off``), carries it across in a drawn direction (turned in 15 degree
     steps until a free place on the table is found) and sets it down there, standing as it stood."""
 
     def __init__(self, config: ToppleConfig) -> None:
+        super().__init__(config.stackings)
         self.config = config
-        self.nth, self.angle = 1, 0.0
-        self.stackings = 0
-        self.held_before: int | None = None
-        self.fired = False
+        self.angle = 0.0
 
     def applies(self, instruction) -> bool:
         return "stack" in _steps(instruction)
 
-    def reset(self, rng: np.random.Generator, scene) -> None:
-        self.nth = int(rng.integers(1, self.config.stackings + 1))
+    def draw(self, rng: np.random.Generator) -> None:
         self.angle = float(rng.uniform(0.0, 2 * np.pi))
-        self.stackings, self.held_before, self.fired = 0, None, False
 
-    def before(self, env, action: ActionCall, step: int) -> DisturbanceEvent | None:
-        self.held_before = env.held_object
-        return None
+    def counts(self, env, obj: int, action: ActionCall) -> bool:
+        return isinstance(action.params.get("target"), (int, np.integer))
 
-    def after(self, env, action: ActionCall, result: ActionResult, step: int):
-        top, base = self.held_before, action.params.get("target")
-        if self.fired or action.name != "lower" or not result.success or top is None \
-                or not isinstance(base, (int, np.integer)) or env.held_object is not None:
-            return result, None
-        self.stackings += 1
-        if self.stackings < self.nth:
-            return result, None
-        goal = self._goal(env, top, int(base))
+    def act(self, env, obj: int, action: ActionCall, step: int) -> DisturbanceEvent | None:
+        base = int(action.params["target"])
+        goal = self._goal(env, obj, base)
         if goal is None:
-            logger.info("topple: no free place beside object %d for object %d", base, top)
-            return result, None
-        self.fired = True
-        start = env.object_pose(top).pos.copy()
-        push = knock_off(env, top, env.object_top(int(base)) + KNOCK_CLEARANCE, goal, self.config.speed)
-        end = env.object_pose(top).pos
-        logger.info("topple: object %d knocked off object %d", top, base)
-        return result, DisturbanceEvent(
-            "topple", step, f"stacking {self.nth}", top, force=push["peak"].tolist(), impulse=push["impulse"].tolist(),
-            duration=push["duration"], detail={"base": int(base), "from": np.round(start[:2], 4).tolist(),
-                                               "to": np.round(goal, 4).tolist(), "ended": np.round(end, 4).tolist()})
+            logger.info("topple: no free place beside object %d for object %d", base, obj)
+            return None
+        start = env.object_pose(obj).pos.copy()
+        push = knock_off(env, obj, env.object_top(base) + KNOCK_CLEARANCE, goal, self.config.speed)
+        end = env.object_pose(obj).pos
+        logger.info("topple: object %d knocked off object %d", obj, base)
+        event = _pushed("topple", step, f"stacking {self.nth}", obj, push, start, goal, end)
+        event.detail["base"] = base
+        return event
 
     def _goal(self, env, top: int, base: int) -> np.ndarray | None:
         """The nearest place along the drawn direction (then turned by 15 degree steps) where the top object's

@@ -63,7 +63,25 @@ def test_example_is_invisible_without_installation(tmp_path):
 def test_example_primitive_and_task_are_registered(example_site):
     rows = json.loads(run(["plugins", "--json"], example_site).stdout)
     found = {(r["kind"], r["name"]) for r in rows if r["distribution"] == "muble-example-plugin"}
-    assert {("primitive", "tap"), ("task", "touch"), ("agent", "greedy")} <= found
+    assert {("primitive", "tap"), ("task", "touch"), ("agent", "greedy"), ("disturbance", "nudge")} <= found
+
+
+@pytest.mark.slow
+def test_example_disturbance_acts_in_frozen_episodes_the_oracle_still_solves(example_site, tmp_path):
+    """A disturbance from a package outside MuBlE: registered through its entry point, enabled from the command
+    line, it draws from its own stream, pushes through MuJoCo, lands in the records, and the closed-loop oracle
+    still solves the episodes of the frozen split it runs on."""
+    out = tmp_path / "run"
+    result = run(["eval", "protocol=shopvrb2_v2", "agent=oracle", "+disturbances.enabled.nudge={}",
+                  "evaluation.limit=4", "dataset.workers=1", f"hydra.run.dir={out}"], example_site, MUJOCO_GL="egl",
+                 MUBLE_DATA_CACHE=str(tmp_path / "cache"))
+    assert result.returncode == 0, result.stderr[-3000:]
+    records = [json.loads(line) for line in (out / "episodes_mini.jsonl").read_text().splitlines()]
+    assert len(records) == 4
+    events = [e for r in records for e in r["disturbances"]]
+    assert [e["kind"] for e in events] == ["nudge"] * 4 and all(r["disturbances_planned"] == 1 for r in records)
+    assert all(abs(e["force"][2]) == 0.0 and np.hypot(*e["force"][:2]) > 0 for e in events)
+    assert [r["outcome"] for r in records] == ["success"] * 4, [(r["outcome"], r["error"]) for r in records]
 
 
 @pytest.mark.slow
@@ -79,7 +97,7 @@ def test_example_task_is_solved_by_the_builtin_oracle_with_physics(example_site,
     assert config["agent"]["name"] == "oracle" and config["task"]["name"] == "touch"
 
 
-@pytest.mark.parametrize("module", ["touch.py", "agent.py"])
+@pytest.mark.parametrize("module", ["touch.py", "agent.py", "nudge.py"])
 def test_example_uses_only_the_public_api(module):
     source = (EXAMPLE / "muble_example_plugin" / module).read_text()
     imports = [line.split()[1] for line in source.splitlines() if line.startswith(("import ", "from "))]

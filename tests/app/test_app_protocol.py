@@ -23,7 +23,8 @@ from tests.support.cpu import cpu_settings
 MUBLE = [sys.executable, "-m", "muble.app.cli"]
 V2 = "shopvrb2_v2"
 SHIPPED = {"shopvrb2_v1": ["mini"],
-           V2: ["mini", "test", "unseen_objects", "unseen_properties", "perturbed_views", "long_horizon"]}
+           V2: ["mini", "test", "unseen_objects", "unseen_properties", "perturbed_views", "long_horizon", "physical",
+                "closed_loop"]}
 
 
 def muble(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
@@ -109,7 +110,8 @@ def test_eval_labels_only_the_protocols_data(tmp_path):
 
 # --- regeneration on every CPU setting ---------------------------------------------------------------------------
 # (split, first index, count): in-distribution scenes, a held-out split's, and a jittered camera's and lamps'.
-SAMPLE = [("mini", 0, 3), ("perturbed_views", 0, 1), ("unseen_objects", 7, 1), ("physical", 0, 2)]
+SAMPLE = [("mini", 0, 3), ("perturbed_views", 0, 1), ("unseen_objects", 7, 1), ("physical", 0, 2),
+          ("closed_loop", 0, 2)]
 
 
 def _regenerate(tmp_path: Path, label: str, env: dict[str, str], workers: int = 1) -> dict[str, str]:

@@ -14,7 +14,7 @@ from muble.sim.env import TabletopEnv
 from muble.stage.geometry import tilt_deg
 from muble_plugins.agents.oracle import OracleAgent, OracleConfig
 from muble_plugins.common.success import check
-from tests.episode.probes import Snoop
+from tests.episode.probes import Scripted, Snoop
 from tests.support.scenes import simple_object_model, simple_scene
 
 pytestmark = pytest.mark.slow
@@ -196,3 +196,38 @@ def test_a_disturbance_plugin_registers_and_its_options_are_checked():
         registry.create("disturbance", "slip", {"min_height": 0.5})
     with pytest.raises(Exception, match="max_height"):
         registry.create("disturbance", "slip", {"min_height": 0.05, "max_height": 0.02})
+
+
+@pytest.mark.gl
+def test_no_observation_mode_shows_a_disturbance():
+    """In graph and masks mode, an agent's observations after a slip and a failed reading hold no word of the record
+    and none of its numbers: it sees the object back down and a failed primitive, nothing more. (Image mode shows
+    a subset of what masks mode shows: the same images, no ids or masks.)"""
+    registry = get_registry()
+    renderer = registry.create("renderer", "mujoco", {"width": 160, "height": 120})
+    try:
+        for mode in ("graph", "masks"):
+            scene, models = scene_and_models()
+            env = TabletopEnv(scene, models, sensors={n: registry.create("sensor", n, {})
+                                                      for n in registry.names("sensor")})
+            try:
+                env.hold(0.5)
+                renderer.setup(env.sync_scene_graph(), env.model)
+                world = PhysicalWorld(env, registry, renderer,
+                                      disturbances=[disturbance("slip"), disturbance("sensor_dropout")])
+                calls = [*PICK, *PICK[1:], ActionCall("weigh", {}), ActionCall("weigh", {})]
+                events = []
+                snoop = Snoop(Scripted(calls), secrets=set())
+                result = run_episode(weigh_instruction(), world, snoop, check, mode=mode)
+                events = [e.to_dict() for e in world.events]
+            finally:
+                env.close()
+            assert {e["kind"] for e in events} == {"slip", "sensor_dropout"}, (mode, events, result.error)
+            numbers = {e["detail"].get("height_m") for e in events} - {None}
+            for step in result.steps:
+                seen = repr(step.observation.scene) + repr(step.observation.measurements)
+                assert not any(w in seen for w in ("slip", "disturb", "dropout")), (mode, step.action)
+                assert not any(repr(n) in seen for n in numbers), (mode, step.action)
+            assert snoop.found == [], (mode, snoop.found)
+    finally:
+        renderer.close()

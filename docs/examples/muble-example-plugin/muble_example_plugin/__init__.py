@@ -4,7 +4,8 @@ It registers a sensor, ``contact_count`` (how many contacts MuJoCo reports at th
 ``conf/sensors/with_contacts.yaml`` so that ``muble sensors=with_contacts`` selects it from the command line; and a
 primitive, ``tap``, with a task, ``touch``, that the built-in oracle solves (``muble task=touch``; see touch.py); and
 an agent, ``greedy``, a rule-based reasoner for the single-object templates (``muble eval agent=greedy``, with
-``conf/agent/greedy.yaml``; see agent.py).
+``conf/agent/greedy.yaml``; see agent.py); and a disturbance, ``nudge``, a short push on a resting object
+(``muble eval +disturbances.enabled.nudge={}``; see nudge.py).
 """
 from __future__ import annotations
 
@@ -67,3 +68,11 @@ def muble_register_agents():
 
     return [muble.PluginRecord("greedy", GreedyAgent, "grasps, lifts and weighs the object the program's words name",
                                GreedyConfig, takes_config=True)]
+
+
+@muble.hookimpl
+def muble_register_disturbances():
+    from muble_example_plugin.nudge import Nudge, NudgeConfig
+
+    return [muble.PluginRecord("nudge", Nudge, "a short push on the resting object nearest the hand", NudgeConfig,
+                               takes_config=True)]
