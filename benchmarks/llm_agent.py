@@ -34,6 +34,8 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+from muble.evaluation.usage import INPUT_TOKENS, OUTPUT_TOKENS
+
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 PROTOCOL, SPLIT = "shopvrb2_v2", "mini"
@@ -137,8 +139,8 @@ def evaluate(name: str, overrides: list[str], data: Path, out: Path, base_url: s
             "ci": results["summary"]["overall"]["ci"], "per_template": per_template,
             "outcomes": report["overall"]["outcomes"],
             "parse_failure_rate": agent["parse_failure_rate"], "replies": agent["totals"].get("replies", 0),
-            "tokens_in_per_episode": round(per.get("tokens_in", 0.0), 1),
-            "tokens_out_per_episode": round(per.get("tokens_out", 0.0), 1),
+            "tokens_in_per_episode": round(per.get(INPUT_TOKENS, 0.0), 1),
+            "tokens_out_per_episode": round(per.get(OUTPUT_TOKENS, 0.0), 1),
             "model_seconds_per_episode": round(per.get("latency_s", 0.0), 2),
             "seconds_per_episode": round(wall / max(count, 1), 2), "wall_seconds": round(wall, 1),
             "output": str(out)}

@@ -17,7 +17,8 @@ gripper opens). Objects that could not be picked or whose motion could not be pl
 readings.
 
 Run from the repository root: ``python benchmarks/physical_properties.py [--objects 100] [--seed 0]
-[--properties friction,com,contents] [--grippers Panda,Robotiq85Gripper] [--categories mug,glass] [--jobs 1]``.
+[--properties friction,com,contents] [--grippers Panda,Robotiq85Gripper] [--categories mug,glass] [--jobs 1]
+[--noise wrist_ft]`` (``--noise``: the wrist sensor's noise, ``muble_conf/noise``; default none, a perfect sensor).
 The last line is one JSON object; ``value`` is the worst share of right readings over properties and grippers.
 """
 from __future__ import annotations
@@ -59,7 +60,7 @@ def measure_one(job: tuple) -> dict:
     from muble.sim.env import TabletopEnv
     from tests.support.scenes import simple_scene
 
-    prop, gripper, category, index, seed = job
+    prop, gripper, category, index, seed, noise, key = job
     rng = np.random.default_rng([seed, index, sorted(GOALS).index(prop), len(category), sum(map(ord, category)),
                                  int(gripper != "Panda")])
     registry = get_registry()
@@ -78,7 +79,7 @@ def measure_one(job: tuple) -> dict:
            "weight_g": spec.weight_g, "truth": truth}
     scene = simple_scene([(float(rng.uniform(0.4, 0.6)), float(rng.uniform(-0.15, 0.15)))], [model])
     env = TabletopEnv(scene, {0: model}, robot={"name": "Panda", "gripper": None if gripper == "Panda" else gripper},
-                      visual=False)
+                      visual=False, noise=noise, noise_stream=(seed, key))
     env.planner = registry.create("planner", "ompl", {})
     try:
         for name, params in (("move", {"target": 0}), ("approach", {"target": 0}), ("close_gripper", {"target": 0})):
@@ -153,7 +154,15 @@ def main() -> None:
     parser.add_argument("--grippers", default="Panda,Robotiq85Gripper", help="Panda: the Panda's own gripper")
     parser.add_argument("--categories", default="", help="comma-separated (default: every category that fits)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes")
+    parser.add_argument("--noise", default="none", help="the wrist sensor's noise (muble_conf/noise option)")
     args = parser.parse_args()
+    noise = None
+    if args.noise != "none":
+        from omegaconf import OmegaConf
+
+        from muble.app.config import compose
+
+        noise = OmegaConf.to_container(compose("run", [f"noise={args.noise}"]).noise, resolve=True)
     logging.basicConfig(level=logging.ERROR)
     chosen = {c.strip() for c in args.categories.split(",") if c.strip()}
     jobs = [(prop, gripper, category, index, args.seed)
@@ -161,6 +170,7 @@ def main() -> None:
             for gripper in [g.strip() for g in args.grippers.split(",") if g.strip()]
             for category in PROPERTY_CATEGORIES[prop] if not chosen or category in chosen
             for index in range(args.objects)]
+    jobs = [(*job, noise, key) for key, job in enumerate(jobs)]  # each object its own noise stream
     began = time.perf_counter()
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs) as pool:
@@ -178,6 +188,7 @@ def main() -> None:
         "groups": groups,
         "objects_per_category": args.objects,
         "seed": args.seed,
+        "noise": args.noise,
         "seconds": round(time.perf_counter() - began, 1),
     }))
 

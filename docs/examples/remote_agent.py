@@ -1,6 +1,8 @@
 """An agent in its own process driving ``muble serve`` episodes: ``muble eval``'s episodes, over the protocol.
 
-    muble serve dataset.root=/data/shopvrb2 &                      # the environment (127.0.0.1:5555)
+    muble serve protocol=shopvrb2_v2 benchmark.split=mini &        # the frozen benchmark (127.0.0.1:5555)
+    python docs/examples/remote_agent.py --split mini --indices 0-19  # its shipped episodes, as muble eval
+    muble serve dataset.root=/data/shopvrb2 &                      # or a dataset folder
     python docs/examples/remote_agent.py --split val --indices 0-19   # stored dataset episodes, as muble eval
     python docs/examples/remote_agent.py --generated 0-9 --template stack_simple   # generated scenes
 
@@ -14,7 +16,7 @@ import argparse
 import collections
 import json
 
-from muble import get_registry
+from muble import PluginError, get_registry
 from muble.remote import RemoteClient, RemoteError, run_agent
 
 
@@ -37,10 +39,18 @@ def main() -> None:
                     for i in args.generated]
     else:
         episodes = [{"split": args.split, "index": i} for i in (args.indices or [0])]
-    agent = get_registry().create("agent", args.agent, {})
+    try:
+        agent = get_registry().create("agent", args.agent, {})
+    except PluginError as e:  # a mistyped --agent: the valid names and the closest, exit 2, no traceback
+        p.error(f"--agent: {e}")
     table: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
     with RemoteClient(args.address) as client:
-        print(f"# server speaks {client.hello()['protocol']}")
+        try:
+            hello = client.hello()
+        except RemoteError as e:  # no server there: say how to start one, exit 2, no traceback
+            p.error(f"{e}; start the server first (`muble serve protocol=shopvrb2_v2` or `muble serve "
+                    "dataset.root=DIR`) or point --address at it")
+        print(f"# server speaks {hello['protocol']}")
         for episode in episodes:
             try:
                 record = run_agent(agent, client, episode)

@@ -25,6 +25,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "eval": ("muble.app.evaluate", "evaluate an agent over a dataset split"),
     "train": ("muble.app.train", "train a learned part (planner, instruction parser, attribute recogniser)"),
     "data": ("muble.app.data", "write a frozen protocol split's shipped scene and instruction files to a folder"),
+    "verify": ("muble.app.verify", "replay an eval run's recorded decisions and compare the physics, episode by episode"),
     "compare": ("muble.app.compare", "compare `muble eval` runs: success with 95% intervals, paired McNemar tests"),
     "site": ("muble.app.site", "a static website of `muble eval` runs: leaderboard, runs, episodes"),
     "export": ("muble.app.export", "export a split's sequences as a LeRobot dataset (needs muble[lerobot])"),

@@ -4,9 +4,10 @@
 
 Each RUN is the output folder of a ``muble eval`` run; its ``results.json`` is read and checked. Writes into
 ``--out``: ``compare.md`` (the runs, the success table with 95% intervals, the chart, the recovery rate after
-disturbances of runs that had them, the paired McNemar tests), ``compare.json`` (the same numbers) and
-``compare.png``; the tables are printed. Every run is read and the whole comparison made before anything is
-written, and the files reach ``--out`` only when all are written, so a bad run folder leaves nothing behind.
+disturbances of runs that had them, the cost and latency of runs that counted tokens, the paired McNemar tests),
+``compare.json`` (the same numbers) and ``compare.png``; the tables are printed. Every run is read and the whole
+comparison made before anything is written, and the files reach ``--out`` only when all are written, so a bad run
+folder leaves nothing behind.
 """
 from __future__ import annotations
 

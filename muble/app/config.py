@@ -122,6 +122,9 @@ class EvaluationConfig:
     keyframes: bool = False  # with render: also write the keyframes of every episode as PNGs
     limit: int = bounded(0, ge=0)  # evaluate at most this many indices per split (the first ones); 0 = all
     plot: bool = True  # write the success bar chart per split
+    # s one decision of the agent (a call of its reset or act) may take; one that takes longer ends its episode as
+    # timeout and the evaluation goes on (muble.episode.loop.AgentCalls). 0: no limit.
+    decision_timeout: float = bounded(0.0, ge=0)
 
 
 @dataclass

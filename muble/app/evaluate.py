@@ -11,11 +11,12 @@ instruction file.
 
 Writes under the run's output folder: ``episodes_<split>.jsonl`` (one result per index, appended as each episode
 finishes), ``report.json`` (success per task type with its 95% interval, efficiency, failure taxonomy, the entries
-with bad data, timing, manifest), ``results.json`` (the versioned results file runs are shared and compared in,
-``muble.evaluation.results``), ``success_<split>.png`` and ``summary.md``; the results table of each split is
-printed. Every output names the protocol, track and observation mode the run followed (``benchmark.*``). Every
-index the dataset records gets an outcome, unreadable files included (``invalid_data``). A run into a folder that
-holds an interrupted evaluation with the same settings (``hydra.run.dir=DIR``) resumes it.
+with bad data, timing, manifest; an agent's counters with their cost and latency, and its price table),
+``results.json`` (the versioned results file runs are shared and compared in, ``muble.evaluation.results``),
+``success_<split>.png`` and ``summary.md``; the results table of each split is printed. Every output names the
+protocol, track and observation mode the run followed (``benchmark.*``). Every index the dataset records gets an
+outcome, unreadable files included (``invalid_data``). A run into a folder that holds an interrupted evaluation
+with the same settings (``hydra.run.dir=DIR``) resumes it.
 """
 from __future__ import annotations
 
@@ -30,15 +31,17 @@ from muble.app.hydra_app import run_hydra_job
 from muble.core.errors import ConfigError
 from muble.dataset.executors import run_all
 from muble.dataset.production import cached_components
-from muble.dataset.protocol import check_data, protocol_of, select_split, shipped_archive, shipped_root
+from muble.dataset.protocol import check_data, select_split
+from muble.dataset.shipped import episodes_root
 from muble.evaluation.episodes import EvalJob, evaluate_index
 from muble.evaluation.files import check_files, uses_files
 from muble.evaluation.plot import success_bar_chart
-from muble.evaluation.report import (OVERALL, bad_entry_table, failure_table, markdown, run_stamp, success_table,
-                                     summarize)
+from muble.evaluation.report import (OVERALL, bad_entry_table, failure_table, markdown, partial_split, partial_words,
+                                     run_stamp, success_table, summarize)
 from muble.evaluation.results import RESULTS_FILE, results_document
 from muble.evaluation.resume import RECORDS, EpisodeLog, claim_folder, run_settings
 from muble.evaluation.split import SplitIndices, check_split
+from muble.evaluation.usage import PriceTable
 from muble.io.atomic import write_bytes_atomic
 from muble.io.layout import DatasetLayout
 from muble.io.manifest import make_manifest, sha256_file
@@ -59,12 +62,24 @@ def check_config(cfg: DictConfig) -> Path:
     root = Path(cfg.dataset.root)
     if not root.is_dir():
         raise ConfigError(f"dataset folder {root} does not exist; set dataset.root= to a folder written by "
-                          "`muble generate`")
+                          "`muble generate`" + ("" if cfg.benchmark.protocol else _protocol_hint()))
     if not list(cfg.dataset.splits):
         raise ConfigError("dataset.splits is empty; name the split(s) to evaluate, e.g. 'dataset.splits=[val]'")
     if cfg.evaluation.limit < 0:
         raise ConfigError(f"evaluation.limit must be >= 0 (0 = every index), got {cfg.evaluation.limit}")
     return root
+
+
+def _protocol_hint() -> str:
+    """How to evaluate the frozen benchmark instead, with no dataset at all (its splits ship with MuBlE)."""
+    from muble.dataset.protocol import protocol_names
+    from muble.dataset.shipped import newest_protocol
+
+    newest = newest_protocol()
+    if newest is None:
+        return ""
+    return (f", or evaluate a frozen benchmark's shipped episodes with no dataset: protocol={newest} "
+            f"(benchmark.split=mini, the default; protocols: {', '.join(protocol_names())})")
 
 
 def benchmark_stamp(cfg: DictConfig) -> dict[str, Any]:
@@ -112,18 +127,14 @@ def use_shipped(cfg: DictConfig, split: str | None) -> None:
     shipped files (unpacked into the cache once, hash-checked on every run), so no generation is needed."""
     if split is None or uses_files(cfg.dataset):
         return
-    root = Path(cfg.dataset.root)
-    if (root / split).is_dir():
-        return
+    root = episodes_root(cfg, split)
+    if root is None or root == Path(cfg.dataset.root):
+        return  # a generated copy, or a split that does not ship: check_config says how to generate it
     from omegaconf import open_dict
 
-    protocol = protocol_of(cfg)
-    if shipped_archive(protocol, split) is None:
-        return  # check_config then says the split is missing and how to generate it
-    shipped = shipped_root(protocol, split)
-    log.info("protocol %s split %s: the shipped files (%s)", protocol["name"], split, shipped)
+    log.info("protocol %s split %s: the shipped files (%s)", cfg.benchmark.protocol, split, root)
     with open_dict(cfg):
-        cfg.dataset.root = str(shipped)
+        cfg.dataset.root = str(root)
 
 
 def job(cfg: DictConfig) -> dict[str, Any]:
@@ -157,6 +168,9 @@ def job(cfg: DictConfig) -> dict[str, Any]:
     report: dict[str, Any] = {"agent": cfg.agent.name, "dataset": dataset, "protocol": stamp["protocol"],
                               "track": stamp["track"], "mode": stamp["mode"], "protocol_data": protocol_data,
                               "splits": {}}
+    prices = PriceTable.of(config["agent"])
+    if prices is not None:  # an agent that prices its model calls: every cost in the report is at this table
+        report["prices"] = prices.as_dict()
     plots: dict[str, str] = {}
     written: dict[str, str] = {}
     split_records: dict[str, list[dict[str, Any]]] = {}
@@ -168,6 +182,7 @@ def job(cfg: DictConfig) -> dict[str, Any]:
         summary = summarize(records, list(cfg.dataset.templates))
         summary["skipped"] = found[split].skipped
         summary["indices_from"] = found[split].source
+        summary["partial"] = partial_split(len(records), len(found[split].indices))
         report["splits"][split] = summary
         if cfg.evaluation.plot:
             rates = {t: s["success_rate"] for t, s in summary["templates"].items()}
@@ -175,7 +190,8 @@ def job(cfg: DictConfig) -> dict[str, Any]:
             plots[split] = f"success_{split}.png"
             written[plots[split]] = write_bytes_atomic(
                 out_dir / plots[split], success_bar_chart(rates, f"{cfg.agent.name} on {split}: success rate"))
-        print(success_table(summary, f"agent {cfg.agent.name}, split {split} ({dataset}); "
+        covered = f", {partial_words(summary['partial'])} (evaluation.limit)" if summary["partial"] else ""
+        print(success_table(summary, f"agent {cfg.agent.name}, split {split}{covered} ({dataset}); "
                                      f"{run_stamp(stamp['protocol'], stamp['track'], stamp['mode'])}"))
         print()
         print(failure_table(summary))

@@ -1,9 +1,13 @@
-"""``muble plugins``: every registered plugin by kind, with the package that provides it."""
+"""``muble plugins``: every registered plugin by kind, with the package that provides it (primitives with their
+parameters: ``--kind primitive``, or ``--json``)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+from typing import Any
 
+from muble.core.params import specs
 from muble.plugins.records import KINDS
 from muble.plugins.registry import get_registry
 
@@ -17,8 +21,8 @@ def main(argv: list[str]) -> int:
     rows = [p for p in registry.all() if args.kind in (None, p.kind)]
     if args.json:
         print(json.dumps([{"kind": p.kind, "name": p.record.name, "plugin": p.plugin,
-                           "distribution": p.distribution, "description": p.record.description} for p in rows],
-                         indent=2))
+                           "distribution": p.distribution, "description": p.record.description,
+                           **primitive_facts(p)} for p in rows], indent=2))
         return 0
     widths = [max([len(h)] + [len(c) for c in col]) for h, col in zip(
         ("KIND", "NAME", "PACKAGE"),
@@ -28,4 +32,18 @@ def main(argv: list[str]) -> int:
     for p in rows:
         print(f"{p.kind:<{widths[0]}}  {p.record.name:<{widths[1]}}  {p.distribution + ':' + p.plugin:<{widths[2]}}  "
               f"{p.record.description}")
+        if p.kind == "primitive" and args.kind == "primitive":  # the parameters, when primitives are asked for
+            indent = " " * (widths[0] + widths[1] + 6)
+            for param in specs(getattr(p.record.factory, "params", ())):
+                print(f"{indent}{param.describe()}" + (f": {param.doc}" if param.doc else ""))
     return 0
+
+
+def primitive_facts(p: Any) -> dict[str, Any]:
+    """For a primitive: ``params`` (each declared parameter: name, kind, required, low, high, length, default,
+    doc; docs/agent_api.md), ``measures`` and ``measure_unit`` (what its reading is); empty for other kinds."""
+    if p.kind != "primitive":
+        return {}
+    factory = p.record.factory
+    return {"params": [dataclasses.asdict(param) for param in specs(getattr(factory, "params", ()))],
+            "measures": getattr(factory, "measures", None), "measure_unit": getattr(factory, "measure_unit", "")}

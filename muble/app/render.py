@@ -109,12 +109,11 @@ def configured_plugins() -> tuple[str, str]:
 
 
 def _check_name(registry: Any, kind: str, name: str, flag: str) -> None:
-    from muble.app.usage import suggest
     from muble.core.errors import unknown_name
 
     names = registry.names(kind)
     if name not in names:
-        raise ConfigError(f"{flag}: " + unknown_name(kind, name, names) + suggest(name, list(names)))
+        raise ConfigError(f"{flag}: " + unknown_name(kind, name, names))
 
 
 def main(argv: list[str]) -> int:
@@ -173,11 +172,10 @@ def _render(scene: Any, states: Any, args: argparse.Namespace, camera: str, obje
         mj_camera = env.names.cameras.get(camera, camera)
         cameras = [model.camera(i).name for i in range(model.ncam)]
         if mj_camera not in cameras:
-            from muble.app.usage import suggest
             from muble.core.errors import unknown_name
 
             valid = sorted(set(env.names.cameras) | set(cameras))
-            raise ConfigError("--camera: " + unknown_name("camera", camera, valid) + suggest(camera, valid))
+            raise ConfigError("--camera: " + unknown_name("camera", camera, valid))
         renderer = get_registry().create("renderer", args.renderer, options)
         try:
             renderer.setup(scene, model)

@@ -50,11 +50,12 @@ def format_answer(value: Any, instruction: Any = None) -> str:
 SUITED_SCENES_LOOKED_AT = 10
 
 
-def _suited_scene_index(generator: Any, task: Any, seed: int, index: int) -> int | None:
-    """The first scene index after ``index`` for which ``task`` has an instruction with ``seed``, or None."""
+def _suited_scene_index(generator: Any, task: Any, seed: int, index: int, first: int | None = None) -> int | None:
+    """The first scene index from ``first`` (default: the one after ``index``) to ``index +
+    SUITED_SCENES_LOOKED_AT`` for which ``task`` has an instruction with ``seed``, or None."""
     from muble.episode.runner import instruction_rng
 
-    for candidate in range(index + 1, index + 1 + SUITED_SCENES_LOOKED_AT):
+    for candidate in range(index + 1 if first is None else first, index + 1 + SUITED_SCENES_LOOKED_AT):
         try:
             scene = generator.generate(candidate)
         except MubleError:
@@ -62,6 +63,30 @@ def _suited_scene_index(generator: Any, task: Any, seed: int, index: int) -> int
         if task.generate(scene, instruction_rng(seed, candidate)):
             return candidate
     return None
+
+
+def _physical_properties_hint(cfg: DictConfig, components: dict[str, Any]) -> str | None:
+    """Where the generator draws not every hidden physical property (``generator.physical_properties``) and the
+    task has an instruction once it does (the physical family compares friction, centre of mass, contents: only
+    objects whose scene carries them take part), the override that makes such scenes; else None."""
+    from muble.core.physical_properties import PROPERTIES
+
+    chosen = list(cfg.generator.physical_properties)
+    if all(name in chosen for name in PROPERTIES):
+        return None
+    override = f"generator.physical_properties=[{','.join(PROPERTIES)}]"
+    probe = cfg.copy()
+    probe.generator.physical_properties = list(PROPERTIES)
+    generator = scene_generator(probe, components["object_set"])
+    try:
+        suited = _suited_scene_index(generator, components["task"], cfg.seed, cfg.scene_index, cfg.scene_index)
+    finally:
+        generator.close()
+    if suited is None:
+        return None
+    where = "this scene has one" if suited == cfg.scene_index else f"scene_index={suited} has one"
+    return (f"its scenes carry no hidden physical property it needs (generator.physical_properties={chosen}): with "
+            f"{override} {where} (the physical family; docs/physical_properties.md)")
 
 
 def job(cfg: DictConfig) -> dict:
@@ -87,6 +112,7 @@ def job(cfg: DictConfig) -> dict:
             last = cfg.scene_index + SUITED_SCENES_LOOKED_AT
             hint = (f"scene_index={suited} has one with this seed (muble run uses the scene it is given; "
                     "muble generate looks for one that suits)" if suited is not None else
+                    _physical_properties_hint(cfg, components) or
                     f"nor do scenes {cfg.scene_index + 1}..{last}: choose another seed or task")
             raise no_instruction(cfg.task.name, cfg.scene_index, cfg.seed, hint) from None
     finally:

@@ -9,28 +9,16 @@ gives Hydra's full traceback.
 from __future__ import annotations
 
 import contextlib
-import difflib
 import os
 import sys
 from typing import Any, Callable, Iterator
+
+from muble.core.errors import suggest
 
 USAGE_EXIT_CODE = 2
 
 # Config options stored only as schemas for yaml files to extend, never selected by hand.
 _SCHEMA_SUFFIX = "_schema"
-
-
-def suggest(name: str, valid: list[str], prefix: str = "") -> str:
-    """`` (did you mean 'X'?)`` for the closest valid name, a case-insensitive match first; empty if none.
-
-    ``prefix`` is put before the suggested name (``"renderer."`` suggests ``'renderer.width'``)."""
-    same_case = [v for v in valid if v.lower() == name.lower()]
-    if same_case:
-        return f" (names are case-sensitive: did you mean '{prefix}{same_case[0]}'?)"
-    close = difflib.get_close_matches(name, valid, n=2, cutoff=0.6)
-    if close:
-        return " (did you mean " + " or ".join(f"'{prefix}{c}'" for c in close) + "?)"
-    return ""
 
 
 def _first_line(text: Any) -> str:

@@ -1,6 +1,8 @@
 """Error types. Each one says what went wrong *and* what to change."""
 from __future__ import annotations
 
+import difflib
+
 
 class MubleError(Exception):
     """Base class of every error MuBlE raises on purpose."""
@@ -75,7 +77,27 @@ class RenderError(MubleError):
     """A renderer could not produce a frame (no GL context, unknown camera …)."""
 
 
+def suggest(name: str, valid: list[str] | tuple[str, ...], prefix: str = "") -> str:
+    """`` (did you mean 'X'?)`` for the closest valid name, a case-insensitive match first; empty if none.
+
+    ``prefix`` is put before the suggested name (``"renderer."`` suggests ``'renderer.width'``)."""
+    name, valid = str(name), [str(v) for v in valid]
+    same_case = [v for v in valid if v.lower() == name.lower()]
+    if same_case:
+        return f" (names are case-sensitive: did you mean '{prefix}{same_case[0]}'?)"
+    close = difflib.get_close_matches(name, valid, n=2, cutoff=0.6)
+    if close:
+        return " (did you mean " + " or ".join(f"'{prefix}{c}'" for c in close) + "?)"
+    return ""
+
+
 def unknown_name(kind: str, name: str, valid: list[str] | tuple[str, ...]) -> str:
-    """The standard message for an unknown plugin, category or option name."""
-    options = ", ".join(sorted(valid)) or "(none registered)"
-    return f"unknown {kind} '{name}'; valid {kind} names: {options}"
+    """The standard message for an unknown plugin, category or option name: the valid names listed and the closest
+    one suggested (``suggest``).
+
+    A kind with an owner, ``"split of protocol 'p'"``, puts the name after its noun: ``unknown split 'x' of protocol
+    'p' (did you mean 'y'?); valid split names: …``."""
+    noun, _, owner = kind.partition(" of ")
+    where = f" of {owner}" if owner else ""
+    options = ", ".join(sorted(str(v) for v in valid)) or "(none registered)"
+    return f"unknown {noun} '{name}'{where}{suggest(name, valid)}; valid {noun} names: {options}"

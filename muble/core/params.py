@@ -34,6 +34,9 @@ class Param:
     high: float | None = None
     length: int | None = None  # for vectors
     doc: str = ""
+    # The value an optional parameter takes when a call leaves it out (``argument``); None: the primitive decides
+    # (its ``doc`` says how).
+    default: Any = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -45,12 +48,22 @@ class Param:
             bounds = f" in [{self.low if self.low is not None else '-inf'}, " \
                      f"{self.high if self.high is not None else 'inf'}]"
         size = f" of {self.length}" if self.length else ""
-        return f"{self.name}: {self.kind}{size}{bounds}{'' if self.required else ' (optional)'}"
+        default = f", default {self.default}" if self.default is not None else ""
+        return f"{self.name}: {self.kind}{size}{bounds}{'' if self.required else f' (optional{default})'}"
 
 
 def specs(params: Iterable[str | Param]) -> tuple[Param, ...]:
     """``Param`` records for a primitive's declared ``params`` (a plain name accepts any value)."""
     return tuple(p if isinstance(p, Param) else Param(str(p)) for p in params)
+
+
+def argument(action: Any, name: str) -> Any:
+    """The value of parameter ``name`` in a primitive's call (``PrimitiveAction.arguments``): as given, else its
+    declared ``Param.default`` (None where it declares none)."""
+    given = action.arguments.get(name)
+    if given is not None:
+        return given
+    return next((p.default for p in specs(type(action).params) if p.name == name), None)
 
 
 def _is_int(value: Any) -> bool:

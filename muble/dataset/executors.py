@@ -8,7 +8,8 @@ Local workers die with their parent: each asks the kernel for SIGKILL when its p
 writing beside a restarted run. Ray joins an existing cluster only when given its address explicitly
 (``dataset.ray_address``); otherwise it starts a private local one, whatever ``RAY_ADDRESS`` says, that only this
 machine can reach: every server of it listens on the loopback interface, its token and session files lie in a
-folder only this user can enter, and both are gone when the process ends.
+folder only this user can enter, and both are gone when the process ends. On a cluster, an index whose node or
+worker process is lost runs again on another node (``RAY_TASK_RETRIES``).
 """
 from __future__ import annotations
 
@@ -193,6 +194,13 @@ def _refresh_ray_token_state() -> None:
     AuthenticationTokenLoader.instance().reset_cache()
 
 
+# An index whose node or worker process is lost (a machine gone, a raylet or worker killed) runs again on another
+# node, up to this many times: safe, because an index's work is deterministic from (seed, index) and its files are
+# written atomically, so a retry writes the same bytes. Ray's default, named so that it is a decision. An exception
+# the function itself raises is not retried (Ray's ``retry_exceptions`` stays off): it would only fail again.
+RAY_TASK_RETRIES = 3
+
+
 def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: str | None = None,
          **_: Any) -> Iterator[Any]:
     import ray
@@ -206,12 +214,17 @@ def _ray(fn: Callable[[Any], Any], items: list[Any], workers: int, ray_address: 
                 log.warning("RAY_ADDRESS=%s ignored: set dataset.ray_address to use an existing cluster; starting "
                             "a private local one", os.environ["RAY_ADDRESS"])
             _PrivateRay.start(workers)
-    remote = ray.remote(num_cpus=1)(fn)
+    remote = ray.remote(num_cpus=1, max_retries=RAY_TASK_RETRIES)(fn)
     pending = [remote.remote(item) for item in items]
     while pending:
         done, pending = ray.wait(pending, num_returns=1)
         try:
             result = ray.get(done[0])
+        except (ray.exceptions.NodeDiedError, ray.exceptions.WorkerCrashedError):
+            log.error("a task was lost with its node or worker process %d times (Ray retried it %d times); what "
+                      "finished is kept: run the same command again to do the rest", RAY_TASK_RETRIES + 1,
+                      RAY_TASK_RETRIES)
+            raise
         except ray.exceptions.RayTaskError as e:
             # What the worker raised, as the other executors raise it: a full disk or a refused setting reaches
             # the command line as its own one-line message, not inside Ray's traceback of the remote task.

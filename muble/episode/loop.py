@@ -9,16 +9,19 @@ and the episode goes on, so the agent may recover; it ends when the agent answer
 (``None``), repeats itself (``loop_detected``), runs out of steps (``timeout``) or of failures
 (``execution_error`` after ``max_failures`` failed primitives). A call that no primitive accepts (unknown name or
 parameter, a missing or mistyped one, a target not in the scene) ends it at once as ``invalid_action``; an agent
-that raises ends it as ``agent_error``. Agents see ``World.observe``'s scene (what they may know, see
-``muble.core.observation``); the judge and the records get ``World.ground_truth()``.
+that raises ends it as ``agent_error`` (its traceback logged and kept in the result), and one that takes longer
+than ``decision_timeout`` to decide ends it as ``timeout`` (``AgentCalls``). Agents see ``World.observe``'s scene
+(what they may know, see ``muble.core.observation``); the judge and the records get ``World.ground_truth()``.
 """
 from __future__ import annotations
 
 import logging
+import queue
+import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
-from muble.core.errors import PhysicsError, PlanningError
+from muble.core.errors import MubleError, PhysicsError, PlanningError
 from muble.core.interfaces import Agent, Instruction, Task
 from muble.core.observation import agent_instruction
 from muble.core.scene import SceneGraph
@@ -91,6 +94,7 @@ class EpisodeResult:
     error: str | None = None
     initial_gt: SceneGraph | None = None
     failures: int = 0  # primitives that failed (reported to the agent)
+    traceback: str | None = None  # agent_error: where the agent raised (its formatted traceback)
 
 
 Judge = Callable[[Instruction, SceneGraph, Answer | None], Outcome]
@@ -131,10 +135,49 @@ def registry_call_check(registry: Any = None) -> CallCheck:
     return check
 
 
+class DecisionTimeout(MubleError):
+    """An agent's ``reset`` or ``act`` did not return within the time limit of one decision."""
+
+
+class AgentCalls:
+    """Calls an agent's ``reset`` and ``act`` with a time limit per call (``limit`` s; 0: none, on the caller's
+    thread). With a limit every call of an episode runs on one worker thread of its own (an agent that keeps
+    thread-bound state still finds it), and one that overruns raises ``DecisionTimeout``: the call is abandoned
+    (interrupted at its next Python instruction; Python cannot stop a thread otherwise) and the episode ends."""
+
+    def __init__(self, limit: float = 0.0):
+        from muble.episode.stepped import EpisodeThread
+
+        self.limit = float(limit or 0.0)
+        self.worker = EpisodeThread(name="muble-agent") if self.limit > 0 else None
+
+    def __call__(self, what: str, fn: Callable[[], Any]) -> Any:
+        if self.worker is None:
+            return fn()
+        try:
+            return self.worker.call(fn, timeout=self.limit)
+        except queue.Empty:
+            self.worker.interrupt()
+            self.worker = None
+            raise DecisionTimeout(f"{what} took longer than {self.limit:g} s (evaluation.decision_timeout): the "
+                                  "decision was abandoned") from None
+
+    def close(self) -> None:
+        if self.worker is not None:
+            self.worker.close()
+
+
+def _agent_error(what: str, e: BaseException) -> str:
+    """An agent's exception for the record, its traceback into the log (whose fault: the agent's; how to find
+    it: the traceback)."""
+    log.warning("%s raised %s: %s", what, type(e).__name__, e, exc_info=e)
+    return f"{what} raised {type(e).__name__}: {e}"
+
+
 def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Task | Judge", max_steps: int = 100,
                 max_repeats: int = 3, on_step: Callable[[StepRecord], None] | None = None,
                 max_failures: int = 8, check_call: CallCheck | None = None, track: str = "program",
-                mode: str = "graph") -> EpisodeResult:
+                mode: str = "graph", decision_timeout: float = 0.0) -> EpisodeResult:
     """Let ``agent`` act in ``world`` until it stops; the episode is judged by ``judge``: a ``Task`` (its ``judge``
     gets the whole record) or a function of (instruction, final ground-truth scene, answer).
 
@@ -142,6 +185,10 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
     both: the world's observation is the graph view with its frames; the agent gets the mode's view of it, and its
     object arguments are read in the mode's form (pixels in ``image`` mode). A privileged agent gets the program
     and the graph view (and is told the program track and graph mode).
+
+    ``decision_timeout`` (s; 0: none) bounds each call of the agent's ``reset`` and ``act``: one that does not
+    return in time ends the episode as ``timeout`` (``AgentCalls``). An agent that raises ends it as
+    ``agent_error``, its traceback in the log and in the result's ``traceback``.
     """
     check_call = check_call or registry_call_check()
     privileged = bool(getattr(agent, "privileged", False))
@@ -165,58 +212,71 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
         return EpisodeResult(outcome, actions, answer, world.ground_truth(), steps, initial, error, initial_gt,
                              failures)
 
+    def agent_failed(what: str, e: Exception) -> EpisodeResult:
+        if isinstance(e, DecisionTimeout):
+            log.warning("%s", e)
+            return finish(Outcome.TIMEOUT, str(e))
+        failed = finish(Outcome.AGENT_ERROR, _agent_error(what, e))
+        failed.traceback = "".join(traceback.format_exception(e))
+        return failed
+
+    calls = AgentCalls(decision_timeout)
     try:
-        agent.reset(told, seen, track=Track.program if privileged else check_track(track), mode=view.mode)
-    except Exception as e:  # noqa: BLE001 - whatever an agent raises ends its episode, never the evaluation
-        return finish(Outcome.AGENT_ERROR, f"agent.reset raised {type(e).__name__}: {e}")
-    while True:
         try:
-            decision = agent.act(told, seen)
-        except PlanningError as e:  # the agent's program cannot be carried out in this scene
-            return finish(Outcome.PROGRAM_FAILURE, str(e))
-        except Exception as e:  # noqa: BLE001 - see above
-            log.info("agent raised %s: %s", type(e).__name__, e)
-            return finish(Outcome.AGENT_ERROR, f"agent.act raised {type(e).__name__}: {e}")
-        if decision is None:
-            break
-        if isinstance(decision, Answer):
-            answer = decision
-            continue
-        if not isinstance(decision, ActionCall):
-            return finish(Outcome.INVALID_ACTION, f"the agent returned {type(decision).__name__} {decision!r:.80}; "
-                                                  "return an ActionCall, an Answer or None")
-        if pixels:
-            declared = _declared(decision)
-            if privileged:
-                decision = express_with_pixels(decision, observation, declared)
-            decision = resolve_pixels(decision, observation, declared)
-            if isinstance(decision, str):
-                log.info("invalid action: %s", decision)
-                return finish(Outcome.INVALID_ACTION, decision)
-        problem = check_call(decision, observation.scene)
-        if problem is not None:
-            log.info("invalid action %s: %s", decision, problem)
-            return finish(Outcome.INVALID_ACTION, problem)
-        failure = monitor.before(observation.scene, decision)
-        if failure is not None:
-            return finish(failure)
-        try:
-            result = world.apply(decision)
-        except PhysicsError as e:
-            return finish(Outcome.BROKEN_SCENE, str(e))
-        actions.append(decision)
-        observation = world.observe(result, len(actions))
-        seen = view(observation)
-        steps.append(StepRecord(decision, result, observation, world.ground_truth()))
-        if on_step is not None:
-            on_step(steps[-1])
-        if not result.success:
-            failures += 1
-            last_failure = f"{decision}: {result.failure_reason}"
-            if failures >= max_failures:
-                return finish(Outcome.EXECUTION_ERROR, f"{failures} primitives failed, the last {last_failure}")
-    result = finish(Outcome.SUCCESS)  # the record as the judge sees it; its outcome is the judge's
-    result.outcome = judge.judge(instruction, result) if isinstance(judge, Task) else \
-        judge(instruction, result.final_scene, answer)
-    result.error = None if result.outcome is Outcome.SUCCESS else last_failure
-    return result
+            calls("agent.reset", lambda: agent.reset(told, seen, mode=view.mode,
+                                                     track=Track.program if privileged else check_track(track)))
+        except Exception as e:  # noqa: BLE001 - whatever an agent raises ends its episode, never the evaluation
+            return agent_failed("agent.reset", e)
+        while True:
+            try:
+                decision = calls("agent.act", lambda: agent.act(told, seen))
+            except PlanningError as e:  # the agent's program cannot be carried out in this scene
+                return finish(Outcome.PROGRAM_FAILURE, str(e))
+            except Exception as e:  # noqa: BLE001 - see above
+                return agent_failed("agent.act", e)
+            if decision is None:
+                break
+            if isinstance(decision, Answer):
+                answer = decision
+                continue
+            if not isinstance(decision, ActionCall):
+                return finish(Outcome.INVALID_ACTION, f"the agent returned {type(decision).__name__} "
+                                                      f"{decision!r:.80}; return an ActionCall, an Answer or None")
+            if pixels:
+                declared = _declared(decision)
+                if privileged:
+                    decision = express_with_pixels(decision, observation, declared)
+                decision = resolve_pixels(decision, observation, declared)
+                if isinstance(decision, str):
+                    log.info("invalid action: %s", decision)
+                    return finish(Outcome.INVALID_ACTION, decision)
+            problem = check_call(decision, observation.scene)
+            if problem is not None:
+                log.info("invalid action %s: %s", decision, problem)
+                return finish(Outcome.INVALID_ACTION, problem)
+            failure = monitor.before(observation.scene, decision)
+            if failure is not None:
+                return finish(failure)
+            try:
+                result = world.apply(decision)
+            except PhysicsError as e:
+                return finish(Outcome.BROKEN_SCENE, str(e))
+            actions.append(decision)
+            observation = world.observe(result, len(actions))
+            seen = view(observation)
+            steps.append(StepRecord(decision, result, observation, world.ground_truth()))
+            if on_step is not None:
+                on_step(steps[-1])
+            if not result.success:
+                failures += 1
+                last_failure = f"{decision}: {result.failure_reason}"
+                if failures >= max_failures:
+                    return finish(Outcome.EXECUTION_ERROR,
+                                  f"{failures} primitives failed, the last {last_failure}")
+        result = finish(Outcome.SUCCESS)  # the record as the judge sees it; its outcome is the judge's
+        result.outcome = judge.judge(instruction, result) if isinstance(judge, Task) else \
+            judge(instruction, result.final_scene, answer)
+        result.error = None if result.outcome is Outcome.SUCCESS else last_failure
+        return result
+    finally:
+        calls.close()

@@ -17,6 +17,7 @@ from muble.core.interfaces import Disturbance, DisturbanceEvent, Renderer
 from muble.core.observation import agent_view
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Frame, Observation
+from muble.episode.fingerprint import fingerprint
 from muble.sim.sync import is_lifted
 
 log = logging.getLogger(__name__)
@@ -38,6 +39,8 @@ class PhysicalWorld:
         self.disturbances = tuple(disturbances)
         self.events: list[DisturbanceEvent] = []  # what the disturbances did (the record's, never the agent's)
         self.steps = 0
+        # The world at the start and after every primitive (muble.episode.fingerprint): the record's alone.
+        self.fingerprints: list[dict] = [fingerprint(env)]
         self.registry = registry
         self.renderer = renderer
         self.cameras = tuple(cameras)
@@ -88,6 +91,7 @@ class PhysicalWorld:
         for d in self.disturbances:
             result, event = d.after(self.env, action, result, step)
             self._fired(event)
+        self.fingerprints.append(fingerprint(self.env))
         return result
 
     def _listener(self, disturbance: Disturbance):

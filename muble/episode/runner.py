@@ -98,6 +98,8 @@ class EpisodeOutput:
     # What the disturbances did (``DisturbanceEvent.to_dict``) and how many were planned: the record's alone.
     disturbances: list[dict[str, Any]] = field(default_factory=list)
     disturbances_planned: int = 0
+    # The world at the start and after every primitive (muble.episode.fingerprint), for muble verify.
+    fingerprints: list[dict[str, Any]] = field(default_factory=list)
 
 
 class _TimedRenderer(Renderer):
@@ -195,12 +197,15 @@ class EpisodeRunner:
     # The wrist sensor's error (``muble.sim.sensor_noise.WristNoise`` or a mapping of its fields; None: perfect),
     # drawn from its own stream for (``seed``, the episode's key).
     noise: Any = None
+    decision_timeout: float = 0.0  # s one call of the agent's reset or act may take (0: no limit; run_episode)
+    step_log_level: int = logging.INFO  # the per-primitive log line's level (muble eval: DEBUG, under --verbose)
 
     def _disturbances(self, scene: SceneGraph, instruction: Instruction, key: int) -> list[Any]:
         """The disturbances that act in this episode, each reset on its own stream: those that apply to the
         instruction, all of them or, with ``disturbances_per_episode``, a number of them drawn from
         ``episode.disturbance_mix``."""
-        applicable = [name for name, d in self.disturbances.items() if d.applies(instruction)]
+        # By name: the draw must not depend on the order a config lists them in (a JSON round trip sorts it).
+        applicable = [name for name, d in sorted(self.disturbances.items()) if d.applies(instruction)]
         if self.disturbances_per_episode and applicable:
             low, high = (list(self.disturbances_per_episode) * 2)[:2]
             rng = streams.stream(streams.DISTURBANCE_MIX, self.seed, key)
@@ -268,11 +273,11 @@ class EpisodeRunner:
                 frame = step.observation.images.get(self.cameras[0])
                 if frame is not None:
                     keyframes.append(frame.rgb)
-                log.info("step %d: %s -> %s", len(keyframes), step.action,
-                         "ok" if step.result.success else step.result.failure_reason)
+                log.log(self.step_log_level, "step %d: %s -> %s", step.observation.step, step.action,
+                        "ok" if step.result.success else step.result.failure_reason)
 
             result = run_episode(instruction, world, self.agent, task, max_steps=self.max_steps, on_step=keep,
-                                 track=self.track, mode=self.mode)
+                                 track=self.track, mode=self.mode, decision_timeout=self.decision_timeout)
             first = result.initial.images.get(self.cameras[0]) if result.initial is not None else None
             if first is not None:
                 keyframes.insert(0, first.rgb)
@@ -288,7 +293,8 @@ class EpisodeRunner:
         timing.physics = timing.total - timing.planning - timing.rendering
         return EpisodeOutput(scene, instruction, result, keyframes, timing=timing,
                              disturbances=[e.to_dict() for e in world.events],
-                             disturbances_planned=sum(bool(d.planned) for d in disturbances))
+                             disturbances_planned=sum(bool(d.planned) for d in disturbances),
+                             fingerprints=world.fingerprints)
 
 
 def write_episode(output: EpisodeOutput, directory: Path, stem: str, gif: bool = True,

@@ -30,6 +30,18 @@ _SPLIT_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 EPISODE_FORMS = "{scene_index[, template]}, {split, index} or {scene, instruction}"
 
 
+def dataset_root(cfg: Any) -> Path | None:
+    """The folder of stored episodes a config names (``dataset.root``), or None when it names none: outside a
+    Hydra job the default ``dataset.root``, a Hydra run folder, cannot be resolved."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        root = cfg.dataset.root
+    except (OmegaConfBaseException, AttributeError, KeyError, ValueError):
+        return None
+    return Path(str(root)) if root else None
+
+
 def episode_kind(request: Any) -> str | None:
     """Which source a mapping names an episode from, by its keys: ``generated`` (``scene_index``, optionally
     ``template``), ``stored`` (``split``, ``index``) or ``data`` (``scene``, ``instruction``); None for any other
@@ -159,7 +171,12 @@ class EpisodeFactory:
             raise ConfigError(f"split must be a plain name (letters, digits, '_', '-'), got {split!r:.40}")
         if isinstance(index, bool) or not isinstance(index, int) or index < 0:
             raise ConfigError(f"index must be a non-negative integer, got {index!r:.40}")
-        layout = DatasetLayout(Path(root or self.cfg.dataset.root), split)
+        root = root or dataset_root(self.cfg)
+        if root is None:
+            raise ConfigError(f"no dataset to read episode {split}/{index} from: set dataset.root=DIR (a folder "
+                              "`muble generate` or `muble data` wrote), or protocol=NAME to play a frozen "
+                              "benchmark's shipped splits (e.g. protocol=shopvrb2_v2 with split 'mini')")
+        layout = DatasetLayout(Path(root), split)
         instruction_file = layout.split_dir / layout.instruction(index)
         scene_file = layout.split_dir / layout.scene(index)
         if not instruction_file.is_file() or not scene_file.is_file():

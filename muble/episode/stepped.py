@@ -73,13 +73,14 @@ class EpisodeThread:
     """One worker thread that runs episodes one after another (``submit``), and anything that must run where their
     GL contexts are current (``call``: closing a renderer kept across episodes)."""
 
-    def __init__(self) -> None:
+    def __init__(self, name: str = "muble-episodes") -> None:
+        self.name = name
         self._jobs: queue.Queue = queue.Queue()
         self._thread: threading.Thread | None = None
 
     def submit(self, job: Callable[[], None]) -> None:
         if self._thread is None:
-            self._thread = threading.Thread(target=self._loop, name="muble-episodes", daemon=True)
+            self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
             self._thread.start()
         self._jobs.put(job)
 
@@ -99,6 +100,19 @@ class EpisodeThread:
             raise value
         return value
 
+    def interrupt(self) -> None:
+        """Raise ``EpisodeAbandoned`` inside the worker thread at its next Python instruction, and end the thread
+        after it: a job stuck in a Python loop stops, one blocked in a C call (``time.sleep``, a socket) when the
+        call returns. For a job abandoned after its time limit (Python cannot stop a thread otherwise); the worker
+        takes no job after it."""
+        import ctypes
+
+        thread = self._thread
+        if thread is not None and thread.ident is not None and thread.is_alive():
+            self._jobs.put(None)
+            ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread.ident),
+                                                       ctypes.py_object(EpisodeAbandoned))
+
     def close(self, timeout: float = 60.0) -> None:
         if self._thread is not None and self._thread.is_alive():
             self._jobs.put(None)
@@ -106,8 +120,11 @@ class EpisodeThread:
         self._thread = None
 
     def _loop(self) -> None:
-        while (job := self._jobs.get()) is not None:
-            job()
+        try:
+            while (job := self._jobs.get()) is not None:
+                job()
+        except EpisodeAbandoned:  # interrupted between two jobs: the thread just ends
+            pass
 
 
 class SteppedEpisode:

@@ -114,9 +114,10 @@ def closed_loop(records: list[dict[str, Any]]) -> dict[str, Any] | None:
     """
     if not has_disturbances(records):
         return None
-    from muble.evaluation.episodes import measuring_primitives
+    from muble.plugins.registry import get_registry
 
-    measuring = measuring_primitives()
+    registry = get_registry()
+    measuring = {name for name in registry.names("primitive") if registry.measures(name)}
     disturbed = [r for r in records if r.get("disturbances")]
     delays = [detection_delay(e, r.get("primitives") or [], measuring) for r in disturbed for e in r["disturbances"]]
     addressed = [d for d in delays if d is not None]

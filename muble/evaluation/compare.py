@@ -9,7 +9,8 @@ if the agents were equally good; with paired episodes this is far more sensitive
 Every pair of runs is compared, overall and per task type (the first run's template of each shared episode).
 Runs that followed different protocols, tracks or observation modes, or ran on data with another hash, are
 compared all the same but with a warning: their numbers answer different questions. Runs that share no episode
-cannot be paired at all and are refused.
+cannot be paired at all and are refused. Runs of an agent that counts its tokens (``agent=llm``) are also set side
+by side in what they cost and how long their requests waited (``muble.evaluation.usage``).
 """
 from __future__ import annotations
 
@@ -21,8 +22,9 @@ from typing import Any
 from muble.core.errors import ConfigError
 from muble.core.types import Outcome
 from muble.evaluation.closed_loop import recovery_by_kind, share
-from muble.evaluation.report import OVERALL, UNKNOWN, markdown_table, percent_interval, text_table
+from muble.evaluation.report import OVERALL, UNKNOWN, markdown_table, partial_words, percent_interval, text_table
 from muble.evaluation.stats import mcnemar_exact, wilson
+from muble.evaluation.usage import COST_HEADER, PriceTable, prices_text, usage_cells, usage_summary
 
 FORMAT = "muble-compare"
 VERSION = 1
@@ -77,6 +79,16 @@ def _recovery(episodes: list[dict[str, Any]]) -> dict[str, dict[str, Any]] | Non
                     "ci": [r["ci_low"], r["ci_high"]]} for group, r in rows.items()}
 
 
+def _usage(run: Run, episodes: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The run's tokens, cost and latency (``muble.evaluation.usage.usage_summary``) over all its episodes, with
+    the price table its agent's config gives (``prices``); None for a run without token counters."""
+    usage = usage_summary(episodes)
+    if usage is None:
+        return None
+    prices = PriceTable.of(run.results.get("agent_config"))
+    return {**usage, "prices": None if prices is None else prices.as_dict()}
+
+
 def _template_order(runs: list[Run]) -> list[str]:
     """Task types in the order the runs' summaries list them (the template mix), others after, ``unknown`` last."""
     order: list[str] = []
@@ -108,11 +120,18 @@ def _warnings(runs: list[Run]) -> list[str]:
     return out
 
 
+def _covered(run: Run) -> str:
+    """What a run evaluated, per split: ``mini (first 20 of 100 episodes)`` or ``mini (100 episodes)``."""
+    return ", ".join(f"{split} ({partial_words(entry.get('partial')) or f'{len(entry['episodes'])} episodes'})"
+                     for split, entry in run.results["splits"].items())
+
+
 def compare(runs: list[Run]) -> dict[str, Any]:
     """The comparison of ``runs`` (at least one): each run's success per task type and overall with its Wilson
     interval, every pair's shared episodes, discordant counts and McNemar p-value, overall and per task type, and
     warnings; where a run had disturbances, ``recovery`` (per run, per disturbance kind and overall, ``None`` for a
-    run without). Raises ``ConfigError`` when two runs share no episode."""
+    run without); where a run counted tokens, ``usage`` (per run, ``_usage``; ``None`` for a run without).
+    Raises ``ConfigError`` when two runs share no episode."""
     templates = _template_order(runs)
     episodes = {run.label: run.episodes() for run in runs}
     success: dict[str, dict[str, Any]] = {}
@@ -121,6 +140,7 @@ def compare(runs: list[Run]) -> dict[str, Any]:
         success[run.label] = {t: _rate([e for e in mine if e["template"] == t]) for t in templates}
         success[run.label][OVERALL] = _rate(mine)
     recovery = {run.label: _recovery(list(episodes[run.label].values())) for run in runs}
+    usage = {run.label: _usage(run, list(episodes[run.label].values())) for run in runs}
     warnings = _warnings(runs)
     pairs = []
     for one, other in itertools.combinations(runs, 2):
@@ -131,6 +151,10 @@ def compare(runs: list[Run]) -> dict[str, Any]:
                 f"runs {one.label} ({one.folder}) and {other.label} ({other.folder}) share no episode (same split and "
                 f"index): {one.label} has splits {', '.join(one.results['splits']) or 'none'}, {other.label} has "
                 f"{', '.join(other.results['splits']) or 'none'}; compare runs evaluated on the same split")
+        if len(shared) < max(len(first), len(second)):
+            warnings.append(f"{one.label} ran {_covered(one)} and {other.label} {_covered(other)}: they share "
+                            f"{len(shared)} episodes, so their success rates are over different episodes; the "
+                            "paired tests use the shared ones only")
         relabelled = sum(1 for k in shared if first[k]["template"] != second[k]["template"])
         if relabelled:
             warnings.append(f"{relabelled} of the episodes {one.label} and {other.label} share have different task "
@@ -141,11 +165,15 @@ def compare(runs: list[Run]) -> dict[str, Any]:
                       "templates": {t: v for t, v in per_template.items() if v["shared"]}})
     return {"format": FORMAT, "version": VERSION,
             "runs": [{"label": run.label, "folder": str(run.folder), "agent": run.results.get("agent"),
-                      "splits": list(run.results["splits"]), **{f: run.results.get(f) for f in SETTINGS}}
+                      "splits": list(run.results["splits"]), **{f: run.results.get(f) for f in SETTINGS},
+                      "partial": {split: entry["partial"] for split, entry in run.results["splits"].items()
+                                  if entry.get("partial")}}
                      for run in runs],
             "warnings": warnings, "templates": templates, "success": success, "pairs": pairs,
             # Only where a run had disturbances: other comparisons are as they were.
-            **({"recovery": recovery} if any(recovery.values()) else {})}
+            **({"recovery": recovery} if any(recovery.values()) else {}),
+            # Only where a run counted tokens (an LLM agent), likewise.
+            **({"usage": usage} if any(usage.values()) else {})}
 
 
 def chart_groups(comparison: dict[str, Any]) -> dict[str, dict[str, tuple[float, float, float] | None]]:
@@ -186,6 +214,22 @@ def _recovery_rows(comparison: dict[str, Any]) -> tuple[list[str], list[list[str
     return ["disturbance kind", *labels], rows
 
 
+def _usage_rows(comparison: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """Per run, its tokens, cost, latency and ledger replays (``-`` for a run without token counters)."""
+    rows = [[label, *(usage_cells(u) if u else ["-"] * len(COST_HEADER))]
+            for label, u in comparison["usage"].items()]
+    return ["run", *COST_HEADER], rows
+
+
+def _usage_notes(comparison: dict[str, Any]) -> list[str]:
+    """Each run's price table, which its costs are at."""
+    return [f"{label}: {prices_text(u['prices'])}" for label, u in comparison["usage"].items() if u]
+
+
+USAGE_NOTE = ("tokens, cost at each run's price table, latency per request (p50 / p95, retries included) and the "
+              "requests sent and replies replayed from an LLM ledger, over all episodes of each run")
+
+
 RECOVERY_NOTE = ("success among the episodes in which a disturbance fired, per disturbance kind and overall (95% "
                  "Wilson interval, n episodes)")
 
@@ -198,13 +242,19 @@ def _pair_rows(pair: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
 
 
 def text(comparison: dict[str, Any]) -> str:
-    """The comparison as printed: the success table, the recovery table of runs with disturbances, then one table
-    per pair, then the warnings."""
+    """The comparison as printed: the success table, the recovery table of runs with disturbances, the cost and
+    latency table of runs with token counters, then one table per pair, then the warnings."""
     lines = [f"success rate by task type (95% Wilson interval, n episodes), {len(comparison['runs'])} runs:"]
-    lines += [f"  {run['label']}: agent {run['agent']}, {run['folder']}" for run in comparison["runs"]]
+    lines += [f"  {run['label']}: agent {run['agent']}, {run['folder']}"
+              + "".join(f"; {split}: {partial_words(p)}" for split, p in (run.get("partial") or {}).items())
+              for run in comparison["runs"]]
     lines += ["", *text_table(*_success_rows(comparison))]
     if "recovery" in comparison:
         lines += ["", f"recovery rate after disturbances: {RECOVERY_NOTE}:", *text_table(*_recovery_rows(comparison))]
+    if "usage" in comparison:
+        lines += ["", f"cost and latency: {USAGE_NOTE}:",
+                  *text_table(*_usage_rows(comparison), rule_before_last=False),
+                  *[f"  {note}" for note in _usage_notes(comparison)]]
     for pair in comparison["pairs"]:
         o = pair[OVERALL]
         lines += ["", f"{pair['first']} vs {pair['second']}: {o['shared']} shared episodes, {o['b']} solved only by "
@@ -217,7 +267,7 @@ def text(comparison: dict[str, Any]) -> str:
 
 def markdown(comparison: dict[str, Any], chart: str | None = CHART) -> str:
     """``compare.md``: the runs, warnings, the success table with the chart, the recovery table of runs with
-    disturbances, and the paired tests."""
+    disturbances, the cost and latency table of runs with token counters, and the paired tests."""
     lines = [f"# Comparison of {len(comparison['runs'])} evaluation runs", "",
              "| run | agent | folder | protocol | track | mode | data sha256 |", "|---|---|---|---|---|---|---|"]
     for run in comparison["runs"]:
@@ -225,6 +275,8 @@ def markdown(comparison: dict[str, Any], chart: str | None = CHART) -> str:
         protocol = run["protocol"] or "none"
         if run["protocol_split"]:
             protocol += f" ({run['protocol_split']})"
+        for split, partial in (run.get("partial") or {}).items():
+            protocol += f", {split}: {partial_words(partial)}"
         lines.append(f"| {run['label']} | {run['agent']} | `{run['folder']}` | {protocol} | {run['track']} | "
                      f"{run['mode']} | `{sha}` |")
     if comparison["warnings"]:
@@ -237,6 +289,9 @@ def markdown(comparison: dict[str, Any], chart: str | None = CHART) -> str:
     if "recovery" in comparison:
         lines += ["", "## Recovery after disturbances", "", f"Recovery rate: {RECOVERY_NOTE}.", "",
                   *markdown_table(*_recovery_rows(comparison))]
+    if "usage" in comparison:
+        lines += ["", "## Cost and latency", "", f"{USAGE_NOTE[0].upper()}{USAGE_NOTE[1:]}.", "",
+                  *markdown_table(*_usage_rows(comparison)), "", *[f"- {note}" for note in _usage_notes(comparison)]]
     lines += ["", "## Paired comparisons", "",
               "Over the episodes both runs have (same split and index): b episodes only the first run solved, c only "
               "the second; the p-value is the exact two-sided McNemar test (binomial on b + c discordant episodes)."]

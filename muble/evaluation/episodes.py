@@ -7,10 +7,14 @@ Two optional members of an agent are read here, so any agent can use them: an ``
 the run's output folder before each episode (an agent that keeps files of its own, such as the ``llm`` agent's
 request logs, puts them beside the records), and ``stats()``, called after the episode, returns that episode's
 counters (a mapping of names to numbers: tokens, requests, retries …), stored in the record's ``agent_stats`` and
-summed per task type in the report (``muble.evaluation.report.agent_totals``).
+summed per task type in the report (``muble.evaluation.report.agent_totals``). A third, ``samples()``, also read
+after the episode, returns its observations per request (names to lists of numbers, such as the seconds each
+request waited), stored in the record's ``agent_samples`` only where an agent has it; the report takes the
+latency's percentiles from them (``muble.evaluation.usage``).
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 from pathlib import Path
 from typing import Any
@@ -20,6 +24,7 @@ from muble.core.types import Outcome
 from muble.dataset.production import IndexJob, cached_components, split_seed
 from muble.dataset.protocol import episode_config
 from muble.core.symbolic import ArmState
+from muble.episode.fingerprint import platform
 from muble.episode.plain import plain
 from muble.evaluation.report import UNKNOWN
 from muble.io.layout import DatasetLayout
@@ -80,7 +85,7 @@ def _describe(job: EvalJob, e: BaseException) -> str:
     return str(e) if isinstance(e, MubleError) else f"{type(e).__name__}: {e}"
 
 
-def evaluate_index(job: EvalJob) -> dict[str, Any]:
+def evaluate_index(job: EvalJob, agent: Any = None) -> dict[str, Any]:
     """Run the agent on one stored index; returns its result record whatever the files hold or the code raises.
 
     A file that cannot be read, parsed or built is ``invalid_data`` with the file named in ``file``; a scene that
@@ -89,13 +94,13 @@ def evaluate_index(job: EvalJob) -> dict[str, Any]:
     """
     out = _record(job)
     try:
-        return _evaluate(job, out)
+        return _evaluate(job, out, agent)
     except Exception as e:  # a bug, not the data's fault: recorded with its type, traceback logged
         log.exception("%s %d: unexpected error", job.split, job.index)
         return _failed(out, Outcome.EXECUTION_ERROR, f"unexpected {type(e).__name__}: {e}", out["file"])
 
 
-def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
+def _evaluate(job: EvalJob, out: dict[str, Any], agent: Any = None) -> dict[str, Any]:
     from omegaconf import OmegaConf
 
     from muble.episode.components import episode_runner
@@ -111,11 +116,15 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
     registry = get_registry()
     task = registry.create("task", instruction.template_id, {})
     runner = episode_runner(OmegaConf.create(cfg), build_components(cfg))
+    if agent is not None:  # another agent than the configured one (muble verify's replay of the records)
+        runner = dataclasses.replace(runner, agent=agent)
     agent = getattr(runner, "agent", None)
     output_dir = (cfg.get("output") or {}).get("dir")
     if output_dir and hasattr(agent, "output_dir"):
         agent.output_dir = Path(output_dir)
     runner.seed = split_seed(int(cfg.get("seed") or 0), job.split)  # the split's own disturbance draws
+    runner.decision_timeout = float(cfg["evaluation"].get("decision_timeout") or 0.0)
+    runner.step_log_level = logging.DEBUG  # quiet by default: one line per episode, its primitives under --verbose
     try:
         output = runner.execute(scene, instruction, task, key=job.index)
     except SceneValidationError as e:  # the runner could not build the scene: an object model or mass refused
@@ -143,7 +152,9 @@ def _evaluate(job: EvalJob, out: dict[str, Any]) -> dict[str, Any]:
             "answer": None if result.answer is None else plain(result.answer.value), "error": result.error,
             "timing": {"physics": t.physics, "planning": t.planning, "rendering": t.rendering, "total": t.total},
             "keyframes": written, "file": scene_name if result.outcome == Outcome.BROKEN_SCENE else None,
-            "agent_stats": agent_stats(agent),
+            "traceback": result.traceback,  # agent_error: where the agent raised
+            "agent_stats": agent_stats(agent), "fingerprints": output.fingerprints, "platform": platform(),
+            **agent_samples(agent),
             **({"disturbances": output.disturbances, "disturbances_planned": output.disturbances_planned}
                if runner.disturbances else {})}
 
@@ -160,6 +171,20 @@ def agent_stats(agent: Any) -> dict[str, float] | None:
         return None
     return {str(k): float(v) for k, v in dict(values or {}).items()
             if isinstance(v, (int, float)) and not isinstance(v, bool)}
+
+
+def agent_samples(agent: Any) -> dict[str, dict[str, list[float]]]:
+    """``{"agent_samples": …}``: the agent's per-request observations of the episode just run (its optional
+    ``samples()``: names to lists of numbers); empty without, so other agents' records are as they were."""
+    samples = getattr(agent, "samples", None)
+    if not callable(samples):
+        return {}
+    try:
+        values = dict(samples() or {})
+    except Exception:  # noqa: BLE001 - an agent's bookkeeping must not cost the episode's record
+        log.exception("agent.samples() raised; the record has no agent_samples")
+        return {}
+    return {"agent_samples": {str(k): [float(v) for v in series] for k, series in values.items()}}
 
 
 def _instruction_checked(job: EvalJob, out: dict[str, Any], record: dict[str, Any], instruction: Any,

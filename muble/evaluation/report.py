@@ -13,8 +13,10 @@ needed: above 1 it measures more than the task asks, below 1 it guesses.
 
 An agent that counts its own costs (``stats()``, e.g. tokens and requests of a model behind an endpoint) has them
 summed per task type and overall in ``agent_stats`` (``agent_totals``), with two figures derived from the usual
-names: tokens per success (``tokens_in`` + ``tokens_out`` over the successes) and the parse-failure rate
-(``parse_failures`` over ``replies``).
+names: tokens per success (input and output tokens, ``muble.evaluation.usage``'s OpenTelemetry names, over the
+successes) and the parse-failure rate (``parse_failures`` over ``replies``); where the records have token counters,
+a ``usage`` block adds cost per episode, per success and of the run, and latency p50/p95 per request
+(``muble.evaluation.usage.usage_summary``).
 
 A run with disturbances has its closed-loop metrics (``muble.evaluation.closed_loop``: recovery, detection delay,
 extra primitives) in a ``closed_loop`` block of each row and in tables after the success table; a run without has
@@ -28,6 +30,8 @@ from typing import Any, Iterable
 from muble.core.types import Outcome
 from muble.evaluation.closed_loop import closed_loop
 from muble.evaluation.stats import wilson
+from muble.evaluation.usage import (COST_HEADER, INPUT_TOKENS, OUTPUT_TOKENS, current_names, prices_text,
+                                    usage_cells, usage_summary)
 
 OVERALL = "overall"
 OUTCOMES = [o.value for o in Outcome]
@@ -60,22 +64,24 @@ def measurement_ratio(records: list[dict[str, Any]]) -> float | None:
 
 def agent_totals(records: list[dict[str, Any]]) -> dict[str, Any] | None:
     """The agent's counters (``agent_stats`` of each record) summed and per episode, with tokens per success and
-    the parse-failure rate where the counters have those names; None when no record has counters."""
+    the parse-failure rate where the counters have those names, and ``usage`` (cost and latency) where they have
+    token counters; None when no record has counters."""
     counted = [r for r in records if r.get("agent_stats")]
     if not counted:
         return None
     totals: dict[str, float] = {}
     for r in counted:
-        for key, value in r["agent_stats"].items():
+        for key, value in current_names(r["agent_stats"]).items():
             totals[key] = totals.get(key, 0.0) + float(value)
     successes = sum(r["outcome"] == Outcome.SUCCESS.value for r in counted)
-    tokens = totals.get("tokens_in", 0.0) + totals.get("tokens_out", 0.0)
+    tokens = totals.get(INPUT_TOKENS, 0.0) + totals.get(OUTPUT_TOKENS, 0.0)
     replies = totals.get("replies", 0.0)
+    usage = usage_summary(counted)
     return {"episodes": len(counted), "totals": totals,
             "per_episode": {k: v / len(counted) for k, v in totals.items()},
-            "tokens_per_success": tokens / successes if successes and "tokens_in" in totals else None,
+            "tokens_per_success": tokens / successes if successes and INPUT_TOKENS in totals else None,
             "parse_failure_rate": totals["parse_failures"] / replies if replies and "parse_failures" in totals
-            else None}
+            else None, **({"usage": usage} if usage else {})}
 
 
 def _row(records: list[dict[str, Any]]) -> dict[str, Any]:
@@ -276,9 +282,10 @@ def _figure(value: float | None, form: str) -> str:
     return "-" if value is None else format(value, form)
 
 
-def agent_lines(stats: dict[str, Any] | None) -> list[str]:
+def agent_lines(stats: dict[str, Any] | None, prices: dict[str, Any] | None = None) -> list[str]:
     """Markdown lines of the agent's own counters (none when the agent reports none): per task type and overall,
-    tokens in and out per episode, tokens per success, the parse-failure rate and endpoint seconds per episode."""
+    tokens in and out per episode, tokens per success, the parse-failure rate and endpoint seconds per episode;
+    where the counters have tokens, a table of their cost and latency (``cost_lines``)."""
     if not stats:
         return []
     lines = ["", "| task type | tokens in / episode | tokens out / episode | tokens / success | parse failures | "
@@ -288,10 +295,37 @@ def agent_lines(stats: dict[str, Any] | None) -> list[str]:
             continue
         per = s["per_episode"]
         rate = s["parse_failure_rate"]
-        lines.append(f"| {name} | {_figure(per.get('tokens_in'), '.0f')} | {_figure(per.get('tokens_out'), '.0f')} | "
-                     f"{_figure(s['tokens_per_success'], '.0f')} | "
+        lines.append(f"| {name} | {_figure(per.get(INPUT_TOKENS), '.0f')} | "
+                     f"{_figure(per.get(OUTPUT_TOKENS), '.0f')} | {_figure(s['tokens_per_success'], '.0f')} | "
                      f"{'-' if rate is None else f'{100 * rate:.1f}%'} | {_figure(per.get('latency_s'), '.1f')} |")
-    return lines
+    return lines + cost_lines(stats, prices)
+
+
+def cost_lines(stats: dict[str, Any], prices: dict[str, Any] | None = None) -> list[str]:
+    """Markdown lines of what the model calls cost, per task type and overall (``muble.evaluation.usage``): tokens,
+    cost, cost per episode and per success, latency p50/p95 per request, requests sent and replies replayed from
+    a ledger; none when the counters have no tokens."""
+    if not (stats[OVERALL] or {}).get("usage"):
+        return []
+    rows = [[name, *usage_cells(s["usage"])] for name, s in [*stats["templates"].items(), (OVERALL, stats[OVERALL])]
+            if s and s.get("usage")]
+    return ["", f"Cost and latency (cost at the price table: {prices_text(prices)}; latency per request, retries and "
+                "back-off included; replayed: replies read from the LLM ledger, which sent no request):", "",
+            *markdown_table(["task type", *COST_HEADER], rows)]
+
+
+def partial_split(evaluated: int, listed: int) -> dict[str, int] | None:
+    """``{"first": evaluated, "of": listed}`` for a split of which a run evaluated only the first ``evaluated`` of
+    its ``listed`` episodes (``evaluation.limit``); None for the whole split."""
+    return {"first": int(evaluated), "of": int(listed)} if evaluated < listed else None
+
+
+def partial_words(partial: dict[str, Any] | None) -> str:
+    """How a limited run is labelled wherever its numbers are shown (``first 20 of 100 episodes``); empty for a
+    run of the whole split."""
+    if not partial:
+        return ""
+    return f"first {partial['first']} of {partial['of']} episodes"
 
 
 def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
@@ -303,7 +337,8 @@ def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
              "primitive count against the ground-truth plan, the measurement ratio the weighings and squeezes "
              "made over those the plans needed.", ""]
     for split, summary in report["splits"].items():
-        lines += [f"## Split `{split}`", "",
+        covered = f" ({partial_words(summary['partial'])}: evaluation.limit)" if summary.get("partial") else ""
+        lines += [f"## Split `{split}`{covered}", "",
                   "| task type | episodes | successes | success rate | 95% CI | SPL | meas. ratio |",
                   "|---|---:|---:|---:|---:|---:|---:|"]
         for t, s in summary["templates"].items():
@@ -332,7 +367,7 @@ def markdown(report: dict[str, Any], plots: dict[str, str]) -> str:
                       f"{t['physics'] / t['episodes']:.1f} s, planning {t['planning'] / t['episodes']:.1f} s, "
                       f"rendering {t['rendering'] / t['episodes']:.1f} s); "
                       f"{t['episodes_per_hour_per_worker']:.0f} episodes per hour per worker."]
-        lines += agent_lines(summary.get("agent_stats"))
+        lines += agent_lines(summary.get("agent_stats"), report.get("prices"))
         if split in plots:
             lines += ["", f"![success rate per task type, split {split}]({plots[split]})"]
         lines.append("")

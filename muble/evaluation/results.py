@@ -15,6 +15,7 @@ from typing import Any
 from muble.core.errors import ConfigError
 from muble.evaluation.closed_loop import fired_kinds
 from muble.evaluation.report import OVERALL
+from muble.evaluation.usage import episode_usage
 
 RESULTS_FILE = "results.json"
 FORMAT = "muble-results"
@@ -36,7 +37,9 @@ def _episode(record: dict[str, Any]) -> dict[str, Any]:
             "measurements": record.get("measurements"),
             "ground_truth_measurements": record.get("ground_truth_measurements"),
             **({"disturbance_kinds": fired_kinds(record), "disturbances_planned": record.get("disturbances_planned", 0)}
-               if "disturbances" in record else {})}
+               if "disturbances" in record else {}),
+            # Tokens, cost and latencies only for an agent that counts them: other runs' files are as they were.
+            **({"usage": usage} if (usage := episode_usage(record)) is not None else {})}
 
 
 def results_document(*, run: dict[str, Any], manifest: dict[str, Any],
@@ -52,7 +55,9 @@ def results_document(*, run: dict[str, Any], manifest: dict[str, Any],
         out["splits"][split] = {
             "summary": {"templates": {t: _summary_row(row) for t, row in summary["templates"].items()},
                         OVERALL: _summary_row(summary[OVERALL])},
-            "episodes": [_episode(r) for r in sorted(records, key=lambda r: r["index"])]}
+            "episodes": [_episode(r) for r in sorted(records, key=lambda r: r["index"])],
+            # Only for a run limited to the split's first episodes (evaluation.limit): others are as they were.
+            **({"partial": summary["partial"]} if summary.get("partial") else {})}
     return out
 
 

@@ -6,7 +6,8 @@ for sorting and filtering tables (``site_assets/site.js``) and no server of MuBl
 
 - ``index.html``: one row per run and split (agent, track, mode, protocol, split, success with its Wilson 95%
   interval, efficiency, measurement ratio, tokens per success; the recovery rate after disturbances where a run
-  had them), sortable and filterable;
+  had them; cost per episode and per success and latency p50/p95 per request where a run counted tokens),
+  sortable and filterable;
 - ``runs/<run>/<split>/index.html``: success per task type with intervals (an SVG plot), the closed-loop metrics
   of a run with disturbances, the failure taxonomy and the episodes, filterable by template and outcome;
 - ``runs/<run>/<split>/<index>.html``: the instruction and (program track) its program, every decision with its
@@ -32,6 +33,9 @@ from typing import Any
 
 from muble.core.errors import ConfigError
 from muble.evaluation.closed_loop import detection_delay, parse_action
+from muble.evaluation.report import partial_words
+from muble.evaluation.usage import (INPUT_TOKENS, OUTPUT_TOKENS, PriceTable, dollars, prices_text, seconds_p50_p95,
+                                    usage_summary)
 
 ASSETS = Path(__file__).with_name("site_assets")
 RECORDS = "episodes_{split}.jsonl"
@@ -113,6 +117,9 @@ def interval(ci: list[float] | None) -> str:
 def number(value: Any, digits: int = 3) -> str:
     if value is None:
         return "–"
+    if isinstance(value, (list, tuple)):  # a vector reading ([x, y] mm): each number as one is shown
+        return "[" + ", ".join(number(float(v) if isinstance(v, int) and not isinstance(v, bool) else v, digits)
+                               for v in value) + "]"
     if isinstance(value, float):
         return f"{value:.{digits}g}"
     return html.escape(str(value))
@@ -215,16 +222,51 @@ def measured_against_truth(steps: list[dict[str, Any]], scene: dict[str, Any] | 
         label, unit = measures[name]
         target = args.get("target", step.get("held"))  # without a target: the object in the hand
         obj = objects.get(int(target)) if target is not None and str(target).lstrip("-").isdigit() else None
-        # The scene file's true value: the property's ground-truth field (``<property>_gt``), else the field of
-        # its name.
-        true = (obj.get(f"{label}_gt", obj.get(label)) if obj else None)
+        true = true_reading(label, obj, int(target)) if obj else None
         measured = step["measurement"]
-        error = None
-        if isinstance(measured, (int, float)) and isinstance(true, (int, float)) and true:
-            error = (measured - true) / true
+        error, error_text = reading_error(measured, true, unit)
         rows.append({"action": step["action"], "what": label, "unit": unit, "measured": measured, "true": true,
-                     "error": error})
+                     "error": error, "error_text": error_text})
     return rows
+
+
+def true_reading(label: str, obj: dict[str, Any], index: int = 0) -> Any:
+    """The scene file object's true value of the property ``label`` as the measuring primitive reports it (its
+    unit and shape: a centre of mass [x, y] mm, never the file's metres; ``Quantity.reading_truth``); for a
+    property no quantity names (a plugin's), the file's ``<property>_gt`` field, else the field of its name."""
+    from muble.io.scene_io import object_from_dict
+    from muble.programs.program import QUANTITIES
+
+    if label not in QUANTITIES:
+        return obj.get(f"{label}_gt", obj.get(label))
+    try:
+        return QUANTITIES[label].reading_truth(object_from_dict(obj, index))
+    except (ConfigError, ValueError, TypeError, KeyError):  # a file the site cannot read: no true value
+        return None
+
+
+def reading_error(measured: Any, true: Any, unit: str) -> tuple[float | None, str | None]:
+    """How far a measurement is from the true value, as a number and as the page shows it: a vector reading (a
+    centre of mass) by the distance between the two, in the reading's unit (``1.3 mm``); a yes/no one right or
+    wrong; a number relatively (``+2.1%``); (None, None) where there is nothing to compare."""
+    def numbers(value: Any) -> list[float] | None:
+        if isinstance(value, (list, tuple)) and value and all(isinstance(v, (int, float)) and not isinstance(
+                v, bool) for v in value):
+            return [float(v) for v in value]
+        return None
+
+    if isinstance(measured, bool) or isinstance(true, bool):
+        if measured is None or true is None:
+            return None, None
+        return float(bool(measured) != bool(true)), "right" if bool(measured) == bool(true) else "wrong"
+    got, want = numbers(measured), numbers(true)
+    if got is not None and want is not None and len(got) == len(want):
+        distance = sum((a - b) ** 2 for a, b in zip(got, want)) ** 0.5
+        return distance, f"{distance:.3g} {unit}".strip()
+    if isinstance(measured, (int, float)) and isinstance(true, (int, float)) and true:
+        relative = (measured - true) / true
+        return relative, f"{100 * relative:+.1f}%"
+    return None, None
 
 
 # --- disturbances ------------------------------------------------------------------------------------------------
@@ -296,7 +338,8 @@ def _environment():
     # Records of older runs lack some fields (steps, instruction): a missing one renders empty.
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(ASSETS)), autoescape=True,
                              undefined=jinja2.ChainableUndefined, trim_blocks=True, lstrip_blocks=True)
-    env.filters.update(pct=pct, interval=interval, number=number)
+    env.filters.update(pct=pct, interval=interval, number=number, dollars=dollars, p50_p95=seconds_p50_p95)
+    env.filters["partial"] = partial_words  # a run of a split's first N episodes says so wherever it is shown
     return env
 
 
@@ -363,15 +406,17 @@ def build_site(folders: list[str | Path], out: str | Path) -> dict[str, Any]:
             for split, records in run.records.items():
                 summary = run.results["splits"][split]["summary"]
                 overall = summary["overall"]
-                tokens = [sum((r.get("agent_stats") or {}).get(k, 0) for k in ("tokens_in", "tokens_out"))
-                          for r in records]
+                usage = usage_summary(records)
                 successes = overall["successes"]
+                tokens = usage[INPUT_TOKENS] + usage[OUTPUT_TOKENS] if usage else 0
                 board.append({"run": run, "split": split, "overall": overall, "href": f"runs/{run.slug}/{split}/",
-                              "tokens_per_success": (sum(tokens) / successes if successes and any(tokens)
-                                                     else None), "closed_loop": overall.get("closed_loop")})
+                              "tokens_per_success": tokens / successes if successes and tokens else None,
+                              "closed_loop": overall.get("closed_loop"), "usage": usage,
+                              "partial": run.results["splits"][split].get("partial")})
                 pages += _write_run(env, stage, run, split, records, summary, pairs, truth)
         (stage / "index.html").write_text(env.get_template("index.html").render(
-            board=board, runs=runs, root="", closed_loop=any(row["closed_loop"] for row in board)), encoding="utf-8")
+            board=board, runs=runs, root="", closed_loop=any(row["closed_loop"] for row in board),
+            usage=any(row["usage"] for row in board)), encoding="utf-8")
     return {"runs": len(runs), "episodes": pages}
 
 
@@ -388,6 +433,7 @@ def _write_run(env, stage: Path, run: Run, split: str, records: list[dict[str, A
     indices = {(o.slug, s): {r["index"] for r in o.records[s]} for o, s in others}
     layout = DatasetLayout(Path("."), split)
     measures = measured_properties()
+    price_table = PriceTable.of(run.results.get("agent_config"))
     for i, record in enumerate(records):
         index = record["index"]
         stem = layout.stem(index)
@@ -406,7 +452,9 @@ def _write_run(env, stage: Path, run: Run, split: str, records: list[dict[str, A
             next=f"{records[i + 1]['index']:06d}.html" if i + 1 < len(records) else None)
         (folder / f"{index:06d}.html").write_text(page, encoding="utf-8")
     (folder / "index.html").write_text(env.get_template("run.html").render(
-        root="../../../", run=run, split=split, records=records, summary=summary, templates=templates, plot=success_svg(
+        root="../../../", run=run, split=split, records=records, summary=summary, templates=templates,
+        usage=usage_summary(records), prices=prices_text(price_table.as_dict() if price_table else None),
+        plot=success_svg(
             templates + [("overall", summary["overall"])]), outcomes=outcomes.most_common(), failures=failures,
         others=others, template_names=sorted({r.get("template", "") for r in records}),
         outcome_names=sorted(outcomes)), encoding="utf-8")

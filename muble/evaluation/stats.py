@@ -45,3 +45,17 @@ def mcnemar_exact(b: int, c: int) -> float:
         return 1.0
     tail = sum(math.comb(n, k) for k in range(min(b, c) + 1))
     return min(1.0, 2 * tail / 2 ** n)  # int / int: correctly rounded however large the counts
+
+
+def quantile(values: list[float], q: float) -> float | None:
+    """The ``q`` quantile (0 <= q <= 1) of ``values`` by linear interpolation between the closest ranks (numpy's
+    default, Hyndman and Fan's type 7): the median of 1, 2, 3, 10 is 2.5; None for no values."""
+    if not 0.0 <= q <= 1.0:
+        raise ValueError(f"q must be in [0, 1], got {q}")
+    if not values:
+        return None
+    ordered = sorted(values)
+    position = q * (len(ordered) - 1)
+    low = math.floor(position)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (ordered[high] - ordered[low]) * (position - low)

@@ -28,6 +28,7 @@ from gymnasium import spaces
 
 from muble.core.errors import ConfigError, PhysicsError, SceneValidationError
 from muble.core.types import Outcome
+from muble.dataset.shipped import check_plays_alone, episodes_root
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
 from muble.episode.components import benchmark_settings, image_size
 from muble.episode.modes import track_instruction
@@ -194,8 +195,11 @@ class ShopVRB2Env(gym.Env):
                 raise ConfigError(f"no instruction of {templates} applies to scene {options['scene_index']} "
                                   f"(seed {self.cfg.seed}); choose another scene_index or template")
             return spec
-        if kind == "stored":
-            return self.factory.stored(options["split"], options["index"])
+        if kind == "stored":  # with protocol=NAME, a split of it that ships needs no dataset.root
+            split = options["split"]
+            check_plays_alone(self.cfg, split, "the Gymnasium environment")
+            root = episodes_root(self.cfg, split) if isinstance(split, str) else None
+            return self.factory.stored(split, options["index"], root)
         if kind == "data":
             return self.factory.from_data(options["scene"], options["instruction"])
         raise ConfigError(f"reset options {sorted(map(str, options))[:6]} name no episode; give {EPISODE_FORMS}")

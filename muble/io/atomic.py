@@ -42,11 +42,14 @@ def folder_mode() -> int:
     return 0o777 & ~current_umask()
 
 
-def write_bytes_atomic(path: str | Path, data: bytes) -> str:
+def write_bytes_atomic(path: str | Path, data: bytes, *, replace: bool = True) -> str:
     """Write ``data`` to ``path`` atomically; returns its sha256.
 
-    On any failure (a full disk included) the temporary is removed and ``path`` keeps what it held; an
-    ``OSError`` names ``path`` even where the system call that failed (a write, an fsync) names no file."""
+    With ``replace=False`` a file already at ``path`` is never overwritten: the write raises
+    ``FileExistsError`` and ``path`` keeps what it held (the temporary is linked into place, which fails where
+    a file is; a store of write-once entries uses it). On any failure (a full disk included) the temporary is
+    removed and ``path`` keeps what it held; an ``OSError`` names ``path`` even where the system call that failed
+    (a write, an fsync) names no file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=TMP_PREFIX)
@@ -56,13 +59,17 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> str:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        if replace:
+            os.replace(tmp, path)
+        else:
+            os.link(tmp, path)
     except BaseException as e:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
         if isinstance(e, OSError) and e.filename in (None, tmp):
             raise OSError(e.errno, e.strerror or str(e), str(path)) from e
         raise
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
     return hashlib.sha256(data).hexdigest()
 
 

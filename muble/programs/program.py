@@ -134,7 +134,8 @@ class Quantity:
     Its program steps are ``filter_<name>``, ``order_<name>`` and ``query_<name>``. ``truth`` reads the ground
     truth of an object (None: the scene gives none) as the value a query answers and filters and orders compare,
     ``measured`` what the agent measured of it as the primitive reported it (None: not yet), and ``reading`` turns
-    such a report into that value (a centre of mass's [x, y] mm into its distance from the centre).
+    such a report into that value (a centre of mass's [x, y] mm into its distance from the centre);
+    ``reading_truth`` is the ground truth in the report's own form (the [x, y] mm).
     ``superlatives`` are the words of ``filter_<name>``, the first picking the largest value; a quantity without
     them is a yes/no property whose ``filter_<name>`` keeps the objects that have it (``values``: the words for yes
     and no), and has no order.
@@ -148,6 +149,17 @@ class Quantity:
     orders: tuple[str, ...] = WEIGHT_ORDERS
     values: tuple[str, str] = ()
     reading: Callable[[Any], Any] = lambda value: value
+    # The ground truth as the measuring primitive reports it, where that differs from ``truth`` (a centre of mass:
+    # [x, y] mm, of which ``truth`` is the distance); None: ``truth``.
+    true_reading: Callable[[SceneObject], Any] | None = None
+    # In words, for agent writers (docs/agent_api.md): the form of the primitive's reading and of a query's answer
+    # for one object.
+    reading_form: str = "a number"
+    answer_form: str = "a number"
+
+    def reading_truth(self, obj: SceneObject) -> Any:
+        """What a perfect measurement of ``obj`` would report (unit and shape of the primitive's reading)."""
+        return (self.true_reading or self.truth)(obj)
 
 
 def _measured_extra(name: str) -> Callable[[SceneObject], Any]:
@@ -165,9 +177,12 @@ QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
     Quantity("stiffness", "squeeze", lambda o: o.stiffness, _measured_extra("stiffness"), STIFFNESS_SUPERLATIVES),
     Quantity("friction", "push", physical.friction_of, _measured_extra("friction"), FRICTION_SUPERLATIVES),
     Quantity("com_offset", "balance", lambda o: _offset_mm(physical.com_offset_mm(o)), _measured_extra("com_offset"),
-             COM_SUPERLATIVES, reading=_offset_mm),
+             COM_SUPERLATIVES, reading=_offset_mm, true_reading=physical.com_offset_mm,
+             reading_form="[x, y]: the offset in the object's frame",
+             answer_form="a number: the offset's distance from the centre, sqrt(x² + y²) of the reading"),
     Quantity("rattles", "shake", lambda o: None if o.extra.get(physical.CONTENTS) is None else physical.rattles(o),
-             _measured_extra("rattles"), values=RATTLE_VALUES, orders=()),
+             _measured_extra("rattles"), values=RATTLE_VALUES, orders=(), reading_form="true or false",
+             answer_form='true or false (or the words "yes" and "no")'),
 )}
 
 

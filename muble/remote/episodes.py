@@ -27,18 +27,6 @@ _SPLIT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 _ABSOLUTE_PATH = re.compile(r"(?<![\w.~-])/(?:[^\s/'\"():,;]+/)+([^\s/'\"():,;]*)")
 
 
-def dataset_root(cfg: Any) -> Path | None:
-    """The folder of stored episodes this server was started with, or None when none was named (the default
-    ``dataset.root`` of ``muble run`` is a Hydra run folder, which a server does not have)."""
-    from omegaconf.errors import OmegaConfBaseException
-
-    try:
-        root = cfg.dataset.root
-    except (OmegaConfBaseException, AttributeError, KeyError, ValueError):
-        return None
-    return Path(str(root)) if root else None
-
-
 def public_text(message: str, root: Path | None = None) -> str:
     """``message`` without server-side paths: the dataset folder becomes ``dataset.root``, any other absolute
     path its last part."""
@@ -115,12 +103,17 @@ def _stored_exists(split: Any, index: Any, root: Path | None) -> None:
     if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < 2**31:
         raise ProtocolError("bad_request", "'index' must be an integer in [0, 2**31)")
     if root is None or not root.is_dir():
+        from muble.dataset.shipped import newest_protocol
+
         raise ProtocolError("not_found", "this server has no dataset of stored episodes; start it with "
-                            "`muble serve dataset.root=DIR` (a folder `muble generate` wrote), or ask for a "
-                            "generated episode {scene_index, template}")
+                            f"`muble serve protocol={newest_protocol()} benchmark.split=mini` (a frozen benchmark's "
+                            "shipped episodes) or `muble serve dataset.root=DIR` (a folder `muble data` or `muble "
+                            "generate` wrote), or ask for a generated episode {scene_index, template}")
     layout = DatasetLayout(root, split)
     if not layout.split_dir.is_dir():
-        raise ProtocolError("not_found", f"the server's dataset has no split '{split}'")
+        splits = sorted(p.name for p in root.iterdir() if p.is_dir() and _SPLIT_NAME.match(p.name))
+        raise ProtocolError("not_found", f"the server's dataset has no split '{split}'; its splits: "
+                            f"{', '.join(splits) or 'none'}")
     if not (layout.split_dir / layout.scene(index)).is_file() or \
             not (layout.split_dir / layout.instruction(index)).is_file():
         raise ProtocolError("not_found", f"the server's dataset has no episode {index} in split '{split}'")

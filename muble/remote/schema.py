@@ -41,6 +41,8 @@ def param_schema(param: Param) -> dict[str, Any]:
     else:  # "any": the primitive takes whatever JSON value it is given
         schema = {}
     schema["x-muble-kind"] = kind
+    if param.default is not None:
+        schema["default"] = param.default
     if param.doc:
         schema["description"] = param.doc
     return schema

@@ -33,7 +33,8 @@ from typing import Any, Callable
 
 from muble.core.errors import MubleError
 from muble.episode.plain import MalformedDecision, decision_from_plain
-from muble.remote.episodes import EpisodeRequest, dataset_root, public_text
+from muble.episode.sources import dataset_root
+from muble.remote.episodes import EpisodeRequest, public_text
 from muble.remote.wire import (DEFAULT_HOST, DEFAULT_PORT, HARD_LIMIT_BYTES, IMAGE_FORMATS, MAX_REQUEST_BYTES,
                                    PROTOCOL, ProtocolError, decode_request, encode, error_header)
 from muble.remote.schema import primitive_entries

@@ -49,6 +49,7 @@ class Snapshot:
     steps: int
     geom_solref: np.ndarray | None = None  # contact parameters the jaw contact law sets at run time
     grasp_height: float | None = None
+    wrist_zero: np.ndarray | None = None  # a noisy wrist sensor's offset read at the tare (TabletopEnv.wrist_zero)
 
 
 @dataclass
@@ -146,6 +147,9 @@ class TabletopEnv:
         # the episode; None for a perfect sensor, whose readings are MuJoCo's own.
         self.sensor_noise = WristNoise.of(noise)
         self._wrist_noise = wrist_sensor_noise(self.sensor_noise, *noise_stream)
+        # A noisy sensor's offset (6,: force N, torque N·m, its own frame) as the tare read it with the empty hand
+        # (the reading less the hand's modelled weight); None for a perfect sensor, which has none.
+        self.wrist_zero: np.ndarray | None = None
         # Measured values per scene id ({"weight": g, "stiffness": N/m, "friction", "com_offset": [x, y] mm,
         # "rattles": bool}), filled by muble.sim.measure and muble.sim.probing.
         self.measurements: dict[int, dict[str, float]] = {}
@@ -169,6 +173,7 @@ class TabletopEnv:
         self.grasp.jaws.reset()
         self.osc.goal_quat = None
         self.tare_force = None
+        self.wrist_zero = None
         if self._wrist_noise is not None:
             self._wrist_noise.reset()
         self.measurements = {}
@@ -472,13 +477,18 @@ class TabletopEnv:
 
     def tare(self) -> np.ndarray:
         """Remember the current wrist force (hand alone, held still) as the zero for weighing; returns it. A noisy
-        sensor's zero averages its output over ``muble.sim.sensor_noise.TARE_WINDOW``."""
+        sensor's zero averages its output over ``muble.sim.sensor_noise.TARE_WINDOW``, and its offset is kept too
+        (``wrist_zero``: the reading less the hand's modelled weight), which the other measurements take off."""
         if self._wrist_noise is None:
             self.tare_force = self.wrist_wrench()[0].copy()
         else:
             rot = self.data.site_xmat[self.ft_site_id].reshape(3, 3)
             error = self._wrist_noise.zero_error(self.data.time)
-            self.tare_force = rot @ (self.data.sensordata[self.force_adr:self.force_adr + 3] + error[:3])
+            force = rot @ (self.data.sensordata[self.force_adr:self.force_adr + 3] + error[:3])
+            torque = rot @ (self.data.sensordata[self.torque_adr:self.torque_adr + 3] + error[3:])
+            hand_force, hand_torque = probing.hand_wrench(self)
+            self.tare_force = force
+            self.wrist_zero = np.concatenate([rot.T @ (force - hand_force), rot.T @ (torque - hand_torque)])
         return self.tare_force
 
     def snapshot(self) -> Snapshot:
@@ -487,7 +497,8 @@ class TabletopEnv:
         mujoco.mj_getState(self.model, self.data, state, spec)
         return Snapshot(state, self.model.eq_data.copy(), self.grasp.held, self.gripper_command,
                         None if self.tare_force is None else self.tare_force.copy(), self.steps,
-                        self.model.geom_solref.copy(), self.grasp.grasp_height)
+                        self.model.geom_solref.copy(), self.grasp.grasp_height,
+                        None if self.wrist_zero is None else self.wrist_zero.copy())
 
     def restore(self, snap: Snapshot) -> None:
         """Return to ``snap`` exactly (e.g. after a failed plan)."""
@@ -500,6 +511,7 @@ class TabletopEnv:
         self.osc.goal_quat = None
         self.gripper_command = snap.gripper_command
         self.tare_force = None if snap.tare is None else snap.tare.copy()
+        self.wrist_zero = None if snap.wrist_zero is None else snap.wrist_zero.copy()
         self.steps = snap.steps
         self.broken = None
         mujoco.mj_forward(self.model, self.data)

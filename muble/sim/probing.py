@@ -35,6 +35,10 @@ HEIGHT_PRIOR = 0.01
 # off: a solid or an empty container leaves a few hundredths of a newton, a ball of 10 g or more rattling inside
 # several tenths (docs/physical_properties.md has the figures).
 RATTLE_FORCE = 0.2
+# A noisy wrist sensor (``muble.sim.sensor_noise``) scatters every sample by its white noise, and a shake reads
+# several hundred of them on three axes: their largest is about 3.7 times the noise's spread. So a peak counts only
+# above this many times the sensor's stated white noise as well (about one solid shake in 2,000 reads more).
+RATTLE_NOISE_SIGMAS = 5.0
 
 
 def hand_wrench(env) -> tuple[np.ndarray, np.ndarray]:
@@ -50,9 +54,14 @@ def hand_wrench(env) -> tuple[np.ndarray, np.ndarray]:
 def load_wrench(env) -> tuple[np.ndarray, np.ndarray]:
     """The wrist force and torque (world frame, torque about the sensor's site) less the hand's own weight: what
     the held object (and anything it rests on or pushes) puts on the hand. Poses and sensor readings are those of
-    the last physics step's start, so they belong together."""
+    the last physics step's start, so they belong together. A noisy sensor's offset as the last tare read it
+    (``env.wrist_zero``, in the sensor's frame) is taken off too: its drift since that tare is what remains."""
     force, torque = env.wrist_wrench()
     hand_force, hand_torque = hand_wrench(env)
+    zero = getattr(env, "wrist_zero", None)
+    if zero is not None:
+        rot = env.data.site_xmat[env.ft_site_id].reshape(3, 3)
+        force, torque = force - rot @ zero[:3], torque - rot @ zero[3:]
     return force - hand_force, torque - hand_torque
 
 
@@ -229,7 +238,7 @@ def shake(env, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) 
     contents hit the container's walls out of step with both: force spikes that no such function explains. So the
     force along each axis, sampled at every physics step, is fitted by least squares to those twelve acceleration
     components and a constant, and the largest residual is the reading: ``rattles`` when above
-    ``RATTLE_FORCE``."""
+    ``RATTLE_FORCE`` (and, for a noisy sensor, above ``RATTLE_NOISE_SIGMAS`` times its white noise)."""
     obj_id = _held(env)
     q0 = env.arm_q()
     half = 0.5 * (np.asarray(ends[0], dtype=float) - np.asarray(ends[1], dtype=float))
@@ -259,7 +268,8 @@ def shake(env, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) 
     forces, design = np.array(forces), np.column_stack([np.array(accelerations), np.ones(len(forces))])
     fit = np.linalg.lstsq(design, forces, rcond=None)[0]
     peak = float(np.abs(forces - design @ fit).max())
-    rattles = peak > RATTLE_FORCE
+    noise = getattr(env, "sensor_noise", None)
+    rattles = peak > max(RATTLE_FORCE, RATTLE_NOISE_SIGMAS * (noise.force_white_n if noise is not None else 0.0))
     logger.debug("shake object %d: largest unexplained wrist force %.3f N -> %s", obj_id, peak,
                  "rattles" if rattles else "solid")
     env.measurements.setdefault(obj_id, {})["rattles"] = rattles

@@ -9,9 +9,12 @@ from dataclasses import dataclass
 from muble import (ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, SceneGraph, Task, Track,
                    get_registry)
 
+from muble.core.ranges import bounded
 from muble.core.symbolic import ArmState
 
-from muble_plugins.common.books import RETRY_LIMIT, Known, book, fill_known, primitive_params
+from muble_plugins.common.books import (CERTAINTY, RETRY_LIMIT, Certainty, Known, Readings, book, fill_known,
+                                        primitive_params)
+from muble_plugins.common.symbolic import APPROACH
 
 log = logging.getLogger(__name__)
 
@@ -21,6 +24,18 @@ class OracleConfig:
     # False: the open-loop control (docs/closed_loop.md): the plan is made once from the first observation and the
     # primitives' own expected effects, never re-checked against what is observed; a failed primitive is retried.
     closed_loop: bool = True
+    # Standard deviation (g) of one weighing, as the wrist sensor's datasheet implies (docs/physical_properties.md,
+    # "Noisy sensing", gives it for noise=wrist_ft). Above 0 the oracle weighs again, closed loop, until each weight
+    # comparison it makes is decided (``books.Certainty``); 0: every reading is taken as exact, one decides.
+    reading_noise_g: float = bounded(0.0, ge=0)
+    # A comparison is decided when the means differ by more than this many standard errors of their difference.
+    decide_sigmas: float = bounded(2.5, gt=0)
+    # Weighings of one object at most; then the means decide. The action loop takes the same primitive from the same
+    # observed state a fourth time for a loop (muble.episode.loop.EpisodeMonitor), and an object set down where it
+    # stood and weighed again looks as it did (its weight known either way): after each weighing it is set down from
+    # the same state, so a fourth weighing makes a loop (in 101 of 800 noisy symbolic roll-outs of mini's weight
+    # episodes; none with three).
+    max_readings: int = bounded(3, ge=1)
 
 
 class OracleAgent(Agent):
@@ -42,16 +57,26 @@ class OracleAgent(Agent):
     Privileged by definition: whatever the run's track and observation mode, it is given the program and the
     graph view, and its actions are put in the mode's form (pixel targets in ``image`` mode), so its success
     shows that each mode is solvable; it is never a contestant.
+
+    With ``reading_noise_g`` above 0 (a noisy wrist sensor, ``noise=wrist_ft``) it keeps every weighing and uses
+    their mean; a comparison of weights whose means are closer than the readings' scatter allows is not decided
+    yet, and the less certain object is weighed again (set down and grasped again, so that a new tare makes the
+    reading independent), up to ``max_readings`` each (``books.Certainty``). ``stats()`` then counts the readings.
+    The open-loop control never weighs again: it decides on its first reading.
     """
 
     privileged = True
 
     def __init__(self, config: OracleConfig | None = None, task: Task | None = None) -> None:
-        self.closed_loop = (config or OracleConfig()).closed_loop
+        self.config = config if config is not None else OracleConfig()  # the registry's checked instance
+        self.closed_loop = self.config.closed_loop
         self.belief: SceneGraph | None = None  # open loop: the world as planned, from the first observation on
         self.task = task
         self.tasks: dict[str, Task] = {}
         self.known: Known = {}  # what this agent's measuring primitives reported, by property and object
+        self.readings: Readings = {}  # every reading behind ``known``, by property and object
+        self.read_since_approach: int | None = None  # measured since the hand last approached (and tared)
+        self.handled: object = None  # the last primitive's result once it has been taken into account
         self.answered = False
         self.last: ActionCall | None = None
         self.failures: dict[object, int] = {}  # failed primitives per target (object id, table part or None)
@@ -59,10 +84,31 @@ class OracleAgent(Agent):
     def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
               mode: ObservationMode = ObservationMode.graph) -> None:
         self.known = {}
+        self.readings = {}
+        self.read_since_approach = None
+        self.handled = None
         self.answered = False
         self.last = None
         self.failures = {}
         self.belief = None if self.closed_loop else copy.deepcopy(observation.scene)
+
+    @property
+    def remeasures(self) -> bool:
+        """Whether this oracle weighs again until a comparison is decided: closed loop, with a noisy sensor."""
+        return self.closed_loop and self.config.reading_noise_g > 0
+
+    @property
+    def stats(self):
+        """The episode's counters (``muble.evaluation.episodes.agent_stats``) where this oracle weighs again:
+        ``readings`` (every measurement booked), ``readings_again`` (those of an object and property measured
+        before) and ``objects_at_limit`` (objects read ``max_readings`` times). None otherwise, so a run with an
+        exact sensor records no counters, as before."""
+        return self._counts if self.remeasures else None
+
+    def _counts(self) -> dict[str, int]:
+        per_object = [len(kept) for by_object in self.readings.values() for kept in by_object.values()]
+        return {"readings": sum(per_object), "readings_again": sum(n - 1 for n in per_object),
+                "objects_at_limit": sum(n >= self.config.max_readings for n in per_object)}
 
     def _task(self, instruction: Instruction) -> Task:
         if self.task is not None:
@@ -74,18 +120,30 @@ class OracleAgent(Agent):
     def _known(self, observation: Observation) -> Observation:
         """The observation with this agent's measurements and the gripper's hover state filled in."""
         scene = copy.deepcopy(observation.scene)
-        fill_known(scene, self.known, self.last, observation.last_result)
+        fill_known(scene, self.known, self.last, observation.last_result, self.readings)
+        if self.remeasures and self.belief is None:
+            scene.extra[CERTAINTY] = Certainty({"weight": self.config.reading_noise_g}, self.readings,
+                                               self.config.decide_sigmas, self.config.max_readings,
+                                               self.read_since_approach)
         return dataclasses.replace(observation, scene=scene)
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
         result = observation.last_result
-        if self.last is not None and result is not None:
+        # Each result once: after an answer the loop asks again with the same observation, and a reading booked
+        # twice would count as two.
+        if self.last is not None and result is not None and result is not self.handled:
+            self.handled = result
             if not result.success:
                 key = self._target(self.last)
                 self.failures[key] = self.failures.get(key, 0) + 1
                 log.info("%s failed (%s); retrying differently", self.last, result.failure_reason)
             else:
-                book(self.known, self.last, result, ArmState.of(observation.scene).held)
+                held = ArmState.of(observation.scene).held
+                book(self.known, self.last, result, held, self.readings)
+                if get_registry().measures(self.last.name) is not None:
+                    self.read_since_approach = held
+                elif self.last.name == APPROACH:
+                    self.read_since_approach = None
                 self._expect(self.last)
         if self.belief is not None:  # open loop: plan on the world as expected, not as observed
             observation = dataclasses.replace(observation, scene=self.belief)

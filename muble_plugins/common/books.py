@@ -114,12 +114,15 @@ class Certainty:
     difference of two objects' means by noise·√(1/n_a + 1/n_b): the comparison is decided when the means differ by
     more than ``sigmas`` times that. Until then the object read fewer times (the less certain) is measured again,
     up to ``max_readings`` readings of each; beyond that the means decide. ``readings`` are the agent's books
-    (kept up to date by ``book``)."""
+    (kept up to date by ``book``). ``read_since_approach`` is the object measured since the hand last approached
+    one, if any: approaching tares the wrist sensor, so a reading of that object now would share the last one's tare
+    and its error."""
 
     noise: Mapping[str, float]
     readings: Readings
     sigmas: float = 2.5
-    max_readings: int = 5
+    max_readings: int = 3
+    read_since_approach: int | None = None
 
     def measure_again(self, prop: str, pairs: list[tuple[int, int]]) -> tuple[int, ...]:
         """The objects to measure again before the order of ``pairs`` (object ids) by ``prop`` counts: those of the

@@ -7,6 +7,10 @@ preconditions lead to it: placing needs a lifted object, lifting needs grasping,
 approaching needs the gripper over the object; weighing, balancing and shaking need a lifted object, squeezing
 and pushing only a grasped one standing where it is (``MEASURE``). Planning always starts from the observed
 state, so the oracle can replan after every primitive.
+
+An agent whose copy of the scene carries a ``Certainty`` (``muble_plugins.common.books``) has every comparison of
+measured values checked against its readings' scatter; one not decided yet is a sub-goal too: measure the less
+certain object again (``measure_again``), with a reading independent of the ones before.
 """
 from __future__ import annotations
 
@@ -16,6 +20,7 @@ from muble import ActionCall, Answer, PlanningError, SceneGraph
 from muble.core.symbolic import ArmState, over
 from muble.programs.program import QUERY_STEPS, execute, stack_pairs, table_parts_of
 
+from muble_plugins.common.books import CERTAINTY, Certainty
 from muble_plugins.common.geometry import on_table_part, rests_on, upright
 from muble_plugins.common.symbolic import (APPROACH, BALANCE, GRASP, LIFT, LOWER, MOVE, PUSH, RELEASE, SHAKE,
                                            SQUEEZE, WEIGH)
@@ -115,16 +120,39 @@ MEASURE = {
 }
 
 
+def measure_again(prop: str, obj_id: int, arm: ArmState, certainty: Certainty) -> list[ActionCall]:
+    """Measure ``obj_id``'s ``prop`` again, independently of the readings before. Weighing subtracts the tare that
+    approaching takes with the empty hand, and the sensor's drift since that tare is what made the last reading err:
+    an object in the hand that was measured since the hand last approached (``Certainty.read_since_approach``) is
+    first set down where it is, then measured as the first time (approached, grasped, ...)."""
+    if arm.held == obj_id and certainty.read_since_approach == obj_id:
+        return put_down(arm) + MEASURE[prop](obj_id, ArmState(None, False, None, obj_id))
+    return MEASURE[prop](obj_id, arm)
+
+
+def _closest(pending: tuple[int, ...], arm: ArmState) -> int:
+    """Of objects to measure again, the one the hand holds, is at or is over (least motion), else the first."""
+    for obj_id in (arm.held, arm.approached, arm.over):
+        if obj_id is not None and obj_id in pending:
+            return obj_id
+    return pending[0]
+
+
 def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, float] | None = None,
               arm: ArmState | None = None, known_stiffness: dict[int, float] | None = None) -> Plan:
     """The remaining primitives for ``program`` from the observed ``scene`` (empty when the goal holds).
 
-    ``arm`` overrides the gripper state read from the scene's flags. Raises ``PlanningError`` when the program
-    cannot run on the scene or the goal cannot be reached.
+    ``arm`` overrides the gripper state read from the scene's flags. A ``Certainty`` in ``scene.extra``
+    (``books.CERTAINTY``) decides whether a comparison of measured values counts yet. Raises ``PlanningError`` when
+    the program cannot run on the scene or the goal cannot be reached.
     """
     arm = arm or ArmState.of(scene)
+    certainty = scene.extra.get(CERTAINTY)
     trace = execute(program, scene, weights="measured", known_weights=known_weights,
-                    known_stiffness=known_stiffness)
+                    known_stiffness=known_stiffness,
+                    recheck=certainty.measure_again if certainty is not None else None)
+    if trace.again:
+        return Plan(measure_again(trace.pending_property, _closest(trace.pending, arm), arm, certainty))
     if trace.pending:
         target = arm.held if arm.held in trace.pending else trace.pending[0]
         return Plan(MEASURE[trace.pending_property](target, arm))

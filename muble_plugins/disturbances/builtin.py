@@ -242,7 +242,7 @@ def _table_region(env) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _on_table(env, obj: int) -> bool:
-    """The object stands on the table itself (not on another object)."""
+    """The object stands on the table itself (touching it, not only other objects)."""
     m, d = env.model, env.data
     body = m.body(env.names.objects[obj]).id
     table = env.table().body
@@ -251,8 +251,7 @@ def _on_table(env, obj: int) -> bool:
         b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
         if body in (b1, b2):
             touching.add(b2 if b1 == body else b1)
-    objects = {m.body(name).id for name in env.names.objects.values()}
-    return table in touching and not (touching & objects)
+    return table in touching
 
 
 # m above the object's lowest point where a slide's force acts: at the height of the table's friction on it, so
@@ -272,20 +271,23 @@ def slide_to(env, obj: int, goal: np.ndarray, speed: float) -> dict:
 
 def knock_off(env, obj: int, over: float, goal: np.ndarray, speed: float) -> dict:
     """Knock ``obj`` off what it stands on onto the table at ``goal`` (x, y): a force at its centre of mass that
-    carries its weight lifts it until its bottom is ``over`` (world z), moves it across, and lowers it until it
-    touches the table; then it comes to rest. Returns the push's figures as ``slide_to`` does."""
+    carries its weight lifts it until its bottom is ``over`` (world z) while moving it a third of the way, moves it
+    the rest of the way across, and lowers it until it touches the table; then it comes to rest. Returns the
+    push's figures as ``slide_to`` does."""
     push = Push(env, obj)
     body = push.body
     bottom = env.object_top(obj) - env.object_bbox(obj)["z"]
     rise = max(0.0, over - bottom)
     start = env.data.xipos[body].copy()
-    up = start + [0.0, 0.0, rise]
+    # Up and a third of the way across at once: out from under the hand that has just let it go (its fingers hang
+    # a few centimetres above it), then across at that height and down.
+    up = np.array([*(start[:2] + (np.asarray(goal) - start[:2]) / 3.0), start[2] + rise])
     push.drive(lambda pos: up, speed, planar=False)
     across = np.array([goal[0], goal[1], up[2]])
     push.drive(lambda pos: across, speed, planar=False)
     table_top = env.table().top_z
     down = np.array([goal[0], goal[1], table_top - 0.01])  # below reach: stopped by the table, not by the servo
-    push.drive(lambda pos: down, 0.5 * speed, planar=False, until=lambda: env.touches_support(obj))
+    push.drive(lambda pos: down, 0.5 * speed, planar=False, until=lambda: _on_table(env, obj))
     return push.done()
 
 
@@ -293,7 +295,9 @@ def knock_off(env, obj: int, over: float, goal: np.ndarray, speed: float) -> dic
 SLIDE_TIME = 3.0
 SLIDE_KP = 4.0  # 1/s: desired speed per metre still to go
 SLIDE_KV = 25.0  # 1/s: acceleration per m/s of speed error
-SLIDE_TOLERANCE = 0.005  # m from the goal where the force ends
+SLIDE_TOLERANCE = 0.005  # m from the goal where the force ends, once the object is nearly still (SLIDE_STILL, m/s)
+SLIDE_STILL = 0.02
+SLIDE_FADE = 0.02  # m from the goal within which the friction fed forward fades out
 
 
 class Push:
@@ -316,14 +320,19 @@ class Push:
         while self.t - start < SLIDE_TIME:
             pos = env.data.xipos[body].copy()
             error = (goal_at(pos) - pos)[:axes]
-            if np.linalg.norm(error) < SLIDE_TOLERANCE or (until is not None and until()):
+            velocity = _linear_velocity(env, body)[:axes]
+            if until is not None and until():
                 break
+            if np.linalg.norm(error) < SLIDE_TOLERANCE and np.linalg.norm(velocity) < SLIDE_STILL:
+                break  # there and nearly still: let go (a slippery object let go at speed slides on)
             want = SLIDE_KP * error
             if np.linalg.norm(want) > speed:
                 want *= speed / np.linalg.norm(want)
-            accel = SLIDE_KV * (want - _linear_velocity(env, body)[:axes])
+            accel = SLIDE_KV * (want - velocity)
             if planar:
-                direction = want / max(float(np.linalg.norm(want)), 1e-9)
+                # Friction fed forward along the way, fading out near the goal, where the servo brakes.
+                direction = want / max(float(np.linalg.norm(want)), 1e-9) * min(1.0, float(np.linalg.norm(error))
+                                                                                  / SLIDE_FADE)
                 force = np.append(mass * (accel + self.mu * G * direction), 0.0)
                 point = np.array([pos[0], pos[1], height])
             else:
@@ -374,10 +383,11 @@ def _table_friction(env, body: int) -> float:
 class ToppleConfig:
     stackings: int = bounded(1, ge=1)  # it knocks off the top of one of the first `stackings` put-downs on an object
     speed: float = bounded(0.2, gt=0.0, le=1.0)  # m/s at most while it is pushed off
-    clearance: float = bounded(0.02, ge=0.0, le=0.2)  # m between it and every other object where it ends
+    # m between it and every other object where it ends: room for the open fingers to grasp it again
+    clearance: float = bounded(0.05, ge=0.0, le=0.2)
 
 
-KNOCK_CLEARANCE = 0.015  # m the knocked-off object's bottom passes over the top of what it stood on
+KNOCK_CLEARANCE = 0.015  # m the knocked-off object's bottom passes over the tops of what it stood on and passes
 
 
 class Topple(AfterPutDown):
@@ -401,26 +411,34 @@ class Topple(AfterPutDown):
 
     def act(self, env, obj: int, action: ActionCall, step: int) -> DisturbanceEvent | None:
         base = int(action.params["target"])
-        goal = self._goal(env, obj, base)
-        if goal is None:
+        found = self._goal(env, obj, base)
+        if found is None:
             logger.info("topple: no free place beside object %d for object %d", base, obj)
             return None
+        goal, over = found
         start = env.object_pose(obj).pos.copy()
-        push = knock_off(env, obj, env.object_top(base) + KNOCK_CLEARANCE, goal, self.config.speed)
+        push = knock_off(env, obj, over, goal, self.config.speed)
         end = env.object_pose(obj).pos
         logger.info("topple: object %d knocked off object %d", obj, base)
         event = _pushed("topple", step, f"stacking {self.nth}", obj, push, start, goal, end)
         event.detail["base"] = base
         return event
 
-    def _goal(self, env, top: int, base: int) -> np.ndarray | None:
-        """The nearest place along the drawn direction (then turned by 15 degree steps) where the top object's
-        footprint keeps ``clearance`` from every other object's, the base's included, on the table's parts."""
+    def _goal(self, env, top: int, base: int) -> tuple[np.ndarray, float] | None:
+        """(place, height to carry the object's bottom over) for the knock: the nearest place along the drawn
+        direction (then turned by 15 degree steps) where the top object's footprint keeps ``clearance`` from
+        every other object's, the base's included, on the table's parts. The object is carried over everything
+        its way passes near (``KNOCK_CLEARANCE`` above the highest top there); a way that needs it lifted more
+        than ``KNOCK_LIFT`` above the base is passed over while another is free."""
         body = env.model.body(env.names.objects[top]).id
         here = env.object_pose(top).pos[:2]
         outline = footprint(env, body) - here
+        reach = float(np.max(np.linalg.norm(outline, axis=1)))
         others = obstacles(env, top)
+        others_ids = [i for i in env.object_ids if i != top]
         lo, hi = _table_region(env)
+        base_top = env.object_top(base)
+        fallback = None
         for turn in np.radians(np.arange(0, 360, 15)):
             a = self.angle + turn
             direction = np.array([np.cos(a), np.sin(a)])
@@ -428,9 +446,27 @@ class Topple(AfterPutDown):
                 goal = here + distance * direction
                 if np.any(goal < lo) or np.any(goal > hi):
                     break
-                if free_mask(goal[None], outline, others, self.config.clearance)[0]:
-                    return goal
-        return None
+                if not free_mask(goal[None], outline, others, self.config.clearance)[0]:
+                    continue
+                over = max([base_top] + [env.object_top(j) for j, outline_j in zip(others_ids, others)
+                                         if _near_way(outline_j, here, goal, reach)]) + KNOCK_CLEARANCE
+                if over <= base_top + KNOCK_LIFT:
+                    return goal, over
+                if fallback is None or over < fallback[1]:
+                    fallback = (goal, over)
+                break
+        return fallback
+
+
+KNOCK_LIFT = 0.06  # m above the base's top a knocked-off object is carried at most, while a lower way is free
+
+
+def _near_way(outline: np.ndarray, start: np.ndarray, goal: np.ndarray, reach: float) -> bool:
+    """Whether any point of ``outline`` (a footprint on the table) comes within ``reach`` of the way from
+    ``start`` to ``goal``."""
+    way = goal - start
+    t = np.clip((outline - start) @ way / max(float(way @ way), 1e-12), 0.0, 1.0)
+    return bool(np.min(np.linalg.norm(outline - (start + t[:, None] * way), axis=1)) < reach)
 
 
 # ---- sensor dropout ------------------------------------------------------------------------------------------------

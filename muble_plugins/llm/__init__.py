@@ -3,7 +3,8 @@ LM Studio, hosted APIs).
 
 Each step it renders the prompt files (``prompts/system.md``, ``prompts/step.md``, or the user's own) from the
 instruction, the observed scene, the registered primitives, the last result and a bounded history, asks the
-endpoint for one JSON decision and turns it into an ``ActionCall``, an ``Answer`` or a stop. Needs the ``openai``
+endpoint for one JSON decision and turns it into an ``ActionCall``, an ``Answer`` or a stop. Every reply is kept in
+the LLM ledger (``ledger``), so a run resumed or run again replays it instead of asking again. Needs the ``openai``
 client (``pip install "muble[llm]"``); the module loads only when the registry builds the agent.
 """
 from muble import PluginRecord, hookimpl

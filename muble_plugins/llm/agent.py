@@ -8,8 +8,14 @@ ends the episode as ``invalid_action`` with the reason in the record's error. An
 failing raises, which ends the episode as ``agent_error``. After an answer the agent stops: the answer is the
 query's end.
 
-``stats()`` gives the episode's counters (requests, replies, parse failures, re-asks, HTTP retries, tokens in and
-out, latency); ``muble eval`` stores them on the episode's record and sums them in the report.
+``stats()`` gives the episode's counters (requests sent, replies replayed from the ledger, replies, parse failures,
+re-asks, HTTP retries, tokens in, cached and out, their cost at the price table, latency) and ``samples()`` the
+seconds each reply took; ``muble eval`` stores them on the episode's record and the report derives cost and latency
+percentiles from them.
+
+Every reply goes into the LLM ledger (``muble_plugins.llm.ledger``; ``agent.ledger``, by default ``llm_ledger/``
+beside the records), and a request the ledger has a reply to is replayed from it, not sent: a run resumed or run
+again asks nothing it asked before.
 """
 from __future__ import annotations
 
@@ -21,9 +27,12 @@ from typing import Any
 from muble import ActionCall, Agent, Answer, ConfigError, Instruction, Observation, ObservationMode, Track
 from muble.core.ranges import configured
 
-from muble_plugins.llm.config import ImagePolicy, LlmConfig
+from muble.io.usage_fields import PriceTable
+
+from muble_plugins.llm.config import ImagePolicy, LedgerMode, LlmConfig
 from muble_plugins.llm.endpoint import Endpoint, EpisodeStats, ExchangeLog
 from muble_plugins.llm.examples import load_examples, pick_examples
+from muble_plugins.llm.ledger import FOLDER as LEDGER_FOLDER, Ledger
 from muble_plugins.llm.prompt import (RETRY_FIELDS, STEP_FIELDS, SYSTEM_FIELDS, PromptTemplate, Turn, examples_text,
                                       history_text, image_parts, object_form, primitives_text, program_text,
                                       result_text, scene_text)
@@ -57,7 +66,8 @@ class LlmAgent(Agent):
     def __init__(self, config: LlmConfig | None = None, **options: Any) -> None:
         self.config = cfg = configured(LlmConfig, config, options, owner="agent 'llm'")
         self.endpoint = Endpoint(cfg.base_url, cfg.model, cfg.api_key_env, cfg.temperature, cfg.max_tokens,
-                                 cfg.timeout, cfg.http_retries, cfg.max_backoff, cfg.schema_form.value)
+                                 cfg.timeout, cfg.http_retries, cfg.max_backoff, cfg.schema_form.value, cfg.seed)
+        self.prices = PriceTable.of(vars(cfg)) or PriceTable()
         self.max_retries, self.schema, self.history = cfg.max_retries, cfg.schema, cfg.history
         self.images = cfg.images
         # Prompt files are read and checked now, so a wrong path or placeholder stops the run before any episode.
@@ -77,6 +87,7 @@ class LlmAgent(Agent):
         self.system = ""
         self.answered = False
         self.view = ObservationMode.graph
+        self.episode = "this episode"  # named in errors: split, index and template
 
     # The episode's parts -------------------------------------------------------------------------------------
 
@@ -91,6 +102,8 @@ class LlmAgent(Agent):
             primitives=primitives_text(self.view), object_form=object_form(self.view),
             examples=examples_text(chosen, Track(track)))
         self.record.open(self._log_path(instruction))
+        self.endpoint.ledger = self._ledger()
+        self.episode = f"episode {instruction.split or '-'} {instruction.image_index} ({instruction.template_id})"
         self.record.write("episode", instruction=instruction.instruction, template=instruction.template_id,
                           split=instruction.split, index=instruction.image_index, view=self.view,
                           model=self.endpoint.model, base_url=self.endpoint.base_url, schema=self.schema)
@@ -102,9 +115,28 @@ class LlmAgent(Agent):
         stem = f"{instruction.split or 'episode'}_{instruction.image_index:06d}_{instruction.template_id}"
         return folder / (re.sub(r"[^A-Za-z0-9_.-]", "_", stem) + ".jsonl")
 
+    def _ledger(self) -> Ledger | None:
+        """The ledger of this episode: ``agent.ledger``, else ``llm_ledger/`` in the run's output folder; None when
+        ``agent.ledger_mode=off`` or outside a run that gives an output folder."""
+        cfg = self.config
+        if cfg.ledger_mode is LedgerMode.off:
+            return None
+        folder = Path(cfg.ledger) if cfg.ledger else (
+            self.output_dir / LEDGER_FOLDER if self.output_dir is not None else None)
+        if folder is None:
+            if cfg.ledger_mode is LedgerMode.read_only:
+                raise ConfigError("agent.ledger_mode=read_only replays a ledger: set agent.ledger to its folder")
+            return None
+        return Ledger(folder, cfg.ledger_mode)
+
     def stats(self) -> dict[str, float]:
-        """This episode's counters (see ``EpisodeStats``); read by ``muble eval`` after the episode."""
-        return self.episode_stats.as_dict()
+        """This episode's counters (see ``EpisodeStats``) with their cost at the price table; read by ``muble eval``
+        after the episode."""
+        return self.episode_stats.as_dict(self.prices)
+
+    def samples(self) -> dict[str, list[float]]:
+        """The seconds each of this episode's replies took (``latency_s``), replayed ones as recorded."""
+        return self.episode_stats.samples()
 
     # One step ------------------------------------------------------------------------------------------------
 
@@ -121,7 +153,8 @@ class LlmAgent(Agent):
         tries = 0
         while True:
             tries += 1
-            reply = self.endpoint.ask(messages, schema, self.episode_stats, self.record)
+            reply = self.endpoint.ask(messages, schema, self.episode_stats, self.record,
+                                      episode=f"{self.episode}, step {observation.step + 1}")
             try:
                 return self._decided(parse_reply(reply.text, self.view, ids))
             except ReplyError as e:

@@ -23,6 +23,14 @@ class SchemaForm(str, Enum):
     json_object = "json_object"  # {"type": "json_object", "schema": ...}: llama-cpp-python's server
 
 
+class LedgerMode(str, Enum):
+    """How the agent uses its LLM ledger (``muble_plugins.llm.ledger``), the store of every reply by its request."""
+
+    read_write = "read_write"  # replay what is recorded; ask the endpoint for the rest and record it
+    read_only = "read_only"  # replay only: a request the ledger lacks ends its episode as agent_error
+    off = "off"  # no ledger: every request is sent, nothing is recorded
+
+
 @dataclass
 class LlmConfig:
     """Where the endpoint is, how to ask it and what to tell it.
@@ -32,6 +40,11 @@ class LlmConfig:
     ``agent_error``. HTTP 429, 5xx and dropped connections are retried ``http_retries`` times, waiting what
     Retry-After asks (at most ``max_backoff`` seconds) or else 1, 2, 4 … s. A reply that is not one valid JSON
     decision is sent back with the error ``max_retries`` times; then the episode ends as ``invalid_action``.
+
+    The ledger keeps every reply under its request (model, sampling settings and messages), so a run that is
+    resumed or run again replays them instead of asking again. The ``price_*`` options are the price table every
+    cost in the reports is computed at (``muble.io.usage_fields.PriceTable``): USD per million tokens, as the
+    provider's price list gave them on ``price_date``; 0 for a local model.
     """
 
     base_url: str = "http://127.0.0.1:8080/v1"
@@ -55,3 +68,14 @@ class LlmConfig:
     # One JSONL file of requests and replies per episode. None: llm_logs/ in the run's output folder, where the run
     # gives one (muble eval does: beside the records); elsewhere no log.
     log_dir: str | None = None
+    # Sent as the request's seed (OpenAI's `seed`), so a sampled reply (temperature > 0) can be drawn again on a
+    # server that honours it; recorded with the reply in the ledger. None: no seed is sent.
+    seed: int | None = bounded(None, ge=0)
+    # The LLM ledger's folder; share one between runs to replay their replies. None: llm_ledger/ in the run's output
+    # folder, where the run gives one (muble eval does); elsewhere no ledger.
+    ledger: str | None = None
+    ledger_mode: LedgerMode = LedgerMode.read_write
+    price_input_per_mtok: float = bounded(0.0, ge=0)  # USD per million input tokens not read from a cache
+    price_output_per_mtok: float = bounded(0.0, ge=0)  # USD per million output tokens
+    price_cached_per_mtok: float | None = bounded(None, ge=0)  # USD per million cached input tokens; None: input's
+    price_date: str | None = None  # when the prices were read from the provider's list (YYYY-MM-DD)

@@ -11,6 +11,10 @@ HTTP errors (400, 401, 404) raise ``EndpointError`` with the server's message. E
 
 Every request body (images shortened to their size; the key is in a header and never written) and every reply or
 error goes as one JSON line into the episode's log file, with its latency and token counts.
+
+With a ledger (``muble_plugins.llm.ledger``) a request it has a reply to is not sent: the recorded reply is
+replayed, with the tokens and seconds it cost when it was recorded, and counted as ``replayed``; a reply fetched
+from the endpoint is recorded. Token counts carry OpenTelemetry GenAI's names (``muble.io.usage_fields``).
 """
 from __future__ import annotations
 
@@ -22,6 +26,11 @@ from dataclasses import dataclass, field
 from email.utils import parsedate_to_datetime
 from pathlib import Path
 from typing import Any
+
+from muble.io.usage_fields import CACHED_INPUT_TOKENS, COST, INPUT_TOKENS, LATENCY, OUTPUT_TOKENS, PriceTable
+
+from muble_plugins.llm.config import LedgerMode
+from muble_plugins.llm.ledger import Ledger, request_key
 
 log = logging.getLogger(__name__)
 
@@ -42,32 +51,69 @@ class EndpointTimeout(EndpointError):
 
 @dataclass
 class Reply:
-    """The text of one completion and what it cost."""
+    """The text of one completion and what it cost: tokens (input ones include the cached ones) and the seconds
+    waited for it, every try and back-off included (for a replayed reply, as recorded)."""
 
     text: str
     tokens_in: int
     tokens_out: int
     seconds: float
+    tokens_cached: int = 0
+    finish_reason: str | None = None
+    replayed: bool = False  # read from the ledger: no request was sent
+
+    def recorded(self) -> dict[str, Any]:
+        """The reply as a ledger entry keeps it."""
+        return {"text": self.text, "finish_reason": self.finish_reason, INPUT_TOKENS: self.tokens_in,
+                OUTPUT_TOKENS: self.tokens_out, CACHED_INPUT_TOKENS: self.tokens_cached, "seconds": self.seconds}
+
+    @classmethod
+    def replay(cls, recorded: dict[str, Any]) -> "Reply":
+        """The reply a ledger entry recorded (``recorded``), replayed."""
+        return cls(recorded["text"], recorded[INPUT_TOKENS], recorded[OUTPUT_TOKENS], float(recorded["seconds"]),
+                   recorded[CACHED_INPUT_TOKENS], recorded.get("finish_reason"), replayed=True)
 
 
 @dataclass
 class EpisodeStats:
-    """Per-episode counters of the agent's exchanges with the endpoint (numbers only, summed in reports)."""
+    """Per-episode counters of the agent's exchanges with the endpoint (numbers only, summed in reports), and the
+    seconds each reply took (the record's ``agent_samples``)."""
 
-    requests: int = 0  # HTTP requests sent, retries included
-    replies: int = 0  # completions received
+    requests: int = 0  # HTTP requests sent in this run, retries included (a replayed reply sends none)
+    replayed: int = 0  # replies replayed from the ledger
+    replies: int = 0  # completions used: received or replayed
     parse_failures: int = 0  # replies that were not one valid decision (each is re-asked or ends the episode)
     reasks: int = 0  # re-asks sent after such replies
     http_retries: int = 0  # requests sent again after 429, 5xx or a dropped connection
     timeouts: int = 0
-    tokens_in: int = 0
-    tokens_out: int = 0
-    latency_s: float = 0.0  # seconds spent waiting for the endpoint, backoff included
+    tokens_in: int = 0  # reported as INPUT_TOKENS, the cached ones included
+    tokens_out: int = 0  # OUTPUT_TOKENS
+    tokens_cached: int = 0  # CACHED_INPUT_TOKENS
+    latency_s: float = 0.0  # seconds spent waiting for the endpoint, backoff and failed requests included
     decisions: int = 0
     invalid_end: int = 0  # 1 when the episode ended on a reply that could not be used after every re-ask
+    latencies: list[float] = field(default_factory=list)  # seconds per reply, as ``Reply.seconds``
 
-    def as_dict(self) -> dict[str, float]:
-        return dict(self.__dict__)
+    def add(self, reply: Reply) -> None:
+        """Count a reply used, received or replayed."""
+        self.replies += 1
+        self.replayed += reply.replayed
+        self.tokens_in += reply.tokens_in
+        self.tokens_out += reply.tokens_out
+        self.tokens_cached += reply.tokens_cached
+        self.latency_s += reply.seconds
+        self.latencies.append(reply.seconds)
+
+    def as_dict(self, prices: PriceTable) -> dict[str, float]:
+        """The counters under the names reports read, with the tokens' cost at ``prices``."""
+        counters = {k: v for k, v in self.__dict__.items()
+                    if k not in ("tokens_in", "tokens_out", "tokens_cached", "latencies")}
+        return {**counters, INPUT_TOKENS: self.tokens_in, OUTPUT_TOKENS: self.tokens_out,
+                CACHED_INPUT_TOKENS: self.tokens_cached,
+                COST: prices.cost_usd(self.tokens_in, self.tokens_out, self.tokens_cached)}
+
+    def samples(self) -> dict[str, list[float]]:
+        return {LATENCY: list(self.latencies)}
 
 
 def retry_after(headers: Any) -> float | None:
@@ -142,11 +188,13 @@ class Endpoint:
     """The chat-completions endpoint of one agent (one client per worker process, made on first use)."""
 
     def __init__(self, base_url: str, model: str, api_key_env: str, temperature: float, max_tokens: int,
-                 timeout: float, http_retries: int, max_backoff: float, schema_form: str) -> None:
+                 timeout: float, http_retries: int, max_backoff: float, schema_form: str,
+                 seed: int | None = None) -> None:
         self.base_url, self.model, self.api_key_env = base_url, model, api_key_env
         self.temperature, self.max_tokens, self.timeout = temperature, max_tokens, timeout
         self.http_retries, self.max_backoff = http_retries, max_backoff
-        self.schema_form = schema_form
+        self.schema_form, self.seed = schema_form, seed
+        self.ledger: Ledger | None = None  # the agent sets it per episode
         self._client: Any = None
 
     def client(self) -> Any:
@@ -164,16 +212,42 @@ class Endpoint:
                                          max_retries=0)
         return self._client
 
-    def ask(self, messages: list[dict[str, Any]], schema: dict[str, Any] | None, stats: EpisodeStats,
-            record: ExchangeLog) -> Reply:
-        """One completion of ``messages`` (constrained to ``schema`` when given); raises ``EndpointTimeout`` or
-        ``EndpointError`` when none can be had."""
-        import openai
-
+    def body(self, messages: list[dict[str, Any]], schema: dict[str, Any] | None) -> dict[str, Any]:
+        """The request body asking for a completion of ``messages`` (constrained to ``schema`` when given)."""
         body: dict[str, Any] = {"model": self.model, "messages": messages, "temperature": self.temperature,
                                 "max_tokens": self.max_tokens}
+        if self.seed is not None:
+            body["seed"] = self.seed
         if schema is not None:
             body["response_format"] = response_format(schema, self.schema_form)
+        return body
+
+    def ask(self, messages: list[dict[str, Any]], schema: dict[str, Any] | None, stats: EpisodeStats,
+            record: ExchangeLog, episode: str = "this episode") -> Reply:
+        """One completion of ``messages`` (constrained to ``schema`` when given): replayed from the ledger when it
+        has it, else asked of the endpoint (and recorded in a read-write ledger). Raises ``EndpointTimeout`` or
+        ``EndpointError`` when none can be had, ``LedgerEntryDamaged`` for a damaged entry of the request and, in
+        a read-only ledger, ``LedgerMissing`` naming ``episode`` for a request it lacks."""
+        body = self.body(messages, schema)
+        if self.ledger is None:
+            return self.send(body, stats, record)
+        key = request_key(body)
+        recorded = self.ledger.read(key)
+        if recorded is not None:
+            record.write("request", attempt=0, base_url=self.base_url, body=loggable(body), ledger_key=key,
+                         replayed=True)
+            return self._used(Reply.replay(recorded), stats, record)
+        if self.ledger.mode is LedgerMode.read_only:
+            record.write("error", error="not in the LLM ledger (agent.ledger_mode=read_only)", ledger_key=key)
+            raise self.ledger.missing(key, episode)
+        reply = self.send(body, stats, record)
+        self.ledger.write(key, body, loggable(body), reply.recorded())
+        return reply
+
+    def send(self, body: dict[str, Any], stats: EpisodeStats, record: ExchangeLog) -> Reply:
+        """The endpoint's reply to ``body``, with the retries transient failures get."""
+        import openai
+
         backoff = FIRST_BACKOFF
         start = time.monotonic()
         attempt = -1
@@ -211,20 +285,27 @@ class Endpoint:
                     time.sleep(delay)
                     backoff *= 2
                     continue
-                return self._reply(completion, time.monotonic() - sent, stats, record)
-        finally:
-            stats.latency_s += time.monotonic() - start
+                return self._used(received(completion, time.monotonic() - start), stats, record)
+        except BaseException:
+            stats.latency_s += time.monotonic() - start  # the wait that gave no reply counts too
+            raise
 
     @staticmethod
-    def _reply(completion: Any, seconds: float, stats: EpisodeStats, record: ExchangeLog) -> Reply:
-        choice = completion.choices[0] if getattr(completion, "choices", None) else None
-        text = (choice.message.content if choice is not None and choice.message is not None else None) or ""
-        usage = getattr(completion, "usage", None)
-        tokens_in = int(getattr(usage, "prompt_tokens", 0) or 0)
-        tokens_out = int(getattr(usage, "completion_tokens", 0) or 0)
-        stats.replies += 1
-        stats.tokens_in += tokens_in
-        stats.tokens_out += tokens_out
-        record.write("reply", text=text, finish_reason=getattr(choice, "finish_reason", None),
-                     tokens_in=tokens_in, tokens_out=tokens_out, seconds=round(seconds, 3))
-        return Reply(text, tokens_in, tokens_out, seconds)
+    def _used(reply: Reply, stats: EpisodeStats, record: ExchangeLog) -> Reply:
+        stats.add(reply)
+        record.write("reply", text=reply.text, finish_reason=reply.finish_reason,
+                     **{INPUT_TOKENS: reply.tokens_in, OUTPUT_TOKENS: reply.tokens_out,
+                        CACHED_INPUT_TOKENS: reply.tokens_cached}, seconds=round(reply.seconds, 3),
+                     replayed=reply.replayed)
+        return reply
+
+
+def received(completion: Any, seconds: float) -> Reply:
+    """The reply in a chat completion: its text, finish reason and token counts (cached input tokens where the
+    server reports them, as OpenAI's ``prompt_tokens_details.cached_tokens``)."""
+    choice = completion.choices[0] if getattr(completion, "choices", None) else None
+    text = (choice.message.content if choice is not None and choice.message is not None else None) or ""
+    usage = getattr(completion, "usage", None)
+    details = getattr(usage, "prompt_tokens_details", None)
+    return Reply(text, int(getattr(usage, "prompt_tokens", 0) or 0), int(getattr(usage, "completion_tokens", 0) or 0),
+                 seconds, int(getattr(details, "cached_tokens", 0) or 0), getattr(choice, "finish_reason", None))

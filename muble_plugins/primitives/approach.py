@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
+from muble.core.params import argument
 from muble.core.symbolic import ArmState, set_flag
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
@@ -30,7 +31,7 @@ class Approach(PrimitiveAction):
     hand_at_target = "grasp"
 
     def execute(self, env) -> ActionResult:
-        attempt = int(self.arguments.get("attempt", 0))
+        attempt = int(argument(self, "attempt"))
         obj_id, body, snap, grip = self._start(env)
         reasons, tried = [], 0
         for command in HAND_OPENINGS:

@@ -13,7 +13,7 @@ MAX_ATTEMPT = 16
 
 # Typed parameters: the action loop rejects other calls as invalid actions before anything runs.
 TARGET_PLACE = Param("target", "place", required=True, doc="object id or table part")
-ATTEMPT = Param("attempt", "int", low=0, high=MAX_ATTEMPT,
+ATTEMPT = Param("attempt", "int", low=0, high=MAX_ATTEMPT, default=0,
                 doc="retry number: start from the attempt-th best option (grasp, place, hover pose)")
 
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from muble import CollisionWorld, MotionPlanner, PlanningError, Pose, PoseGoal, Trajectory
 from muble.core.environment import Environment
+from muble.core.object_physics import CONTENTS_COLLISION_CLASS
 
 from muble_plugins.primitives import tolerances as tol
 
@@ -122,8 +123,8 @@ def execute(env, trajectory: Trajectory, world: CollisionWorld, allowed: set[int
     def watch(e) -> bool:
         d = e.data
         for c in d.contact[: d.ncon]:
-            if c.dist > 0:
-                continue
+            if c.dist > 0 or m.geom_contype[c.geom[0]] == CONTENTS_COLLISION_CLASS:
+                continue  # loose contents meet only their own cavity's walls: inside one object, not a contact
             b1, b2 = int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])
             if (b1 in own) == (b2 in own):
                 continue

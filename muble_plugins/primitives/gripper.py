@@ -34,6 +34,8 @@ class CloseGripper(PrimitiveAction):
     """
 
     params = (Param("target", "object", doc="the object expected between the fingers"),)
+    # What ``ActionResult.measurement`` holds (docs/agent_api.md), for a primitive that measures no property.
+    reports = "the id of the object now held (also when it is not the target, which fails the call)"
 
     def execute(self, env) -> ActionResult:
         held = close_on_object(env)

@@ -6,6 +6,7 @@ import logging
 import numpy as np
 
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
+from muble.core.params import argument
 from muble.core.symbolic import RAISE_HEIGHT, ArmState
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
@@ -19,10 +20,10 @@ LIFT_HEIGHT = 0.15  # m risen when no height is given
 class Lift(PrimitiveAction):
     """Raise the hand (and what it holds) straight up by ``height`` metres (default 0.15)."""
 
-    params = (Param("height", "number", low=0.01, high=0.4, doc="metres"),)
+    params = (Param("height", "number", low=0.01, high=0.4, default=LIFT_HEIGHT, doc="metres"),)
 
     def execute(self, env) -> ActionResult:
-        height = float(self.arguments.get("height", LIFT_HEIGHT))
+        height = float(argument(self, "height"))
         held = env.held_object
         world = env.collision_world()
         support = _leaving(env, world)

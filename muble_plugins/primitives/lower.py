@@ -9,6 +9,7 @@ import numpy as np
 
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
 from muble.core.observation import TOUCHING_TABLE
+from muble.core.params import argument
 from muble.core.symbolic import CARRIED_TO, RAISE_HEIGHT, ArmState, over, set_flag
 from muble.stage.footprint import free_spot, height
 from muble.stage.geometry import tilt_deg
@@ -42,7 +43,7 @@ class Lower(PrimitiveAction):
         if env.held_object is None:
             raise PlanningError("lower needs an object in the hand; approach and close the gripper first")
         target = self.arguments.get("target")
-        attempt = int(self.arguments.get("attempt", 0))
+        attempt = int(argument(self, "attempt"))
         held = env.held_object
         held_body = env.model.body(env.names.objects[held]).id
         table = env.table()

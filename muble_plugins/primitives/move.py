@@ -7,6 +7,7 @@ import logging
 import numpy as np
 
 from muble import ActionResult, JointGoal, PlanningError, PoseGoal, PrimitiveAction, SceneGraph
+from muble.core.params import argument
 from muble.core.symbolic import CARRIED_TO, ArmState, set_flag
 from muble.stage.footprint import free_spot
 from muble.stage.table import part_box
@@ -29,7 +30,7 @@ class Move(PrimitiveAction):
 
     def execute(self, env) -> ActionResult:
         target = self.arguments.get("target")
-        attempt = int(self.arguments.get("attempt", 0))
+        attempt = int(argument(self, "attempt"))
         held = env.held_object
         if isinstance(target, str):
             part_box(env, target)  # an unknown part name fails before anything moves

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from muble import ActionResult, Param, Pose, PoseGoal, PrimitiveAction, get_registry
+from muble.core.params import argument
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
 
@@ -20,11 +21,13 @@ class MoveVel(PrimitiveAction):
     """
 
     params = (Param("velocity", "vector", required=True, low=-0.5, high=0.5, length=3, doc="m/s, world frame"),
-              Param("duration", "number", low=0.0, high=10.0, doc="s"))
+              Param("duration", "number", low=0.0, high=10.0, default=1.0, doc="s"))
+    # What ``ActionResult.measurement`` holds (docs/agent_api.md).
+    reports = "[dx, dy, dz]: the metres the hand actually travelled, world frame"
 
     def execute(self, env) -> ActionResult:
         velocity = np.asarray(self.arguments.get("velocity", (0.0, 0.0, 0.0)), dtype=float).reshape(3)
-        duration = float(self.arguments.get("duration", 1.0))
+        duration = float(argument(self, "duration"))
         speed = float(np.linalg.norm(velocity))
         start = env.ee_pose()
         if speed * duration < 1e-4:

@@ -15,6 +15,7 @@ import numpy as np
 from muble import ActionResult, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph, get_registry
 from muble.core import physical_properties
 from muble.core.observation import MEASURED_EXTRA
+from muble.core.params import argument
 from muble.core.symbolic import ArmState
 from muble.stage.geometry import tilt_deg
 from muble_plugins.primitives import context as ctx
@@ -89,8 +90,9 @@ class Push(PrimitiveAction):
     attempt."""
 
     params = (DIRECTION,
-              Param("distance", "number", low=0.05, high=0.15, doc="m, there and back"),
-              Param("speed", "number", low=0.03, high=0.1, doc="m/s, steady in the middle of each stroke"),
+              Param("distance", "number", low=0.05, high=0.15, default=PUSH_DISTANCE, doc="m, there and back"),
+              Param("speed", "number", low=0.03, high=0.1, default=PUSH_SPEED,
+                    doc="m/s, steady in the middle of each stroke"),
               ATTEMPT)
     measures = "friction"
     measure_unit = ""
@@ -108,11 +110,11 @@ class Push(PrimitiveAction):
             grams, problem = _weigh_where_it_stands(env, held)
             if problem:
                 return ActionResult(False, failure_reason=problem)
-        attempt = int(self.arguments.get("attempt", 0))
+        attempt = int(argument(self, "attempt"))
         bounds = {p.name: p.low for p in self.params}
         retry = PUSH_RETRY_SLOWER ** attempt
-        distance = max(bounds["distance"], float(self.arguments.get("distance", PUSH_DISTANCE)) * retry)
-        speed = max(bounds["speed"], float(self.arguments.get("speed", PUSH_SPEED)) * retry)
+        distance = max(bounds["distance"], float(argument(self, "distance")) * retry)
+        speed = max(bounds["speed"], float(argument(self, "speed")) * retry)
         direction, strokes = self._plan(env, distance, speed, attempt)
         reading = env.push(strokes, (PUSH_SPEED_UP, distance - PUSH_SLOW_DOWN), grams)
         info = {"object": held, "direction": direction[:2].tolist(), "normal_force": reading.normal,
@@ -347,18 +349,18 @@ class Shake(_LiftedReading):
     motion of a solid or an empty container does not make."""
 
     params = (DIRECTION,
-              Param("amplitude", "number", low=0.01, high=0.04, doc="m either side"),
-              Param("period", "number", low=0.3, high=1.0, doc="s a swing"),
-              Param("cycles", "int", low=2, high=8, doc="swings"))
+              Param("amplitude", "number", low=0.01, high=0.04, default=SHAKE_AMPLITUDE, doc="m either side"),
+              Param("period", "number", low=0.3, high=1.0, default=SHAKE_PERIOD, doc="s a swing"),
+              Param("cycles", "int", low=2, high=8, default=SHAKE_CYCLES, doc="swings"))
     measures = "rattles"
     measure_unit = ""
     action = "shake"
 
     def read(self, env, held: int) -> ActionResult:
-        amplitude = float(self.arguments.get("amplitude", SHAKE_AMPLITUDE))
+        amplitude = float(argument(self, "amplitude"))
         direction, ends = self._ends(env, amplitude)
-        reading = env.shake(ends, float(self.arguments.get("period", SHAKE_PERIOD)),
-                            int(self.arguments.get("cycles", SHAKE_CYCLES)))
+        reading = env.shake(ends, float(argument(self, "period")),
+                            int(argument(self, "cycles")))
         info = {"object": held, "direction": direction[:2].tolist(), "peak_force": reading.peak}
         if env.held_object != held:
             return ActionResult(False, info=info, failure_reason=f"object {held} slipped out of the hand while "

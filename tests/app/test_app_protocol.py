@@ -24,7 +24,7 @@ MUBLE = [sys.executable, "-m", "muble.app.cli"]
 V2 = "shopvrb2_v2"
 SHIPPED = {"shopvrb2_v1": ["mini"],
            V2: ["mini", "test", "unseen_objects", "unseen_properties", "perturbed_views", "long_horizon", "physical",
-                "closed_loop"]}
+                "closed_loop", "noisy_sensing"]}
 
 
 def muble(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
@@ -67,8 +67,8 @@ def test_muble_data_writes_the_recorded_files_and_refuses_bad_input(tmp_path):
     assert data_manifest(out, "unseen_objects") == recorded_manifest(protocol, "unseen_objects")
     again = muble("data", f"protocol={V2}", "benchmark.split=unseen_objects", f"--out={out}", cwd=tmp_path)
     assert again.returncode == 2 and "exists" in again.stderr
-    for args, words in ((["benchmark.split=nope"], "split of protocol"), (["benchmark.split=train"], "does not ship"),
-                        ([], "--out")):
+    for args, words in ((["benchmark.split=nope"], "unknown split 'nope' of protocol"),
+                        (["benchmark.split=train"], "does not ship"), ([], "--out")):
         bad = tmp_path / "bad"
         done = muble("data", f"protocol={V2}", *args, *([f"--out={bad}"] if args else []), cwd=tmp_path)
         assert done.returncode == 2 and words in done.stderr and "Traceback" not in done.stderr, done.stderr
@@ -111,7 +111,7 @@ def test_eval_labels_only_the_protocols_data(tmp_path):
 # --- regeneration on every CPU setting ---------------------------------------------------------------------------
 # (split, first index, count): in-distribution scenes, a held-out split's, and a jittered camera's and lamps'.
 SAMPLE = [("mini", 0, 3), ("perturbed_views", 0, 1), ("unseen_objects", 7, 1), ("physical", 0, 2),
-          ("closed_loop", 0, 2)]
+          ("closed_loop", 0, 2), ("noisy_sensing", 0, 2)]
 
 
 def _regenerate(tmp_path: Path, label: str, env: dict[str, str], workers: int = 1) -> dict[str, str]:

@@ -2,21 +2,15 @@
 the interfaces a plugin implements, and no public name lacks a docstring, so it cannot fall behind the code."""
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
+
+from tests.support.scripts import load_script
 
 pytest.importorskip("pdoc")
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "api_reference.py"
-
 
 def _script():
-    spec = importlib.util.spec_from_file_location("api_reference", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("scripts/api_reference.py")
 
 
 def test_every_public_name_has_a_docstring():

@@ -13,6 +13,7 @@ from muble import (ActionCall, Answer, ConfigError, Frame, Observation, Observat
                    PrimitiveAction, Track, hookimpl)
 from muble.episode.modes import ObservationView
 from muble.evaluation.report import OVERALL, agent_lines, summarize
+from muble.evaluation.usage import INPUT_TOKENS, OUTPUT_TOKENS
 from muble.plugins.manager import make_plugin_manager
 from muble.plugins.registry import Registry
 from muble_plugins.common.symbolic import SymbolicWorld
@@ -168,11 +169,12 @@ def test_the_report_sums_agent_counters_with_tokens_per_success_and_parse_failur
         return {"index": index, "template": "move_single", "outcome": outcome, "primitives": [], "timing": None,
                 "agent_stats": stats}
 
+    # The first record's token counters have the names of records written before the OpenTelemetry ones.
     records = [record(0, "success", {"tokens_in": 100, "tokens_out": 20, "replies": 4, "parse_failures": 1}),
-               record(1, "invalid_action", {"tokens_in": 50, "tokens_out": 10, "replies": 3, "parse_failures": 3}),
+               record(1, "invalid_action", {INPUT_TOKENS: 50, OUTPUT_TOKENS: 10, "replies": 3, "parse_failures": 3}),
                {**record(2, "success", None)}]
     stats = summarize(records)["agent_stats"][OVERALL]
-    assert stats["episodes"] == 2 and stats["totals"]["tokens_in"] == 150
+    assert stats["episodes"] == 2 and stats["totals"][INPUT_TOKENS] == 150
     assert stats["tokens_per_success"] == 180 and stats["parse_failure_rate"] == pytest.approx(4 / 7)
     assert "| overall | 75 | 15 | 180 | 57.1% |" in "\n".join(agent_lines(summarize(records)["agent_stats"]))
     assert summarize([record(0, "success", None)])["agent_stats"] is None

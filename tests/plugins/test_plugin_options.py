@@ -16,9 +16,7 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "muble-exa
 
 # Built-in records with a config that are called with keyword arguments instead of the checked instance, each with
 # why it cannot take it.
-KEYWORD_FACTORIES = {
-    ("agent", "oracle"): "OracleConfig declares no option; OracleAgent's one parameter, task, is not one",
-}
+KEYWORD_FACTORIES: dict[tuple[str, str], str] = {}
 
 
 def redeclared_defaults(record: PluginRecord) -> list[str]:
@@ -46,7 +44,7 @@ def test_the_example_package_declares_each_default_once(fake_distribution):
     registry = Registry(make_plugin_manager())
     example = [p for p in registry.all() if p.distribution == "muble-example-plugin"]
     assert {(p.kind, p.record.name) for p in example if p.record.config} == {
-        ("sensor", "contact_count"), ("task", "touch"), ("agent", "greedy")}
+        ("sensor", "contact_count"), ("task", "touch"), ("agent", "greedy"), ("disturbance", "nudge")}
     assert offenders(example) == {}
     sensor = registry.create("sensor", "contact_count", {"include_table": False})
     assert sensor.include_table is False
