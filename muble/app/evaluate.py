@@ -114,7 +114,7 @@ def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
         for record in tqdm(run_all(cfg.dataset.executor, evaluate_index, jobs, cfg.dataset.workers,
                                    ray_address=cfg.dataset.ray_address),
                            total=len(jobs), desc=f"eval {found.split}", unit="episode", disable=None):
-            log.info("%s %d (%s): %s", found.split, record["index"], record["template"], record["outcome"])
+            log.debug("%s %d (%s): %s", found.split, record["index"], record["template"], record["outcome"])
             episodes.append(record)
             done[record["index"]] = record
     records = [done[i] for i in indices]

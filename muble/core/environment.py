@@ -108,9 +108,11 @@ class Environment(Protocol):
     # ---- the world acting on its own (disturbances)
     control_listeners: list[Callable[[Any], None]]  # each called with the environment after every control step
 
-    def apply_force(self, obj_id: int, force: np.ndarray, point: np.ndarray | None = None) -> None:
-        """Apply ``force`` (N, world frame) to the object at ``point`` (world; default its centre of mass) from the
-        next physics step on, until replaced (a zero force ends it); the physics integrates it."""
+    def apply_force(self, obj_id: int, force: np.ndarray, point: np.ndarray | None = None,
+                    torque: np.ndarray | None = None) -> None:
+        """Apply ``force`` (N, world frame) to the object at ``point`` (world; default its centre of mass), and a
+        ``torque`` (N·m) beside it, from the next physics step on, until replaced (zero ends them); the physics
+        integrates them."""
 
     # ---- geometry of what is there now
     def table(self) -> TableTop: ...

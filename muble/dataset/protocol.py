@@ -68,9 +68,15 @@ def split_spec(protocol: dict[str, Any], split: str) -> dict[str, Any]:
     """The settings of one split of ``protocol``; an unknown split is a ``ConfigError`` listing the valid ones."""
     splits = protocol.get("splits") or {}
     if split not in splits:
-        raise ConfigError(unknown_name(f"split of protocol '{protocol.get('name')}'", split, list(splits))
-                          + "; choose it with benchmark.split=")
+        hint = "; choose it with benchmark.split="
+        if split in GENERATED_SPLITS:
+            hint += (f" ('{split}' is a split of a dataset `muble generate` wrote: evaluate that with "
+                     "dataset.root=DIR and no protocol=)")
+        raise ConfigError(unknown_name(f"split of protocol '{protocol.get('name')}'", split, list(splits)) + hint)
     return splits[split]
+
+
+GENERATED_SPLITS = ("val",)  # the default dataset's split names that no protocol has
 
 
 def _merge(base: dict[str, Any], extra: dict[str, Any] | None) -> dict[str, Any]:

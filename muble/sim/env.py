@@ -449,20 +449,22 @@ class TabletopEnv:
         (``muble.sim.probing.shake``)."""
         return probing.shake(self, ends, period, cycles)
 
-    def apply_force(self, obj_id: int, force: np.ndarray, point: np.ndarray | None = None) -> None:
-        """Apply ``force`` (N, world frame) to the object at ``point`` (world; default its centre of mass) from the
-        next physics step on, until another call replaces it (a zero force ends it). The physics integrates it:
-        nothing is moved directly, and ``snapshot``/``restore`` keep it with the state."""
+    def apply_force(self, obj_id: int, force: np.ndarray, point: np.ndarray | None = None,
+                    torque: np.ndarray | None = None) -> None:
+        """Apply ``force`` (N, world frame) to the object at ``point`` (world; default its centre of mass), and a
+        ``torque`` (N·m, world frame) beside it, from the next physics step on, until another call replaces them
+        (zero ends them). The physics integrates them: nothing is moved directly, and ``snapshot``/``restore`` keep
+        them with the state."""
         body = self.grasp.body_of[obj_id]
         self.data.xfrc_applied[body] = 0.0
         force = np.asarray(force, dtype=float)
-        if not np.any(force):
-            return
         at = self.data.xipos[body] if point is None else np.asarray(point, dtype=float)
         # MuJoCo applies xfrc_applied at the body's centre of mass: a force elsewhere adds its moment about it.
-        torque = np.cross(at - self.data.xipos[body], force)
+        moment = np.cross(at - self.data.xipos[body], force)
+        if torque is not None:
+            moment = moment + np.asarray(torque, dtype=float)
         self.data.xfrc_applied[body, :3] = force
-        self.data.xfrc_applied[body, 3:] = torque
+        self.data.xfrc_applied[body, 3:] = moment
 
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
         """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame, as the wrist sensor

@@ -6,6 +6,7 @@ import itertools
 import logging
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from muble import ActionCall, ActionResult, Disturbance, DisturbanceEvent, bounded, get_registry
@@ -298,6 +299,7 @@ SLIDE_KV = 25.0  # 1/s: acceleration per m/s of speed error
 SLIDE_TOLERANCE = 0.005  # m from the goal where the force ends, once the object is nearly still (SLIDE_STILL, m/s)
 SLIDE_STILL = 0.02
 SLIDE_FADE = 0.02  # m from the goal within which the friction fed forward fades out
+STEADY_KP, STEADY_KV = 25.0, 8.0  # 1/s², 1/s: how a carried object is held as it stood (per its inertia)
 
 
 class Push:
@@ -312,6 +314,7 @@ class Push:
         self.mu = _table_friction(env, self.body)
         self.impulse, self.peak, self.t = np.zeros(3), np.zeros(3), 0.0
         self.dt = float(getattr(env, "control_dt", 0.05))
+        self.start_quat = env.data.xquat[self.body].copy()
 
     def drive(self, goal_at, speed: float, planar: bool, height: float | None = None, until=None) -> None:
         env, body, mass = self.env, self.body, self.mass
@@ -341,12 +344,25 @@ class Push:
             cap = 3.0 * mass * G
             if np.linalg.norm(force) > cap:
                 force *= cap / np.linalg.norm(force)
-            env.apply_force(self.obj, force, point)
+            env.apply_force(self.obj, force, point, None if planar else self._steady())
             env.advance(self.dt)
             self.impulse += force * self.dt
             if np.linalg.norm(force) > np.linalg.norm(self.peak):
                 self.peak = force
             self.t += self.dt
+
+    def _steady(self) -> np.ndarray:
+        """The torque that keeps a carried object as it stood (a damped spring on its turn from the start, scaled
+        by its rotational inertia): knocked off, it lands standing, not tumbled by the rim it scraped."""
+        env, body = self.env, self.body
+        quat = env.data.xquat[body]
+        error = np.zeros(3)
+        mujoco.mju_subQuat(error, self.start_quat, quat)  # the rotation (body frame) from now back to the start
+        rot = env.data.xmat[body].reshape(3, 3)
+        spin = np.zeros(6)
+        mujoco.mj_objectVelocity(env.model, env.data, mujoco.mjtObj.mjOBJ_BODY, body, spin, 0)
+        inertia = float(np.max(env.model.body_inertia[body]))
+        return inertia * (STEADY_KP * (rot @ error) - STEADY_KV * spin[:3])
 
     def done(self) -> dict:
         env = self.env
@@ -362,8 +378,6 @@ class Push:
 
 def _linear_velocity(env, body: int) -> np.ndarray:
     """The body's linear velocity (m/s, world frame) at its centre of mass."""
-    import mujoco
-
     out = np.zeros(6)
     mujoco.mj_objectVelocity(env.model, env.data, mujoco.mjtObj.mjOBJ_BODY, body, out, 0)
     return out[3:]

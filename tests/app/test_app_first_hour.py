@@ -33,7 +33,7 @@ def test_every_mistake_names_its_fix(tmp_path):
         ("eval", "protocol=shopvrb2_v2", "benchmark.split=Physical", "agent=oracle", *where):
             ["(names are case-sensitive: did you mean 'physical'?)"],
         ("eval", "protocol=shopvrb2_v2", "benchmark.split=val", "agent=oracle", *where):
-            ["unknown split 'val'", "closed_loop", "physical", "benchmark.split="],
+            ["unknown split 'val'", "closed_loop", "physical", "benchmark.split=", "dataset.root=DIR and no protocol="],
         ("eval", "agent=oracle", *where): ["does not exist", "protocol=shopvrb2_v2"],
         ("serve", "protocol=shopvrb2_v2", "benchmark.split=Mini"): ["did you mean 'mini'"],
         ("serve", "protocol=shopvrb2_v2", "benchmark.split=train"): ["does not ship", "muble generate"],
