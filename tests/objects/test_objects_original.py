@@ -87,7 +87,7 @@ def test_missing_stiffness_and_friction_come_from_the_material(shopvrb2, caplog,
 @pytest.mark.parametrize("change,field,says", [
     ({"model": "mug9"}, "file", "unknown 'mug' model 'mug9'"),
     ({"name": "teapot"}, "name", "unknown category 'teapot'"),
-    ({"shape": "cuboid"}, "shape", "unknown shape of a mug 'cuboid'"),
+    ({"shape": "cuboid"}, "shape", "unknown shape 'cuboid' of a mug"),
     ({"material": "paper"}, "material", "unknown material 'paper'"),
     ({"colour": "mauve"}, "colour", "unknown colour 'mauve'"),
     ({"size": "huge"}, "size", "unknown size 'huge'"),
