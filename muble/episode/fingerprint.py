@@ -9,6 +9,7 @@ computed them: MuJoCo's version, numpy's, the BLAS kernel OpenBLAS chose and num
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -81,7 +82,12 @@ def first_difference(a: list[dict[str, Any]], b: list[dict[str, Any]], tolerance
 
 def platform() -> dict[str, Any]:
     """What computed an episode's physics: MuJoCo's and numpy's versions, OpenBLAS's kernel (and the variable that
-    chose it) and numpy's SIMD dispatch."""
+    chose it) and numpy's SIMD dispatch. Read once per process (``_platform``) and copied for each record."""
+    return dict(_platform())
+
+
+@functools.cache
+def _platform() -> dict[str, Any]:
     import mujoco
 
     info: dict[str, Any] = {"mujoco": mujoco.__version__, "numpy": np.__version__,
