@@ -42,9 +42,9 @@ PUSH_MEAN_WINDOW = 0.05
 @dataclasses.dataclass
 class Segment:
     """What the sensors gave at every physics step of one ``advance`` call: simulated time (s); the wrist force
-    and torque less the hand's own weight (``probing.load_wrench``: N, N·m about the sensor's site, world frame);
+    and torque less the hand's own weight (``env.load_wrench()``: N, N·m about the sensor's site, world frame);
     the raw wrist force (N, world frame); the hand's position (m; ``start``: before the call); the spatial
-    accelerations of the hand's site and of the held body (``probing.shake``'s regressors, 12 a row); the force
+    accelerations of the hand's site and of the held body (``handling.shake``'s regressors, 12 a row); the force
     sensor's site (m) and the held object's pose (position, quaternion w x y z: what a camera tracking it sees)."""
 
     start: np.ndarray
@@ -59,8 +59,9 @@ class Segment:
 
 
 class WristRecording:
-    """Within ``with``: every ``env.advance`` made while ``env.<measurement>`` runs is recorded, one ``Segment``
-    a call, into ``segments``. It wraps the two methods of this one environment (restored on leaving) and only
+    """Within ``with``: every ``env.advance`` made while the primitive's reading
+    ``muble_plugins.primitives.handling.<measurement>`` runs is recorded, one ``Segment`` a call, into
+    ``segments``. It wraps this one environment's ``advance`` and the reading (both restored on leaving) and only
     reads the simulation: a hold without ``on_physics`` steps the physics one call per step instead of
     ``n_substeps`` at once, the same computation."""
 
@@ -70,8 +71,11 @@ class WristRecording:
         self._active = False
 
     def __enter__(self) -> "WristRecording":
+        from muble_plugins.primitives import handling
+
         env = self.env
-        advance, method = env.advance, getattr(env, self.measurement)
+        advance, method = env.advance, getattr(handling, self.measurement)
+        self._reading = method
 
         def recorded_advance(duration, on_control=None, on_physics=None):
             if not self._active:
@@ -94,20 +98,20 @@ class WristRecording:
                 self._active = False
 
         env.advance = recorded_advance
-        setattr(env, self.measurement, recorded_method)
+        setattr(handling, self.measurement, recorded_method)  # the primitive looks it up there when it reads
         return self
 
     def __exit__(self, *exc) -> None:
-        del self.env.advance  # the instance attributes go; the class's methods show through again
-        delattr(self.env, self.measurement)
+        from muble_plugins.primitives import handling
+
+        del self.env.advance  # the instance attribute goes; the class's method shows through again
+        setattr(handling, self.measurement, self._reading)
 
     def _read(self) -> tuple:
         import mujoco
 
-        from muble.sim import probing
-
         env = self.env
-        force, torque = probing.load_wrench(env)
+        force, torque = env.load_wrench()
         hand, held, pose = np.zeros(6), np.zeros(6), np.full(7, np.nan)
         mujoco.mj_objectAcceleration(env.model, env.data, mujoco.mjtObj.mjOBJ_SITE, env.ee_site_id, hand, 0)
         if env.held_object is not None:
@@ -186,8 +190,8 @@ def push_series(run: Run) -> dict:
     """The push's two strokes (the last two segments: a set-down before them is a segment too): time (s), the
     force along each stroke's direction (N) and the normal force the table carries (N, measured weight less the
     wrist's vertical force), and which samples lie in the steady stretch the reading averages; ``friction``: the
-    reading computed from these samples as ``probing.push`` does."""
-    from muble.sim.measure import GRAVITY
+    reading computed from these samples as ``handling.push`` does."""
+    from muble.core.environment import GRAVITY
     from muble_plugins.primitives.probing import PUSH_DISTANCE, PUSH_SLOW_DOWN, PUSH_SPEED_UP
 
     env, info = run.env, run.result.info
@@ -218,7 +222,7 @@ def _default(name: str) -> float:
 def balance_series(run: Run) -> dict:
     """The held-still part of ``balance`` (settling, then the window it averages): time (s), the load's torque about
     the sensor's site (N·m), the weight it carries (N), which samples the reading averages, and ``offset``: the
-    horizontal centre of mass (m, object frame) that each sample alone gives, as ``probing.balance`` reads it from
+    horizontal centre of mass (m, object frame) that each sample alone gives, as ``handling.balance`` reads it from
     the mean (the vertical line through the centre of mass, ``r_x = -τ_y / W``, ``r_y = τ_x / W``, met at half the
     object's height)."""
     import mujoco
@@ -242,7 +246,7 @@ def balance_series(run: Run) -> dict:
 
 def shake_series(run: Run) -> dict:
     """The shake: time (s), the raw wrist force along the swing (N) and, at every sample, the largest force along
-    any axis that the rigid motion leaves unexplained (N: the residual of ``probing.shake``'s least-squares fit);
+    any axis that the rigid motion leaves unexplained (N: the residual of ``handling.shake``'s least-squares fit);
     ``peak``: its largest, the reading's ``peak_force``."""
     segment = run.segments[-1]
     direction = np.array([*run.result.info["direction"], 0.0])
@@ -363,7 +367,7 @@ def plot_balance(run: Run, path: Path) -> None:
 
 def plot_shake(loose: Run, solid: Run, path: Path) -> None:
     """The wrist force along the swing and what the rigid motion leaves of it, with contents and without."""
-    from muble.sim.probing import RATTLE_FORCE
+    from muble_plugins.primitives.handling import RATTLE_FORCE
 
     fig, axes = _figure(2)
     top, bottom = axes[0, 0], axes[1, 0]

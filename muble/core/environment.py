@@ -4,11 +4,16 @@
 ``read``/``reset``/``on_step``. Plugins depend on this protocol only, never on ``muble.sim`` modules. The MuJoCo
 model and data are part of it on purpose: a primitive that plans its own motion reads geoms and contacts there.
 See docs/plugins.md ("The environment API") for examples.
+
+It names no primitive: a measuring primitive takes its reading itself, from the generic sensing members below (the
+wrist wrench as the sensor reads it, with or without the hand's own weight; stepping with a callback per control
+and per physics step; the held object, lifted and raised checks; the fingers' pads, closing directions and
+contacts), as the built-in ones do (``muble_plugins.primitives.measure`` and ``.handling``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -21,6 +26,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from muble.core.objects import ObjectModel
     from muble.core.scene import SceneGraph
 
+# m/s², what the readings turn forces into weights with (and weights into forces), and the robot's model of its
+# hand's weight too (``Environment.load_wrench``).
+GRAVITY = 9.81
 
 
 class EnvironmentNames(Protocol):
@@ -61,8 +69,9 @@ class Environment(Protocol):
     data: "mujoco.MjData"
     names: EnvironmentNames
     object_models: dict[int, "ObjectModel"]
-    # Measured values per scene id, written by the measuring operations ({"weight": g, "stiffness": N/m,
-    # "friction", "com_offset": [x, y] mm, "rattles": bool}).
+    # Measured values per scene id, written by the measuring primitives' readings, each under the property it
+    # measures (the built-in ones: {"weight": g, "stiffness": N/m, "friction", "com_offset": [x, y] mm,
+    # "rattles": bool}); the physical world's scene graph reads them from here.
     measurements: dict[int, dict[str, float]]
     # The run's motion planner for long moves, or None (primitives then take a registered one by name).
     planner: "MotionPlanner | None"
@@ -73,6 +82,7 @@ class Environment(Protocol):
     gripper_actuator_ids: np.ndarray  # MuJoCo actuator ids of the fingers
     gripper_open_ctrl: np.ndarray  # their controls for the open and the closed hand
     gripper_closed_ctrl: np.ndarray
+    control_dt: float  # s of one control step: the physics steps between two calls of ``advance``'s ``on_control``
 
     @property
     def ee_site(self) -> str:
@@ -103,7 +113,8 @@ class Environment(Protocol):
         """Distance between the finger pads (m)."""
 
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
-        """Force (N) and torque (N·m) the arm exerts on the hand, world frame."""
+        """Force (N) and torque (N·m, about the sensor's site ``ft_site_id``) the arm exerts on the hand, world
+        frame, as the wrist sensor reads them: with its error (``sensor_noise``) where it has one."""
 
     # ---- the world acting on its own (disturbances)
     control_listeners: list[Callable[[Any], None]]  # each called with the environment after every control step
@@ -147,8 +158,11 @@ class Environment(Protocol):
         """Track a joint trajectory of the arm (``stop(env)`` ends it early); returns how it went
         (``final_error`` rad, ``duration`` s, ``stopped_early``). Raises ``PhysicsError`` on a fault."""
 
-    def advance(self, duration: float, on_control: Callable[[int], None] | None = None) -> None:
-        """Run the physics for ``duration`` s at the current set-points."""
+    def advance(self, duration: float, on_control: Callable[[int], None] | None = None,
+                on_physics: Callable[[], None] | None = None) -> None:
+        """Run the physics for ``duration`` s (whole control steps of ``control_dt``) at the current set-points;
+        ``on_control(k)`` before the k-th control step may set new ones, and ``on_physics()`` after every physics
+        step reads what a sensor sampled at the physics rate reads (``data`` as of that step)."""
 
     def hold(self, duration: float) -> None:
         """Keep the arm still for ``duration`` s of simulated time."""
@@ -163,32 +177,33 @@ class Environment(Protocol):
 
     def close_gripper(self) -> None: ...
 
-    # ---- measuring (the values land in ``measurements`` too)
+    # ---- sensing: what a measuring primitive reads (it records its values in ``measurements``)
+    ft_site_id: int  # MuJoCo id of the wrist force/torque sensor's site, which its torque is taken about
+    # The wrist sensor's stated figures (``force_white_n``, ``force_drift_n_per_sqrt_s``, ``torque_white_nm``,
+    # ``torque_drift_nm_per_sqrt_s``, ``sample_rate_hz``; all zero: a perfect sensor), as its datasheet gives them:
+    # what a reading may allow for. The error itself is in every ``wrist_wrench``.
+    sensor_noise: Any
+    # geom id -> 1 for the left fingers' pad geoms (``names.left_pads``), 2 for the right's, 0 for any other geom
+    pad_side: np.ndarray
+
     def tare(self) -> np.ndarray:
-        """Remember the current wrist force as the zero for weighing."""
+        """Remember the current wrist force (the empty hand, still) as the zero for weighing (``tare_force``);
+        returns it. A noisy sensor's offset is kept too, which ``load_wrench`` takes off."""
 
-    def weigh(self, record: bool = True) -> float:
-        """Weight in grams of the object in the hand, from the wrist force sensor; recorded in ``measurements``
-        unless ``record`` is false."""
+    def load_wrench(self) -> tuple[np.ndarray, np.ndarray]:
+        """``wrist_wrench`` less the hand's own weight (force N, torque N·m about ``ft_site_id``, world frame),
+        from the robot's model of its hand with the fingers where they are now, and less the sensor's offset as
+        the last ``tare`` read it: what the held object, and anything it rests on or pushes, puts on the hand."""
 
-    def squeeze(self) -> float:
-        """Stiffness (N/m) of the object between the fingers, from force against finger displacement."""
+    def closing_axes(self) -> np.ndarray | None:
+        """Unit vectors (2, 3), world frame, in which the left and the right pads close now: from each side's pad
+        centre towards the other's (the jaw contact law's own directions); None where the centres coincide."""
 
-    def push(self, strokes: Any, steady: tuple[float, float], weight_g: float | None = None) -> Any:
-        """Push the held object, standing on the table, along it: ``strokes`` are ``(trajectory, direction)``
-        pairs (straight hand moves, their unit horizontal directions), ``steady`` the travel (m) within each
-        stroke over which the wrist force is read; its weight ``weight_g``, by default the measured one. Returns a
-        reading with ``friction`` (the coefficient, NaN without a steady stretch), ``normal`` (N) and ``samples``."""
-
-    def balance(self, tilts: Any = ()) -> np.ndarray:
-        """Horizontal offset (m, (2,), object frame) of the lifted object's centre of mass from its origin, from
-        the wrist torque held still where it is and after each of ``tilts`` (trajectories tilting the hand in
-        place: an object held leaning needs a second reading)."""
-
-    def shake(self, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) -> Any:
-        """Shake the lifted object: ``cycles`` swings of ``period`` s between the arm configurations ``ends``;
-        returns a reading with ``rattles`` (loose contents inside) and ``peak`` (N, the wrist force its rigid
-        motion does not explain)."""
+    def finger_contacts(self, obj_id: int) -> Iterator[tuple[int, Any, np.ndarray]]:
+        """Each live contact between the object and a geom of either finger (its pads and every colliding geom
+        that moves with them): ``(side, contact, force)`` with side 0 left, 1 right, the MuJoCo contact
+        (``pos``, ``dist``, ``frame``) and the normal force (N, world frame) with which the finger presses the
+        object there; the object presses back with its opposite."""
 
     # ---- snapshots and the scene graph
     def snapshot(self) -> Any: ...

@@ -145,6 +145,12 @@ class PrimitiveAction(ABC):
     measures: ClassVar[str | None] = None
     # The unit of that measurement ("g", "N/m"), for reports; "" where it has none.
     measure_unit: ClassVar[str] = ""
+    # The measuring procedure itself, ``reading(env, ...)`` (a ``staticmethod``), for a primitive that measures: what
+    # ``execute`` calls once it has checked that there is something to measure; written against the environment's
+    # sensing members, as the built-in ones are (``muble_plugins.primitives.measure``, ``.handling``). The
+    # deprecated ``Environment.<name>()`` of the earlier API forwards to it. None for a primitive that measures
+    # nothing.
+    reading: ClassVar[Any] = None
 
     def __init__(self, **params: Any) -> None:
         from muble.core.params import specs

@@ -26,6 +26,10 @@ FRICTION_PRIORITY = 1
 # each other only (the world's geoms use bit 1), so the contents rattle between the walls inside the container's
 # solid collision parts. Nothing outside the container ever touches them, so planning leaves them out.
 CONTENTS_COLLISION_CLASS = 2
+# The least cosine between a jaw contact's normal and that jaw's closing direction for the contact to set how far
+# the jaw has advanced into the object (60 degrees): the jaw contact law presses with the penetration of each jaw's
+# deepest such point (``muble.sim.jaw_contact``), and squeezing reads the jaw's travel there.
+JAW_SQUARE = 0.5
 
 _NAME_RE = re.compile(r"^obj(\d+)(?:_|$)")
 

@@ -4,20 +4,21 @@ from __future__ import annotations
 
 import copy
 import logging
+import warnings
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import mujoco
 import numpy as np
 
 from muble.core.errors import ConfigError, PhysicsError, unknown_name
-from muble.core.environment import TableTop
+from muble.core.environment import GRAVITY, TableTop
 from muble.core.interfaces import MotionPlanner, Sensor
 from muble.core.object_physics import CONTENTS_COLLISION_CLASS
 from muble.core.objects import ObjectModel
 from muble.core.scene import SceneGraph
 from muble.core.types import Outcome, Pose, Trajectory
-from muble.sim import measure, probing, sync
+from muble.sim import sync
 from muble.sim.collision_world import MujocoCollisionWorld
 from muble.sim.control import OSC_OUTPUT_MAX, ArmServos, OperationalSpace, gripper_endpoints
 from muble.sim.faults import FaultDetector
@@ -151,7 +152,8 @@ class TabletopEnv:
         # (the reading less the hand's modelled weight); None for a perfect sensor, which has none.
         self.wrist_zero: np.ndarray | None = None
         # Measured values per scene id ({"weight": g, "stiffness": N/m, "friction", "com_offset": [x, y] mm,
-        # "rattles": bool}), filled by muble.sim.measure and muble.sim.probing.
+        # "rattles": bool}), filled by the measuring primitives' readings (muble_plugins.primitives.measure and
+        # .handling for the built-in ones).
         self.measurements: dict[int, dict[str, float]] = {}
         self.planner: MotionPlanner | None = None  # the run's planner for long moves (the episode runner sets it)
         self.cache: dict[str, Any] = {}  # what plugins compute once per environment (Environment.cache)
@@ -425,30 +427,6 @@ class TabletopEnv:
             world.hold(self.names.objects[self.held_object])
         return world
 
-    def weigh(self, record: bool = True) -> float:
-        """Weight in grams of the object in the hand (``muble.sim.measure.weigh``); needs a tare. Recorded in
-        ``measurements`` unless ``record`` is false."""
-        return measure.weigh(self, record=record)
-
-    def squeeze(self) -> float:
-        """Stiffness (N/m) of the object between the fingers (``muble.sim.measure.squeeze``)."""
-        return measure.squeeze(self)
-
-    def push(self, strokes, steady: tuple[float, float], weight_g: float | None = None) -> probing.PushReading:
-        """Friction coefficient of the held object on the table, pushed along it by the ``(trajectory,
-        direction)`` strokes (``muble.sim.probing.push``), its weight ``weight_g`` (default: the measured one)."""
-        return probing.push(self, strokes, steady, weight_g)
-
-    def balance(self, tilts=()) -> np.ndarray:
-        """Horizontal offset (m, object frame) of the lifted object's centre of mass from its origin, read held
-        still and after each of ``tilts`` (``muble.sim.probing.balance``)."""
-        return probing.balance(self, tilts)
-
-    def shake(self, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) -> probing.ShakeReading:
-        """Shake the lifted object between two arm configurations; whether it rattles
-        (``muble.sim.probing.shake``)."""
-        return probing.shake(self, ends, period, cycles)
-
     def apply_force(self, obj_id: int, force: np.ndarray, point: np.ndarray | None = None,
                     torque: np.ndarray | None = None) -> None:
         """Apply ``force`` (N, world frame) to the object at ``point`` (world; default its centre of mass), and a
@@ -465,6 +443,56 @@ class TabletopEnv:
             moment = moment + np.asarray(torque, dtype=float)
         self.data.xfrc_applied[body, :3] = force
         self.data.xfrc_applied[body, 3:] = moment
+
+    # ------------------------------------------------------------------------------------------------ sensing
+    @property
+    def pad_side(self) -> np.ndarray:
+        """geom id -> 1 left pad, 2 right pad, 0 any other geom (read only)."""
+        return self.grasp.pad_side
+
+    def closing_axes(self) -> np.ndarray | None:
+        """Unit vectors (2, 3) in which the left and the right pads close now (the jaw contact law's), or None."""
+        axes = self.grasp.jaws.closing_axes(self.data)
+        return None if axes is None else np.array([axes[1], axes[2]])
+
+    def finger_contacts(self, obj_id: int) -> Iterator[tuple[int, Any, np.ndarray]]:
+        """Each contact between ``obj_id`` and a finger's geom: (side 0 left / 1 right, the contact, the normal
+        force with which the finger presses the object there, a world vector; the object pushes back with its
+        opposite)."""
+        model, data = self.model, self.data
+        sides, geom_object = self.grasp.jaws.jaw_side, self.grasp.geom_object
+        wrench = np.zeros(6)
+        for i in range(data.ncon):
+            c = data.contact[i]
+            for finger, other, sign in ((c.geom1, c.geom2, 1.0), (c.geom2, c.geom1, -1.0)):
+                side = sides[finger]
+                if side and geom_object[other] == obj_id:
+                    mujoco.mj_contactForce(model, data, i, wrench)
+                    # contact frame row 0 is the normal, pointing from geom1 to geom2; force on geom2 is +normal
+                    yield side - 1, c, sign * wrench[0] * c.frame[:3]
+
+    def _hand_wrench(self) -> tuple[np.ndarray, np.ndarray]:
+        """Force (N) and torque (N·m, about the wrist sensor's site) with which the arm holds up the hand's own
+        weight, world frame: the hand body's subtree (fingers included, the held object not) from the robot's
+        model."""
+        model, data = self.model, self.data
+        hand = model.body(self.names.hand_body).id
+        weight = np.array([0.0, 0.0, float(model.body_subtreemass[hand]) * GRAVITY])
+        lever = data.subtree_com[hand] - data.site_xpos[self.ft_site_id]
+        return weight, np.cross(lever, weight)
+
+    def load_wrench(self) -> tuple[np.ndarray, np.ndarray]:
+        """The wrist force and torque (world frame, torque about the sensor's site) less the hand's own weight: what
+        the held object (and anything it rests on or pushes) puts on the hand. Poses and sensor readings are those
+        of the last physics step's start, so they belong together. A noisy sensor's offset as the last tare read it
+        (``wrist_zero``, in the sensor's frame) is taken off too: its drift since that tare is what remains."""
+        force, torque = self.wrist_wrench()
+        hand_force, hand_torque = self._hand_wrench()
+        zero = self.wrist_zero
+        if zero is not None:
+            rot = self.data.site_xmat[self.ft_site_id].reshape(3, 3)
+            force, torque = force - rot @ zero[:3], torque - rot @ zero[3:]
+        return force - hand_force, torque - hand_torque
 
     def wrist_wrench(self) -> tuple[np.ndarray, np.ndarray]:
         """Force (N) and torque (N·m) that the arm exerts on the hand, in the world frame, as the wrist sensor
@@ -488,7 +516,7 @@ class TabletopEnv:
             error = self._wrist_noise.zero_error(self.data.time)
             force = rot @ (self.data.sensordata[self.force_adr:self.force_adr + 3] + error[:3])
             torque = rot @ (self.data.sensordata[self.torque_adr:self.torque_adr + 3] + error[3:])
-            hand_force, hand_torque = probing.hand_wrench(self)
+            hand_force, hand_torque = self._hand_wrench()
             self.tare_force = force
             self.wrist_zero = np.concatenate([rot.T @ (force - hand_force), rot.T @ (torque - hand_torque)])
         return self.tare_force
@@ -541,6 +569,30 @@ class TabletopEnv:
 
     def close(self) -> None:
         """Nothing to release (no GL context is opened here); kept for symmetry with renderers."""
+
+    # ------------------------------------------------------------------------------------------------ deprecated
+    def __getattr__(self, name: str) -> Any:
+        """Deprecated: ``env.<primitive>(...)`` for a registered primitive that declares its ``reading`` (the
+        built-in ``weigh``, ``squeeze``, ``push``, ``balance``, ``shake``) calls that reading on this environment,
+        with a ``DeprecationWarning`` that names it. The environment named these readings before they moved into
+        the primitives; the forward goes with the next minor release."""
+        if name.startswith("_"):
+            raise AttributeError(name)
+        from muble.plugins.registry import get_registry
+
+        registry = get_registry()
+        primitive = registry.get("primitive", name).record.factory if name in registry.names("primitive") else None
+        reading = getattr(primitive, "reading", None)
+        if reading is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        where = f"{reading.__module__}.{reading.__qualname__}"
+        warnings.warn(f"Environment.{name}() is deprecated: the reading moved to the '{name}' primitive; call "
+                      f"{where}(env, ...) instead", DeprecationWarning, stacklevel=2)
+
+        def forward(*args: Any, **kwargs: Any) -> Any:
+            return reading(self, *args, **kwargs)
+
+        return forward
 
 
 # The robot settings used where none are given: the defaults of the ``robot`` config schema (muble.app.config), and

@@ -30,12 +30,14 @@ import logging
 import mujoco
 import numpy as np
 
+from muble.core.object_physics import JAW_SQUARE
 from muble.sim.object_mjcf import CONTACT_IMPEDANCE, MAX_ACCEL_STIFFNESS, stiffness_of_solref
 
 logger = logging.getLogger(__name__)
 
-# A contact sets its jaw's penetration only if its normal is within 60 degrees of the jaw's closing direction.
-SQUARE = 0.5
+# A contact sets its jaw's penetration only if its normal is within 60 degrees of the jaw's closing direction
+# (shared with squeezing, which reads the jaw's travel where the law presses).
+SQUARE = JAW_SQUARE
 
 
 def finger_geom_sides(model: mujoco.MjModel, pad_geoms_by_side: dict[int, list[str]],

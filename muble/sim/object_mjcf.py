@@ -39,7 +39,7 @@ Cavity walls and contents are in group 3 too and meet each other only (``contype
 Contact stiffness
 -----------------
 Ground truth ``ObjectModel.stiffness`` K (N/m) is the stiffness a jaw feels: the force one finger presses with per
-metre of its penetration into the object (what ``muble.sim.measure.squeeze`` measures). MuJoCo's direct
+metre of its penetration into the object (what the ``squeeze`` primitive measures). MuJoCo's direct
 ``solref = (-k, -b)`` gives each contact point the reference acceleration ``a_ref = -(b/d)·v - (k/d²)·d·r`` and the
 regulariser ``R = (1-d)/d · A`` (``d`` the impedance from ``solimp``, ``A`` the diagonal approximation of the
 contact's inverse mass: the sum of both bodies' ``body_invweight0``). At rest ``R·f = a_ref``, so one contact point
@@ -200,7 +200,7 @@ CONTENTS_WALL = 0.003  # m: thickness of the cavity's walls, all inside the cont
 CONTENTS_RADIUS = 0.01  # m: the ball's radius at most; smaller in a narrow cavity (``CONTENTS_FILL``)
 CONTENTS_FILL = 0.4  # the ball's radius at most this share of the cavity's smallest half extent
 # Crisp contacts (2.5 steps' time constant, critically damped) between the ball and the walls: each impact is a
-# short force spike on the container, which the wrist sensor sees while shaking (``muble.sim.probing.shake``).
+# short force spike on the container, which the wrist sensor sees while shaking (the ``shake`` primitive).
 CONTENTS_SOLREF = (0.005, 1.0)
 
 

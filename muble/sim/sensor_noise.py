@@ -30,8 +30,8 @@ import numpy as np
 from muble.core import streams
 from muble.core.ranges import bounded, configured
 
-# s of the sensor's output a tare averages: as long as weighing's reading window (``muble.sim.measure.WEIGH_WINDOW``),
-# so that the tare's white noise is as small as the reading's.
+# s of the sensor's output a tare averages: as long as weighing's reading window (``WEIGH_WINDOW`` of the weigh
+# primitive's reading, muble_plugins.primitives.measure), so that the tare's white noise is as small as the reading's.
 TARE_WINDOW = 0.2
 # Slack on a sample index computed from the simulated time, which accumulates physics steps in floating point: a
 # time meant to fall on a sample's start lands a few ulps either side of it.

@@ -217,8 +217,8 @@ ROBOTIQ_TORQUE = 1.0
 # s, time constant of the joint equalities that close the Robotiq 85's four-bar linkage (robosuite's tendon
 # replaced, see _couple_linkage_fingers). The linkage gives: a pad tilts by ~1.3 mrad per 5 N (30 um from one end
 # of the pad to the other, as much as a 70-110 kN/m glass or mug yields to the same 5 N), which squeeze allows for
-# (measure.jaw_travel). Stiffer, 0.006 s, halved the tilt but the fingers then closed on nothing at a bowl's rim
-# (tests/tasks/test_tasks_oracle_physics.py, stack_order on the original stage).
+# (muble_plugins.primitives.measure.jaw_travel). Stiffer, 0.006 s, halved the tilt but the fingers then closed on
+# nothing at a bowl's rim (tests/tasks/test_tasks_oracle_physics.py, stack_order on the original stage).
 LINKAGE_TIMECONST = 0.01
 
 

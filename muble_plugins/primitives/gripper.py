@@ -1,4 +1,5 @@
-"""Gripper and measurement primitives: close (grasp), open (release), weigh, squeeze."""
+"""Gripper and measurement primitives: close (grasp), open (release), weigh, squeeze (their readings:
+``muble_plugins.primitives.measure``)."""
 from __future__ import annotations
 
 import logging
@@ -7,6 +8,7 @@ from muble import ActionResult, Param, PrimitiveAction, SceneGraph
 from muble.core.observation import MEASURED_STIFFNESS
 from muble.core.symbolic import CARRIED_TO, ArmState, set_flag
 
+from muble_plugins.primitives import measure as readings
 from muble_plugins.primitives import tolerances as tol
 
 logger = logging.getLogger(__name__)
@@ -84,7 +86,8 @@ class OpenGripper(PrimitiveAction):
 
 class _HeldMeasurement(PrimitiveAction):
     """A measurement of the object in the hand: fails with ``empty_hand`` when nothing is held, or with what
-    ``unmeasurable`` says; otherwise returns what ``measure`` reads, in ``measure_unit``."""
+    ``unmeasurable`` says; otherwise returns what ``measure`` reads, in ``measure_unit``. ``reading`` is the
+    measuring procedure itself (``reading(env, ...)``), which ``measure`` calls."""
 
     params = ()
     empty_hand = "nothing in the hand to measure"
@@ -111,6 +114,7 @@ class Weigh(_HeldMeasurement):
 
     measures = "weight"
     measure_unit = "g"
+    reading = staticmethod(readings.weigh)
     empty_hand = "nothing in the hand to weigh: pick an object up first"
 
     def unmeasurable(self, env) -> str | None:
@@ -120,7 +124,7 @@ class Weigh(_HeldMeasurement):
         return None
 
     def measure(self, env) -> float:
-        return env.weigh()
+        return readings.weigh(env)
 
     def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
         """The lifted object's weight is known: its ground truth, recorded as measured (``SceneObject.weight``)."""
@@ -137,10 +141,11 @@ class Squeeze(_HeldMeasurement):
 
     measures = "stiffness"
     measure_unit = "N/m"
+    reading = staticmethod(readings.squeeze)
     empty_hand = "nothing between the fingers to squeeze: grasp an object first"
 
     def measure(self, env) -> float:
-        return env.squeeze()
+        return readings.squeeze(env)
 
     def symbolic_effect(self, scene: SceneGraph) -> ActionResult:
         """The grasped object's stiffness is known (lifted or still standing on its support, as in ``execute``):

@@ -2,8 +2,8 @@
 coefficient on the table), ``balance`` (its centre of mass) and ``shake`` (whether loose contents rattle inside).
 
 Each plans its motion here (straight hand moves, checked against the collision world with the object carried) and
-leaves the reading to the environment (``Environment.push``, ``balance``, ``shake``), which reads the wrist sensor.
-docs/physical_properties.md gives the physics and the accuracy measured.
+takes its reading with ``muble_plugins.primitives.handling`` (``push``, ``balance``, ``shake``), which reads the
+wrist sensor through the environment API. docs/physical_properties.md gives the physics and the accuracy measured.
 """
 from __future__ import annotations
 
@@ -19,6 +19,8 @@ from muble.core.params import argument
 from muble.core.symbolic import ArmState
 from muble.stage.geometry import tilt_deg
 from muble_plugins.primitives import context as ctx
+from muble_plugins.primitives import handling
+from muble_plugins.primitives import measure as measuring
 from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import ATTEMPT, rotated
 from muble_plugins.primitives.gripper import GRIPPER_SETTLE, close_on_object
@@ -96,6 +98,7 @@ class Push(PrimitiveAction):
               ATTEMPT)
     measures = "friction"
     measure_unit = ""
+    reading = staticmethod(handling.push)
 
     def execute(self, env) -> ActionResult:
         held = env.held_object
@@ -116,7 +119,7 @@ class Push(PrimitiveAction):
         distance = max(bounds["distance"], float(argument(self, "distance")) * retry)
         speed = max(bounds["speed"], float(argument(self, "speed")) * retry)
         direction, strokes = self._plan(env, distance, speed, attempt)
-        reading = env.push(strokes, (PUSH_SPEED_UP, distance - PUSH_SLOW_DOWN), grams)
+        reading = handling.push(env, strokes, (PUSH_SPEED_UP, distance - PUSH_SLOW_DOWN), grams)
         info = {"object": held, "direction": direction[:2].tolist(), "normal_force": reading.normal,
                 "samples": reading.samples}
         if env.held_object != held:
@@ -127,6 +130,9 @@ class Push(PrimitiveAction):
         if not np.isfinite(reading.friction) or reading.normal <= 0:
             return ActionResult(False, info=info, failure_reason=f"object {held} did not slide on the table while "
                                                                  "pushed (it was lifted off it)")
+        # Recorded only now that the push is known to have read a steady slide of the object still in the hand: a
+        # push that failed leaves no reading behind.
+        env.measurements.setdefault(held, {})[self.measures] = reading.friction
         return ActionResult(True, measurement=reading.friction, info=info)
 
     def _plan(self, env, distance: float, speed: float, attempt: int = 0):
@@ -212,7 +218,7 @@ def _weigh_where_it_stands(env, obj_id: int) -> tuple[float | None, str | None]:
     env.follow(planner.plan(env.arm_q(), up, world), settle=tol.STEP_SETTLE)
     if env.held_object != obj_id or not env.is_lifted(obj_id):
         return None, f"object {obj_id} did not come off the table in the hand to be weighed before the push"
-    grams = env.weigh(record=False)
+    grams = measuring.weigh(env, record=False)
     down = PoseGoal(Pose(pose.pos - [0.0, 0.0, PUSH_PRESS], pose.quat), *PUSH_SET_DOWN_TOLERANCE)
     env.follow(planner.plan(env.arm_q(), down, world), settle=tol.STEP_SETTLE)
     return grams, _settle_on_table(env, obj_id)
@@ -285,10 +291,11 @@ class Balance(_LiftedReading):
     measures = "com_offset"
     measure_unit = "mm"
     action = "balance"
+    reading = staticmethod(handling.balance)
 
     def read(self, env, held: int) -> ActionResult:
         tilts = _tilts(env, held)
-        offset = env.balance(tilts)
+        offset = handling.balance(env, tilts)
         return ActionResult(True, measurement=[round(float(v) * 1000.0, 2) for v in offset],
                             info={"object": held, "unit": "mm", "readings": 1 + len(tilts)})
 
@@ -311,7 +318,7 @@ BALANCE_AXES = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 
 
 def _tilts(env, held: int) -> list:
-    """Trajectories that tilt the hand in place and back again, for ``Environment.balance``'s second reading of an
+    """Trajectories that tilt the hand in place and back again, for ``handling.balance``'s second reading of an
     object held leaning (``BALANCE_LEAN``); none for one held upright, or where no tilt can be planned."""
     quat = env.object_pose(held).quat
     lean = tilt_deg(quat)
@@ -355,12 +362,12 @@ class Shake(_LiftedReading):
     measures = "rattles"
     measure_unit = ""
     action = "shake"
+    reading = staticmethod(handling.shake)
 
     def read(self, env, held: int) -> ActionResult:
         amplitude = float(argument(self, "amplitude"))
         direction, ends = self._ends(env, amplitude)
-        reading = env.shake(ends, float(argument(self, "period")),
-                            int(argument(self, "cycles")))
+        reading = handling.shake(env, ends, float(argument(self, "period")), int(argument(self, "cycles")))
         info = {"object": held, "direction": direction[:2].tolist(), "peak_force": reading.peak}
         if env.held_object != held:
             return ActionResult(False, info=info, failure_reason=f"object {held} slipped out of the hand while "

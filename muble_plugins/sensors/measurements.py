@@ -1,4 +1,5 @@
-"""Measured physical properties: the last weight and stiffness measured per object (``muble.sim.measure``)."""
+"""Measured physical properties: the last weight and stiffness measured per object (the readings of ``weigh`` and
+``squeeze``, ``muble_plugins.primitives.measure``)."""
 from __future__ import annotations
 
 from typing import Any
@@ -15,7 +16,7 @@ class Weight(Sensor):
 
 class Stiffness(Sensor):
     """Stiffness in N/m, by scene id, of every object squeezed so far this episode: the slope of jaw force against
-    finger travel from ``muble.sim.measure.squeeze`` (force per metre one jaw penetrates the object)."""
+    finger travel from the ``squeeze`` primitive's reading (force per metre one jaw penetrates the object)."""
 
     def read(self, env) -> dict[str, Any]:
         return {i: m["stiffness"] for i, m in env.measurements.items() if "stiffness" in m}

@@ -1,6 +1,7 @@
 """The layering of ``muble`` (see docs/architecture.md): imports run one way, there are no import circles (among
 the modules of ``muble`` and the built-in plugins together), no plugin imports another's private names, and the
-core names no built-in plugin.
+core names no built-in plugin: neither as a name it asks the registry for nor as a function or method it defines
+(the environment has no ``weigh``: the primitive takes its reading through the environment's sensing API).
 
 Every ``import`` is read from the whole source with ``ast`` (those inside functions too), so a lazy import cannot
 hide a wrong direction or close a circle at run time. To allow something, add one line to a table below, with the
@@ -62,6 +63,15 @@ NAME_EXCEPTIONS: dict[tuple[str, str], str] = {
     **{("muble/io/action_names.py", n): _ORIGINAL for n in ("approach", "close_gripper", "lift", "lower",
                                                             "open_gripper")},
 }
+
+# Functions and methods of ``muble/`` named like a built-in primitive: (file, name) -> why. A measuring primitive's
+# procedure lives in the primitive, written against the environment's generic sensing members, so that a package
+# can add one; the environment may not know it.
+_ACTUATOR = ("the finger actuators' command, which every primitive that moves the fingers sends; the primitive of "
+             "that name also waits for the fingers and checks the grasp")
+DEFINITION_EXCEPTIONS: dict[tuple[str, str], str] = {
+    (f, n): _ACTUATOR for f in ("muble/core/environment.py", "muble/sim/env.py") for n in ("open_gripper",
+                                                                                         "close_gripper")}
 
 
 def _module(path: Path) -> str:
@@ -246,6 +256,35 @@ def builtin_plugin_names() -> set[str]:
             if getattr(p.record.factory, "__module__", "").startswith("muble_plugins")}
 
 
+def builtin_primitive_names() -> set[str]:
+    """The names of the primitives the built-in plugins register."""
+    from muble.plugins.registry import get_registry
+
+    return {name for name in get_registry().names("primitive")
+            if getattr(get_registry().get("primitive", name).record.factory, "__module__", "").startswith(
+                "muble_plugins")}
+
+
+def primitive_definitions(files: list[Path], names: set[str]) -> list[str]:
+    """Functions, methods and class attributes of the files named like one of ``names`` (built-in primitives),
+    less ``DEFINITION_EXCEPTIONS``."""
+    out = []
+    for path in files:
+        rel = str(path.relative_to(ROOT))
+        defined = []
+        for node in ast.walk(_tree(path)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                defined.append((node.lineno, node.name))
+            elif isinstance(node, ast.ClassDef):
+                defined += [(n.lineno, t.id) for n in node.body if isinstance(n, (ast.Assign, ast.AnnAssign))
+                            for t in (n.targets if isinstance(n, ast.Assign) else [n.target])
+                            if isinstance(t, ast.Name)]
+        out += [f"{rel}:{line}: {name!r} is a built-in primitive: its procedure belongs in the primitive, written "
+                "against the environment's sensing API (docs/plugins.md)"
+                for line, name in sorted(defined) if name in names and (rel, name) not in DEFINITION_EXCEPTIONS]
+    return out
+
+
 KINDS = ("renderer", "planner", "primitive", "sensor", "task", "object_set", "objects", "agent")
 
 
@@ -348,6 +387,29 @@ def test_the_core_names_no_builtin_plugin():
     assert {"mujoco", "weigh", "shopvrb2", "oracle"} <= names  # the names are read from the registry
     found = name_violations(_files("muble"), names)
     assert not found, "\n".join(found)
+
+
+def test_the_core_defines_nothing_named_after_a_builtin_primitive():
+    names = builtin_primitive_names()
+    assert {"weigh", "squeeze", "push", "balance", "shake", "open_gripper"} <= names  # read from the registry
+    found = primitive_definitions(_files("muble"), names)
+    assert not found, "\n".join(found)
+    # Each exception still excuses a definition.
+    for rel, name in DEFINITION_EXCEPTIONS:
+        assert any(isinstance(n, ast.FunctionDef) and n.name == name for n in ast.walk(_tree(ROOT / rel))), \
+            f"remove ({rel!r}, {name!r}) from DEFINITION_EXCEPTIONS: nothing there is named so"
+
+
+def test_the_environment_has_no_member_named_after_a_builtin_primitive():
+    """The plugins' environment (the core protocol) and its implementation, members inherited or assigned
+    included: a reading that comes back as ``Environment.weigh`` fails here."""
+    from muble.core.environment import Environment
+    from muble.sim.env import TabletopEnv
+
+    allowed = {name for _, name in DEFINITION_EXCEPTIONS}
+    for cls in (Environment, TabletopEnv):
+        found = sorted((set(dir(cls)) & builtin_primitive_names()) - allowed)
+        assert not found, f"{cls.__module__}.{cls.__qualname__} has {found}: take the reading in the primitive"
 
 
 def test_every_package_of_muble_has_a_layer():
@@ -535,6 +597,21 @@ def test_a_plugin_name_used_as_one_is_found(tree):
     found = plugin_name_uses(path, {"move", "lift", "shopvrb2", "mujoco", "weigh", "ompl"})
     assert sorted(found) == [(1, "lift"), (1, "move"), (2, "shopvrb2"), (3, "mujoco"), (4, "weigh"),
                              (6, "shopvrb2"), (8, "ompl")]
+
+
+def test_a_definition_named_after_a_primitive_is_found(tree):
+    path = tree("muble/sim/bad.py", "class Env:\n    def weigh(self):\n        pass\n    shake = None\n"
+                                    "    def open_gripper(self):\n        pass\n"
+                                    "def balance(env):\n    pass\n"
+                                    "def hold(env):\n    pass\n")
+    found = primitive_definitions([path], {"weigh", "shake", "balance", "open_gripper"})
+    why = "is a built-in primitive: its procedure belongs in the primitive, written against the environment's " \
+          "sensing API (docs/plugins.md)"
+    assert found == [f"muble/sim/bad.py:2: 'weigh' {why}", f"muble/sim/bad.py:4: 'shake' {why}",
+                     f"muble/sim/bad.py:5: 'open_gripper' {why}", f"muble/sim/bad.py:7: 'balance' {why}"]
+    # The environment's own actuator commands are excused by name and file only.
+    other = tree("muble/sim/env.py", "class Env:\n    def open_gripper(self):\n        pass\n")
+    assert primitive_definitions([other], {"open_gripper"}) == []
 
 
 def test_the_architecture_picture_is_the_code_s():

@@ -4,7 +4,7 @@ import pytest
 from muble.core.errors import ConfigError, PhysicsError
 from muble.core.types import Outcome, Trajectory
 from muble.sim.env import TabletopEnv
-from muble.sim.measure import weigh
+from muble_plugins.primitives.measure import weigh
 from tests.sim.conftest import drive_to, pick
 
 

@@ -161,6 +161,27 @@ def test_sim_push_reads_the_friction_coefficient_weighing_first_where_no_weight_
     assert retried.measurement == pytest.approx(0.4, rel=0.1)
 
 
+def test_sim_a_push_that_loses_the_object_fails_and_leaves_no_friction_reading(object_set):
+    """The fingers open half-way through the first stroke (a disturbance, run after every control step): the
+    wrist is still read over the steady stretch of both strokes, so the reading has a finite coefficient, but the
+    object is no longer in the hand. The push fails, and no friction coefficient is left in the measurements."""
+    mug = _sampled(object_set, "mug", 1, friction_coefficient=0.85)
+    env = _picked(mug, lift=False)
+    start = env.ee_pose().pos.copy()
+
+    def let_go(e):
+        if e.held_object is not None and np.linalg.norm(e.ee_pose().pos[:2] - start[:2]) > 0.04:
+            e.open_gripper()
+
+    env.control_listeners.append(let_go)
+    result = _act(env, "push", direction=[0.0, 1.0])
+    assert not result.success and "slipped out of the hand" in result.failure_reason, result
+    # A reading was taken (the hand pushed along the table, which carried the weight), and is left unrecorded.
+    assert result.info["samples"] > 0 and result.info["normal_force"] > 0, result.info
+    assert "friction" not in env.measurements.get(0, {}), env.measurements
+    assert "friction_measured" not in env.sync_scene_graph().object(0).extra
+
+
 @pytest.mark.parametrize("category, gripper", [("glass", None), ("bowl", "Robotiq85Gripper")])
 def test_sim_balance_reads_the_centre_of_mass(object_set, category, gripper):
     offset = np.array([0.011, -0.017]) if category == "bowl" else np.array([-0.008, 0.006])

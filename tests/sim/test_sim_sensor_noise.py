@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from muble.core import streams
+from muble.core.environment import GRAVITY
 from muble.sim.env import TabletopEnv
-from muble.sim.measure import GRAVITY, WEIGH_SETTLE, WEIGH_WINDOW, weigh
 from muble.sim.sensor_noise import TARE_WINDOW, WristNoise, WristSensorNoise
+from muble_plugins.primitives.measure import WEIGH_SETTLE, WEIGH_WINDOW, weigh
 
 from tests.sim.conftest import drive_to
 

@@ -3,7 +3,7 @@ import pytest
 
 import muble
 from muble.sim.env import TabletopEnv
-from muble.sim.measure import weigh
+from muble_plugins.primitives.measure import weigh
 from tests.sim.conftest import pick
 
 SENSORS = ["wrist_ft", "gripper", "ee_pose", "joints", "objects", "weight", "stiffness"]

@@ -5,7 +5,7 @@ import pytest
 import muble
 from muble.core.errors import PhysicsError
 from muble.sim.env import TabletopEnv
-from muble.sim.measure import squeeze
+from muble_plugins.primitives.measure import squeeze
 from tests.sim.conftest import pick
 
 REPEATS = 5

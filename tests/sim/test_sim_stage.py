@@ -89,7 +89,7 @@ def test_unknown_stages_are_named_with_the_valid_ones(scene_models):
 
 def test_the_original_stage_grasps_and_lifts_with_its_robotiq(scene_models):
     """The oracle's pick works on the original stage: an object rises with the hand and the weight is measured."""
-    from muble.sim.measure import weigh
+    from muble_plugins.primitives.measure import weigh
     from tests.sim.conftest import pick
 
     scene, models = scene_models

@@ -1,12 +1,14 @@
-"""Measurements by handling an object: friction from pushing it along the table, its centre of mass from holding it
-still in the air, loose contents from shaking it.
+"""The readings of ``push``, ``balance`` and ``shake``, measurements by handling an object: friction from pushing it
+along the table, its centre of mass from holding it still in the air, loose contents from shaking it.
 
-Like ``muble.sim.measure`` (weight, stiffness), each reads what the simulated hardware reports: the wrist
-force/torque sensor, the arm's own state (its joints, hence its hand's pose and acceleration) and the object's pose
-as a camera sees it; none looks at the object's modelled values. The hand's own weight is taken off the wrist
-reading with the robot's model of its hand (mass and centre of mass at the fingers' current positions), the tool
-compensation of a real force/torque sensor; an averaged reading with the empty hand would do the same, but the
-fingers then stand elsewhere, and on the Panda that moves the hand's centre of mass by millimetres. See
+Like ``muble_plugins.primitives.measure`` (weight, stiffness), each reads what the simulated hardware reports,
+through the environment API alone (``muble.core.environment.Environment``): the wrist force/torque sensor, the
+arm's own state (its joints, hence its hand's pose and acceleration) and the object's pose as a camera sees it;
+none looks at the object's modelled values. The wrist is read as ``Environment.load_wrench`` gives it: less the
+hand's own weight from the robot's model of its hand (mass and centre of mass at the fingers' current positions),
+the tool compensation of a real force/torque sensor; an averaged reading with the empty hand would do the same,
+but the fingers then stand elsewhere, and on the Panda that moves the hand's centre of mass by millimetres. The
+primitives (``muble_plugins.primitives.probing``) plan the motions and call these. See
 docs/physical_properties.md for the physics and the accuracy measured.
 """
 from __future__ import annotations
@@ -17,8 +19,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from muble.core.environment import GRAVITY
 from muble.core.errors import PhysicsError
-from muble.sim.measure import GRAVITY
 from muble.stage.geometry import tilt_deg
 
 logger = logging.getLogger(__name__)
@@ -35,34 +37,10 @@ HEIGHT_PRIOR = 0.01
 # off: a solid or an empty container leaves a few hundredths of a newton, a ball of 10 g or more rattling inside
 # several tenths (docs/physical_properties.md has the figures).
 RATTLE_FORCE = 0.2
-# A noisy wrist sensor (``muble.sim.sensor_noise``) scatters every sample by its white noise, and a shake reads
+# A noisy wrist sensor (``Environment.sensor_noise``) scatters every sample by its white noise, and a shake reads
 # several hundred of them on three axes: their largest is about 3.7 times the noise's spread. So a peak counts only
 # above this many times the sensor's stated white noise as well (about one solid shake in 2,000 reads more).
 RATTLE_NOISE_SIGMAS = 5.0
-
-
-def hand_wrench(env) -> tuple[np.ndarray, np.ndarray]:
-    """Force (N) and torque (N·m, about the wrist sensor's site) with which the arm holds up the hand's own
-    weight, world frame: the hand body's subtree (fingers included, the held object not) from the robot's model."""
-    model, data = env.model, env.data
-    hand = model.body(env.names.hand_body).id
-    weight = np.array([0.0, 0.0, float(model.body_subtreemass[hand]) * GRAVITY])
-    lever = data.subtree_com[hand] - data.site_xpos[env.ft_site_id]
-    return weight, np.cross(lever, weight)
-
-
-def load_wrench(env) -> tuple[np.ndarray, np.ndarray]:
-    """The wrist force and torque (world frame, torque about the sensor's site) less the hand's own weight: what
-    the held object (and anything it rests on or pushes) puts on the hand. Poses and sensor readings are those of
-    the last physics step's start, so they belong together. A noisy sensor's offset as the last tare read it
-    (``env.wrist_zero``, in the sensor's frame) is taken off too: its drift since that tare is what remains."""
-    force, torque = env.wrist_wrench()
-    hand_force, hand_torque = hand_wrench(env)
-    zero = getattr(env, "wrist_zero", None)
-    if zero is not None:
-        rot = env.data.site_xmat[env.ft_site_id].reshape(3, 3)
-        force, torque = force - rot @ zero[:3], torque - rot @ zero[3:]
-    return force - hand_force, torque - hand_torque
 
 
 def _held(env) -> int:
@@ -93,7 +71,7 @@ def balance(env, tilts=(), settle: float = BALANCE_SETTLE, window: float = BALAN
 
         def sample():
             nonlocal force, torque, site, count
-            f, t = load_wrench(env)
+            f, t = env.load_wrench()
             force += f
             torque += t
             site += env.data.site_xpos[env.ft_site_id]
@@ -175,12 +153,17 @@ def push(env, strokes, steady: tuple[float, float], weight_g: float | None = Non
     ``N = W - F_z`` (more than ``W`` where the hand presses down). The coefficient is ``mean(F·d) / mean(N)`` over
     the steady samples of the strokes the arm kept up with (``PUSH_LAG``). Held in the hand, the object slides as
     fast as the hand, never faster or by fits and starts, and cannot tip: pushed by a finger it hops on its stiff
-    contacts at every speed, and its friction falls short of the coefficient while it does."""
+    contacts at every speed, and its friction falls short of the coefficient while it does.
+
+    Unlike the other readings, this one records nothing in ``env.measurements``: whether the push counts (the
+    object still in the hand, a steady slide read) is the ``push`` primitive's to decide, and it records the
+    coefficient only then; a push that lost the object leaves no reading behind."""
     obj_id = _held(env)
     grams = weight_g if weight_g is not None else env.measurements.get(obj_id, {}).get("weight")
     if grams is None:
         raise PhysicsError(f"object {obj_id} has no measured weight: weigh it before pushing it")
     weight = float(grams) / 1000.0 * GRAVITY
+    ee_site = env.model.site(env.ee_site).id
     along, normal = [], []
     stalled = 0
     for trajectory, direction in strokes:
@@ -190,10 +173,10 @@ def push(env, strokes, steady: tuple[float, float], weight_g: float | None = Non
 
         def sample(direction=direction, start=start, farthest=farthest, stroke_along=stroke_along,
                    stroke_normal=stroke_normal):
-            travel = float((env.data.site_xpos[env.ee_site_id] - start) @ direction)
+            travel = float((env.data.site_xpos[ee_site] - start) @ direction)
             farthest[0] = max(farthest[0], travel)
             if steady[0] <= travel <= steady[1]:
-                force = load_wrench(env)[0]
+                force = env.load_wrench()[0]
                 stroke_along.append(float(force @ direction))
                 stroke_normal.append(weight - float(force[2]))
 
@@ -212,8 +195,6 @@ def push(env, strokes, steady: tuple[float, float], weight_g: float | None = Non
     friction = float(np.mean(along)) / table if table > 0 else float("nan")
     logger.debug("push object %d: %d samples, friction force %.3f N, normal force %.3f N -> %.3f", obj_id,
                  len(along), np.mean(along), table, friction)
-    if np.isfinite(friction):
-        env.measurements.setdefault(obj_id, {})["friction"] = friction
     return PushReading(friction, table, len(along))
 
 
@@ -256,10 +237,10 @@ def shake(env, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) 
         env.set_arm_target(q0 + ease * np.sin(omega * t) * half, ease * omega * np.cos(omega * t) * half)
 
     body = env.model.body(env.names.objects[obj_id]).id
+    ee_site = env.model.site(env.ee_site).id
 
     def sample():
-        mujoco.mj_objectAcceleration(env.model, env.data, mujoco.mjtObj.mjOBJ_SITE, env.ee_site_id, acceleration,
-                                     0)
+        mujoco.mj_objectAcceleration(env.model, env.data, mujoco.mjtObj.mjOBJ_SITE, ee_site, acceleration, 0)
         mujoco.mj_objectAcceleration(env.model, env.data, mujoco.mjtObj.mjOBJ_BODY, body, held, 0)
         forces.append(env.wrist_wrench()[0].copy())
         accelerations.append(np.concatenate([acceleration, held]))
@@ -268,8 +249,7 @@ def shake(env, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) 
     forces, design = np.array(forces), np.column_stack([np.array(accelerations), np.ones(len(forces))])
     fit = np.linalg.lstsq(design, forces, rcond=None)[0]
     peak = float(np.abs(forces - design @ fit).max())
-    noise = getattr(env, "sensor_noise", None)
-    rattles = peak > max(RATTLE_FORCE, RATTLE_NOISE_SIGMAS * (noise.force_white_n if noise is not None else 0.0))
+    rattles = peak > max(RATTLE_FORCE, RATTLE_NOISE_SIGMAS * env.sensor_noise.force_white_n)
     logger.debug("shake object %d: largest unexplained wrist force %.3f N -> %s", obj_id, peak,
                  "rattles" if rattles else "solid")
     env.measurements.setdefault(obj_id, {})["rattles"] = rattles

@@ -1,19 +1,24 @@
-"""Physical measurements through the robot: weight from the wrist force sensor, stiffness from squeezing.
+"""The readings of ``weigh`` and ``squeeze``: weight from the wrist force sensor, stiffness from squeezing.
 
-Both read what the simulated hardware reports (sensor forces, finger pad positions); neither looks at the ground
-truth stored in the model.
+Both read what the simulated hardware reports (sensor forces, finger pad positions), through the environment API
+alone (``muble.core.environment.Environment``: ``wrist_wrench``, ``advance`` with a per-physics-step callback, the
+pads' geoms and contacts); neither looks at the ground truth stored in the model. The primitives
+(``muble_plugins.primitives.gripper``) check that there is something to measure and call these.
+docs/physical_properties.md gives the physics and the accuracy measured.
 """
 from __future__ import annotations
 
 import logging
 
+import mujoco
 import numpy as np
 
+from muble.core.environment import GRAVITY
 from muble.core.errors import PhysicsError
+from muble.core.object_physics import JAW_SQUARE
 
 logger = logging.getLogger(__name__)
 
-GRAVITY = 9.81
 WEIGH_SETTLE = 0.6  # s of holding still before reading; see docs/environment.md for how it was chosen
 WEIGH_WINDOW = 0.2  # s over which the force is averaged
 
@@ -21,7 +26,7 @@ WEIGH_WINDOW = 0.2  # s over which the force is averaged
 def mean_wrist_force(env, window: float = WEIGH_WINDOW) -> np.ndarray:
     """Wrist force (world frame) averaged over ``window`` seconds while holding, sampled every physics step.
 
-    A held object's jaw contacts chatter at a few hundred hertz: the jaw law (``muble.sim.jaw_contact``) sets
+    A held object's jaw contacts chatter at a few hundred hertz: the jaw contact law sets
     their stiffness once per control step, and the Robotiq 85's linkage rings after each change, so the reading
     swings by up to ±0.4 N (±40 g) within a control period and averages out over it. Sampled once per control
     step, always at the same phase after the change, the mean is off by several grams (a 242.8 g glass reads
@@ -71,7 +76,7 @@ SQUEEZE_SETTLE_MAX = 3.0  # s
 
 def pad_centres(env) -> np.ndarray:
     """World positions (2, 3) of the left and right pad centres: the mean position of each side's pad geoms."""
-    side, xpos = env.grasp.pad_side, env.data.geom_xpos
+    side, xpos = env.pad_side, env.data.geom_xpos
     return np.array([xpos[side == s].mean(axis=0) for s in (1, 2)])
 
 
@@ -79,28 +84,10 @@ def closing_axes(env) -> np.ndarray:
     """Unit vectors (2, 3) in which the left and right pads close: from each side's pad centre towards the other's.
     Any two-sided gripper has pads; its finger joints may slide (Panda) or turn (Robotiq 85's linkage), so no
     joint axis says which way a pad moves."""
-    axes = env.grasp.jaws.closing_axes(env.data)  # the jaw law's own directions
+    axes = env.closing_axes()  # the jaw law's own directions
     if axes is None:
         raise PhysicsError("the two pads' centres coincide: no closing direction to squeeze along")
-    return np.array([axes[1], axes[2]])
-
-
-def _jaw_contacts(env, obj_id: int):
-    """Each contact between ``obj_id`` and a finger's geom: (side 0 left / 1 right, the contact, the normal force
-    with which the finger presses the object there, a world vector; the object pushes back with its opposite)."""
-    import mujoco
-
-    model, data = env.model, env.data
-    sides, geom_object = env.grasp.jaws.jaw_side, env.grasp.geom_object
-    wrench = np.zeros(6)
-    for i in range(data.ncon):
-        c = data.contact[i]
-        for finger, other, sign in ((c.geom1, c.geom2, 1.0), (c.geom2, c.geom1, -1.0)):
-            side = sides[finger]
-            if side and geom_object[other] == obj_id:
-                mujoco.mj_contactForce(model, data, i, wrench)
-                # contact frame row 0 is the normal, pointing from geom1 to geom2; force on geom2 is +normal
-                yield side - 1, c, sign * wrench[0] * c.frame[:3]
+    return axes
 
 
 def jaw_forces(env, obj_id: int, axes: np.ndarray | None = None) -> np.ndarray:
@@ -109,27 +96,27 @@ def jaw_forces(env, obj_id: int, axes: np.ndarray | None = None) -> np.ndarray:
     force sensor in the finger reads."""
     axes = closing_axes(env) if axes is None else axes
     out = np.zeros(2)
-    for k, _, force in _jaw_contacts(env, obj_id):
+    for k, _, force in env.finger_contacts(obj_id):
         out[k] += float(force @ axes[k])
     return out
 
 
 def _hand_frame(env) -> tuple[np.ndarray, np.ndarray]:
     """Position and rotation matrix of the hand body, the fingers' common base (what their encoders measure from)."""
-    hand = env.grasp.hand_body
+    hand = env.model.body(env.names.hand_body).id
     return env.data.xpos[hand], env.data.xmat[hand].reshape(3, 3)
 
 
 def _pad_bodies(env) -> np.ndarray:
     """Body of each side's (first) pad geom: the link whose motion the pad follows."""
-    return np.array([env.model.geom_bodyid[np.flatnonzero(env.grasp.pad_side == s)[0]] for s in (1, 2)])
+    return np.array([env.model.geom_bodyid[np.flatnonzero(env.pad_side == s)[0]] for s in (1, 2)])
 
 
 def pressure_points(env, obj_id: int) -> np.ndarray:
     """Where (world, (2, 3)) ``obj_id`` presses on each jaw: the contact points on that finger's geoms, weighted
     by their normal force; a side without contact gives its pad centre."""
     weighted, total = np.zeros((2, 3)), np.zeros(2)
-    for k, contact, force in _jaw_contacts(env, obj_id):
+    for k, contact, force in env.finger_contacts(obj_id):
         weighted[k] += np.linalg.norm(force) * contact.pos
         total[k] += np.linalg.norm(force)
     out = pad_centres(env)
@@ -141,16 +128,14 @@ def pressure_points(env, obj_id: int) -> np.ndarray:
 def deepest_points(env, obj_id: int) -> np.ndarray:
     """Where (world, (2, 3)) ``obj_id`` is pressed deepest into each jaw along its closing axis: the contact of
     that finger's geoms with the largest depth / cos (cos: between its normal and the closing axis, at least
-    ``jaw_contact.SQUARE``), the penetration the jaw law presses with; a side without such a contact gives its pad
-    centre."""
-    from muble.sim.jaw_contact import SQUARE
-
+    ``muble.core.object_physics.JAW_SQUARE``), the penetration the jaw law presses with; a side without such a
+    contact gives its pad centre."""
     axes = closing_axes(env)
     out, depth = pad_centres(env), np.zeros(2)
-    for k, contact, force in _jaw_contacts(env, obj_id):
+    for k, contact, force in env.finger_contacts(obj_id):
         norm = np.linalg.norm(force)
         cos = float(force @ axes[k]) / norm if norm > 0 else 1.0
-        if cos >= SQUARE and -contact.dist / cos > depth[k]:
+        if cos >= JAW_SQUARE and -contact.dist / cos > depth[k]:
             depth[k], out[k] = -contact.dist / cos, contact.pos
     return out
 
@@ -169,8 +154,6 @@ def finger_closure(env, hand_axes: np.ndarray | None = None, pad_points: np.ndar
     fixed on each side's pad body, in its frame (default: the pad centres now): where the object presses, so that
     a pad that tilts under the load (a linkage's compliance) is read where it sinks in. Recomputes the kinematics
     first: after a physics step the body poses are those at its start, the joint positions those at its end."""
-    import mujoco
-
     model, data = env.model, env.data
     mujoco.mj_kinematics(model, data)
     pos, rot = _hand_frame(env)
@@ -186,8 +169,6 @@ def finger_closure(env, hand_axes: np.ndarray | None = None, pad_points: np.ndar
 def _pad_poses(env) -> tuple[np.ndarray, np.ndarray]:
     """Position (2, 3) and rotation (2, 3, 3) of each side's pad body in the hand's frame, as the fingers' encoders
     would give them. Recomputes the kinematics first (see ``finger_closure``)."""
-    import mujoco
-
     mujoco.mj_kinematics(env.model, env.data)
     pos, rot = _hand_frame(env)
     bodies = _pad_bodies(env)
@@ -216,8 +197,6 @@ def jaw_travel(pad_pos: np.ndarray, pad_rot: np.ndarray, points: np.ndarray, han
 
 
 def _dense(model, data, values, rownnz, rowadr, colind, nrow: int) -> np.ndarray:
-    import mujoco
-
     out = np.zeros((nrow, model.nv))
     if nrow:
         mujoco.mju_sparse2dense(out, values, rownnz[:nrow], rowadr[:nrow], colind)
@@ -229,8 +208,6 @@ def pad_transmission(env) -> float:
     both actuators driven alike: by virtual work, an actuator force f presses each pad with f divided by this.
     1 for the Panda's slide fingers; a linkage (Robotiq 85) has a lever, so its drive's N m are not pad newtons.
     The fingers' free motion is what the equality constraints on their joints (a four-bar's coupling) allow."""
-    import mujoco
-
     model, data = env.model, env.data
     dofs = np.array([model.jnt_dofadr[model.joint(j).id] for j in env.names.gripper_joints])
     nefc = data.nefc
@@ -258,7 +235,7 @@ def pad_transmission(env) -> float:
     jacp = np.zeros((3, model.nv))
     closing = 0.0
     for side in (1, 2):
-        pads = np.flatnonzero(env.grasp.pad_side == side)
+        pads = np.flatnonzero(env.pad_side == side)
         for g in pads:
             mujoco.mj_jac(model, data, jacp, None, data.geom_xpos[g], model.geom_bodyid[g])
             closing += float(jacp @ velocity @ axes[side - 1]) / len(pads)
