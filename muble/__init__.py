@@ -52,6 +52,10 @@ from muble.core.types import (
     Trajectory,
 )
 from muble.plugins import PluginRecord, get_registry, hookimpl
+from muble.plugins import deprecated as _deprecated
+
+# The modules that moved answer to their old names for one minor release, each import warning with the new name.
+_deprecated.install()
 
 __version__ = "0.1.0"
 """MuBlE's version (also in ``pyproject.toml``); manifests record it beside the code revision."""

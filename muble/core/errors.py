@@ -77,6 +77,14 @@ class RenderError(MubleError):
     """A renderer could not produce a frame (no GL context, unknown camera …)."""
 
 
+class MubleDeprecationWarning(DeprecationWarning):
+    """A name of the public API that moved or an interface call that changed is used the old way: it still works
+    for one minor release, and the message names what to use instead (docs/plugins.md, "The public API").
+
+    A ``DeprecationWarning`` like any other; its own class lets the plugin manager name the package that caused it
+    and lets a test turn just these into errors (``-W error::muble.core.errors.MubleDeprecationWarning``)."""
+
+
 def suggest(name: str, valid: list[str] | tuple[str, ...], prefix: str = "") -> str:
     """`` (did you mean 'X'?)`` for the closest valid name, a case-insensitive match first; empty if none.
 

@@ -1,4 +1,5 @@
-"""The seven plugin interfaces. Implementations live in plugins and reach the core only by registry name.
+"""The plugin interfaces, one per plugin kind (``muble.plugins.KINDS``). Implementations live in plugins and reach
+the core only by registry name.
 
 Every optional hook has a documented no-op default, so a plugin overrides only what it needs.
 The environment they receive is ``muble.core.environment.Environment``, the one interface plugins may rely on.
@@ -6,12 +7,16 @@ The environment they receive is ``muble.core.environment.Environment``, the one 
 from __future__ import annotations
 
 import contextlib
+import functools
+import inspect
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from muble.core.errors import MubleDeprecationWarning
 from muble.core.types import (ActionCall, ActionResult, Answer, Frame, JointGoal, Observation, ObservationMode, Outcome,
                               Pose, PoseGoal, Track, Trajectory)
 
@@ -305,6 +310,50 @@ class Agent(ABC):
     @abstractmethod
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
         """The next action, an answer, or ``None`` when the agent considers the task done."""
+
+
+# The keyword arguments ``Agent.reset`` gained after agents were written against ``reset(instruction,
+# observation)``: each runner passes them through ``reset_agent``, which leaves out those an older agent's
+# ``reset`` does not take.
+RESET_KEYWORDS = ("track", "mode")
+
+
+def reset_agent(agent: Agent, instruction: Instruction, observation: Observation, *, track: Track,
+                mode: ObservationMode) -> None:
+    """``agent.reset(instruction, observation, track=track, mode=mode)``, as every runner calls it.
+
+    An agent written for the earlier signature, ``reset(self, instruction, observation)``, is called without the
+    keyword arguments it does not take (with one ``MubleDeprecationWarning`` per agent class naming them), so it
+    still plays its episodes instead of failing each as ``agent_error``. Its ``reset`` is inspected once per
+    class."""
+    keywords = {"track": track, "mode": mode}
+    taken = _reset_keywords(type(agent))
+    agent.reset(instruction, observation, **{k: v for k, v in keywords.items() if taken is None or k in taken})
+
+
+@functools.cache
+def _reset_keywords(cls: type) -> frozenset[str] | None:
+    """The keywords of ``RESET_KEYWORDS`` that ``cls.reset`` takes; None when it takes any (``**kwargs``) or its
+    signature cannot be read. Warns once for a class whose ``reset`` misses some."""
+    try:
+        parameters = inspect.signature(cls.reset).parameters.values()
+    except (TypeError, ValueError):  # a reset written in C or wrapped beyond inspection: call it as documented
+        return None
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        return None
+    by_name = {p.name for p in parameters if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                                                        inspect.Parameter.KEYWORD_ONLY)}
+    missing = [k for k in RESET_KEYWORDS if k not in by_name]
+    if missing:
+        # Reported where the old reset is written, which is what its author has to change.
+        code = getattr(cls.reset, "__code__", None)
+        warnings.warn_explicit(
+            f"{cls.__module__}.{cls.__qualname__}.reset takes no keyword argument "
+            f"{' or '.join(repr(k) for k in missing)}, so MuBlE calls it without: write it as "
+            "reset(self, instruction, observation, *, track=Track.program, mode=ObservationMode.graph) (or add "
+            "**kwargs); the old signature is served until MuBlE 0.2", MubleDeprecationWarning,
+            code.co_filename if code else "<unknown>", code.co_firstlineno if code else 0, module=cls.__module__)
+    return frozenset(by_name & set(RESET_KEYWORDS))
 
 
 class Trainer(ABC):

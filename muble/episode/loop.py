@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
 from muble.core.errors import MubleError, PhysicsError, PlanningError
-from muble.core.interfaces import Agent, Instruction, Task
+from muble.core.interfaces import Agent, Instruction, Task, reset_agent
 from muble.core.observation import agent_instruction
 from muble.core.scene import SceneGraph
 from muble.core.types import ActionCall, ActionResult, Answer, Observation, Outcome, Track
@@ -223,7 +223,7 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
     calls = AgentCalls(decision_timeout)
     try:
         try:
-            calls("agent.reset", lambda: agent.reset(told, seen, mode=view.mode,
+            calls("agent.reset", lambda: reset_agent(agent, told, seen, mode=view.mode,
                                                      track=Track.program if privileged else check_track(track)))
         except Exception as e:  # noqa: BLE001 - whatever an agent raises ends its episode, never the evaluation
             return agent_failed("agent.reset", e)

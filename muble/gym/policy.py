@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from muble.core.interfaces import Agent, Instruction
+from muble.core.interfaces import Agent, Instruction, reset_agent
 from muble.core.types import Frame, Observation, ObservationMode, Track
 from muble.episode.plain import decision_to_plain, observation_from_plain
 from muble.io.instructions_io import instruction_from_dict
@@ -31,8 +31,8 @@ class AgentPolicy:
 
     def reset(self, obs: dict[str, Any], info: dict[str, Any]) -> None:
         self.instruction = instruction_from_dict(info["instruction"])
-        self.agent.reset(self.instruction, observation_from_gym(obs), track=Track(info["track"]),
-                         mode=ObservationMode(info["mode"]))
+        reset_agent(self.agent, self.instruction, observation_from_gym(obs), track=Track(info["track"]),
+                    mode=ObservationMode(info["mode"]))
 
     def __call__(self, obs: dict[str, Any]) -> str:
         if self.instruction is None:

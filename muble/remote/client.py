@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from muble.core.errors import MubleError
-from muble.core.interfaces import Agent, Instruction
+from muble.core.interfaces import Agent, Instruction, reset_agent
 from muble.core.types import Frame, Observation, ObservationMode, Outcome, Track
 from muble.episode.plain import decision_to_plain, observation_from_plain
 from muble.io.instructions_io import instruction_from_dict
@@ -164,7 +164,7 @@ def run_agent(agent: Agent, client: RemoteClient, episode: dict[str, Any], image
     try:
         if not step.done:
             try:
-                agent.reset(instruction, step.observation(), track=Track(step.header["track"]),
+                reset_agent(agent, instruction, step.observation(), track=Track(step.header["track"]),
                             mode=ObservationMode(step.header["mode"]))
             except Exception as e:  # noqa: BLE001 - the agent's fault ends its episode, as in-process
                 return {**record, "outcome": Outcome.AGENT_ERROR.value, "primitives": [], "answer": None,
