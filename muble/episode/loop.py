@@ -43,11 +43,17 @@ class World(Protocol):
         """The scene as it really is now (ground truth included), for the judge and the records."""
 
 
+# Primitives an episode may execute before it ends as a timeout, where nothing else says: the default of
+# ``episode.max_steps`` (muble.app.config) and of the symbolic roll-outs that make ground-truth plans and train the
+# learned planner, so a plan the generator accepts fits in an episode.
+DEFAULT_MAX_STEPS = 100
+
+
 @dataclass
 class EpisodeMonitor:
     """Turns the course of an episode into the failure taxonomy: loops and time-outs."""
 
-    max_steps: int = 100
+    max_steps: int = DEFAULT_MAX_STEPS
     max_repeats: int = 3  # the same action from the same observed state this often is a loop
     seen: dict[tuple, int] = field(default_factory=dict)
     steps: int = 0
@@ -174,7 +180,8 @@ def _agent_error(what: str, e: BaseException) -> str:
     return f"{what} raised {type(e).__name__}: {e}"
 
 
-def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Task | Judge", max_steps: int = 100,
+def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Task | Judge",
+                max_steps: int = DEFAULT_MAX_STEPS,
                 max_repeats: int = 3, on_step: Callable[[StepRecord], None] | None = None,
                 max_failures: int = 8, check_call: CallCheck | None = None, track: str = "program",
                 mode: str = "graph", decision_timeout: float = 0.0) -> EpisodeResult:

@@ -21,7 +21,7 @@ from muble.core.errors import ConfigError, SceneValidationError
 from muble.core.interfaces import Instruction, MotionPlanner, Renderer, Task
 from muble.core.scene import SceneGraph
 from muble.core.types import Frame
-from muble.episode.loop import EpisodeResult, StepRecord, run_episode
+from muble.episode.loop import DEFAULT_MAX_STEPS, EpisodeResult, StepRecord, run_episode
 from muble.episode.physical import PhysicalWorld
 from muble.episode.sequence import sequence_dict
 from muble.generation.ground_truth import apply_masks
@@ -186,7 +186,7 @@ class EpisodeRunner:
     sensors: dict[str, Any]
     renderer: Renderer | None
     cameras: tuple[str, ...] = ("front",)
-    max_steps: int = 100
+    max_steps: int = DEFAULT_MAX_STEPS
     track: str = "program"  # what the agent is told (muble.episode.modes)
     mode: str = "graph"
     # Registry name -> disturbance (``muble.core.disturbances``), each drawing from its own stream for

@@ -39,7 +39,7 @@ from muble import (ActionResult, Agent, Answer, Instruction, Observation, Observ
                    Track, get_registry)
 from muble.core.interfaces import Trainer
 from muble.core.training import TrainingRun
-from muble.episode import run_episode
+from muble.episode import DEFAULT_MAX_STEPS, run_episode
 
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.success import check
@@ -54,7 +54,9 @@ from muble_plugins.learned.planner_features import (CLASSES, FEATURE_DIM, Memory
 
 log = logging.getLogger(__name__)
 
-MAX_STEPS = 100  # primitives per roll-out (the oracle needs at most about 30 on SHOP-VRB2, 46 on the physical family)
+# Primitives per roll-out: an episode's limit (the oracle needs at most about 30 on SHOP-VRB2, 46 on the physical
+# family).
+MAX_STEPS = DEFAULT_MAX_STEPS
 
 
 def scene_for(seed: int, index: int, validation: bool) -> SceneGraph:

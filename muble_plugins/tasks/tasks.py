@@ -20,8 +20,6 @@ from muble_plugins.tasks.generator import generate_for_template
 from muble_plugins.tasks.templates import (ALL_TEMPLATES, PHYSICAL_TEMPLATES, STIFFNESS_TEMPLATES, Template,
                                           load_templates)
 
-MAX_PLAN_STEPS = 100
-
 
 @dataclass
 class ShopVrb2TaskConfig:
@@ -47,8 +45,9 @@ class ShopVrb2Task(Task):
                                      index=SceneIndex(scene, cfg.extra_steps), weight_margin=cfg.weight_margin_g)
 
     def ground_truth(self, instruction: Instruction, scene: SceneGraph) -> list[ActionCall]:
-        """The oracle's primitives, rolled out in the symbolic world from ``scene`` (weights unknown at start)."""
-        episode = run_symbolic_episode(instruction, scene, OracleAgent(task=self), max_steps=MAX_PLAN_STEPS)
+        """The oracle's primitives, rolled out in the symbolic world from ``scene`` (weights unknown at start), in
+        at most as many primitives as an episode allows (``muble.episode.DEFAULT_MAX_STEPS``)."""
+        episode = run_symbolic_episode(instruction, scene, OracleAgent(task=self))
         if episode.outcome is not Outcome.SUCCESS:
             raise PlanningError(f"no ground-truth plan for '{instruction.instruction}': the oracle's roll-out "
                                 f"ended in {episode.outcome.value} after {len(episode.actions)} primitives")
