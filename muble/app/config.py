@@ -17,7 +17,6 @@ from omegaconf import MISSING
 from muble.core.ranges import bounded
 from muble.core.types import ObservationMode, Track
 from muble.episode.components import GROUP_OF_KIND
-from muble.episode.loop import DEFAULT_MAX_STEPS
 from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 from muble.plugins.registry import Registry
 from muble.sim.sensor_noise import WristNoise
@@ -79,7 +78,7 @@ class ActionNameStyle(str, Enum):
 class EpisodeConfig:
     """The action loop's limits and what is rendered after every primitive."""
 
-    max_steps: int = bounded(DEFAULT_MAX_STEPS, ge=1)
+    max_steps: int = bounded(100, ge=1)
     cameras: list[str] = field(default_factory=lambda: ["front"])
     # Primitive names in sequence files: "registry" (move, approach, close_gripper, lift, weigh, lower …) or
     # "original" (the original MuBlE's move, approach_grasp, grasp, pick_up, put_down, release).
@@ -205,12 +204,9 @@ def register_configs(registry: Registry) -> None:
 
 def searchpath_override(registry: Registry) -> list[str]:
     """The ``hydra.searchpath`` override that adds every plugin's config folders (empty list if none)."""
-    paths: list[str] = []
-    for result in registry.pm.hook.muble_config_searchpath():
-        paths.extend(result or [])
-    if not paths:
+    if not registry.searchpath:
         return []
-    return ["hydra.searchpath=[" + ",".join(paths) + "]"]
+    return ["hydra.searchpath=[" + ",".join(registry.searchpath) + "]"]
 
 
 def compose(config_name: str = "run", overrides: list[str] | tuple[str, ...] = (), registry: Registry | None = None):

@@ -1,5 +1,6 @@
 """``muble plugins``: every registered plugin by kind, with the package that provides it (primitives with their
-parameters: ``--kind primitive``, or ``--json``)."""
+parameters: ``--kind primitive``, or ``--json``), then the installed plugin packages left out as broken, each with
+its error and how to fix or uninstall it."""
 from __future__ import annotations
 
 import argparse
@@ -20,9 +21,13 @@ def main(argv: list[str]) -> int:
     registry = get_registry()
     rows = [p for p in registry.all() if args.kind in (None, p.kind)]
     if args.json:
+        # A broken package registered nothing, so it has no kind: listed only when no kind is asked for.
+        broken = [] if args.kind else [{"kind": "broken", "name": b.name, "plugin": b.name,
+                                        "distribution": b.distribution, "description": f"left out: {b.error}",
+                                        "error": b.error, "fix": b.fix} for b in registry.broken]
         print(json.dumps([{"kind": p.kind, "name": p.record.name, "plugin": p.plugin,
                            "distribution": p.distribution, "description": p.record.description,
-                           **primitive_facts(p)} for p in rows], indent=2))
+                           **primitive_facts(p)} for p in rows] + broken, indent=2))
         return 0
     widths = [max([len(h)] + [len(c) for c in col]) for h, col in zip(
         ("KIND", "NAME", "PACKAGE"),
@@ -36,6 +41,10 @@ def main(argv: list[str]) -> int:
             indent = " " * (widths[0] + widths[1] + 6)
             for param in specs(getattr(p.record.factory, "params", ())):
                 print(f"{indent}{param.describe()}" + (f": {param.doc}" if param.doc else ""))
+    if registry.broken:
+        print("\nBROKEN (installed, left out: every command runs without them)")
+        for b in registry.broken:
+            print(f"{b.distribution}:{b.name} ({b.target})  {b.failure}\n    fix: {b.fix}")
     return 0
 
 

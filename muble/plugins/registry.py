@@ -8,30 +8,50 @@ from omegaconf import DictConfig, OmegaConf
 
 from muble.core.errors import PluginError, unknown_name
 from muble.core.ranges import checked_node, configured
-from muble.plugins.manager import MublePluginManager, get_plugin_manager
+from muble.plugins.manager import BrokenPlugin, MublePluginManager, builtin_failed, get_plugin_manager
 from muble.plugins.records import KINDS, PluginRecord, Provided
 
 
 class Registry:
-    """Plugin records by kind and name. Two providers of one name are an error naming both."""
+    """Plugin records by kind and name. Two providers of one name are an error naming both.
+
+    An installed plugin whose registration hook raises, or returns something other than ``PluginRecord``s, is
+    left out with all it registered (``broken`` lists it beside those that failed to import); one of MuBlE's own
+    plugins failing so is a ``PluginError``.
+    """
 
     def __init__(self, pm: MublePluginManager):
         self.pm = pm
         self._by_kind: dict[str, dict[str, Provided]] = {}
+        gathered: list[Provided] = []
         for kind, hook_name in KINDS.items():
+            for impl in getattr(pm.hook, hook_name).get_hookimpls():
+                try:
+                    records = list(impl.function() or [])
+                    for record in records:
+                        if not isinstance(record, PluginRecord):
+                            raise PluginError(
+                                f"plugin '{impl.plugin_name}' returned {type(record).__name__} from {hook_name}; "
+                                "registration hooks must return a list of muble.PluginRecord")
+                except Exception as e:  # noqa: BLE001 - whatever a plugin's hook raises, the plugin is named
+                    self._failed(impl.plugin_name, hook_name, e)
+                    continue
+                gathered += [Provided(kind, r, impl.plugin_name, pm.distribution_of(impl.plugin_name))
+                             for r in records]
+        # The config folders, from the plugins still registered (a broken one's are not wanted), in the order a
+        # hook call gives them (the last registered first).
+        self.searchpath: list[str] = []
+        for impl in reversed(pm.hook.muble_config_searchpath.get_hookimpls()):
+            try:
+                self.searchpath += [str(p) for p in impl.function() or []]
+            except Exception as e:  # noqa: BLE001 - as above
+                self._failed(impl.plugin_name, "muble_config_searchpath", e)
+        left_out = {b.name for b in pm.broken}
+        for kind in KINDS:
             providers: dict[str, list[Provided]] = {}
-            hook = getattr(pm.hook, hook_name)
-            for impl in hook.get_hookimpls():
-                records = impl.function() or []
-                for record in records:
-                    if not isinstance(record, PluginRecord):
-                        raise PluginError(
-                            f"plugin '{impl.plugin_name}' returned {type(record).__name__} from {hook_name}; "
-                            "registration hooks must return a list of muble.PluginRecord"
-                        )
-                    providers.setdefault(record.name, []).append(
-                        Provided(kind, record, impl.plugin_name, pm.distribution_of(impl.plugin_name))
-                    )
+            for p in gathered:
+                if p.kind == kind and p.plugin not in left_out:
+                    providers.setdefault(p.record.name, []).append(p)
             clashes = {n: ps for n, ps in providers.items() if len(ps) > 1}
             if clashes:
                 lines = [
@@ -40,6 +60,20 @@ class Registry:
                 ]
                 raise PluginError("duplicate plugin names: " + "; ".join(lines) + ". Rename one or uninstall it.")
             self._by_kind[kind] = {n: ps[0] for n, ps in providers.items()}
+
+    @property
+    def broken(self) -> list[BrokenPlugin]:
+        """The installed plugins left out: failed to import or to register (``muble plugins`` lists them)."""
+        return list(self.pm.broken)
+
+    def _failed(self, plugin: str, hook_name: str, e: Exception) -> None:
+        """An installed plugin's hook failed: leave the plugin out. A plugin registered in code raises as it
+        did; one of MuBlE's own as a ``PluginError`` naming it."""
+        if plugin not in self.pm.distributions:
+            raise e
+        if not self.pm.is_installed(plugin):
+            raise builtin_failed(plugin, self.pm.targets[plugin], hook_name, e) from e
+        self.pm.leave_out(plugin, hook_name, e)
 
     def _check_kind(self, kind: str) -> None:
         if kind not in self._by_kind:

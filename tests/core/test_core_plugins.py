@@ -5,7 +5,7 @@ import pytest
 
 from muble import ConfigError, PluginError
 from muble.plugins.hookspecs import hookimpl
-from muble.plugins.manager import make_plugin_manager
+from muble.plugins.manager import REPORTED_ENV, make_plugin_manager
 from muble.plugins.records import KINDS
 from muble.plugins.registry import Registry
 
@@ -42,13 +42,73 @@ def test_two_providers_of_one_name_raise_naming_both(fake_distribution):
     assert "acme_a" in message and "acme-a" in message and "acme_b" in message and "acme-b" in message
 
 
-def test_plugin_whose_import_fails_is_named(fake_distribution):
+@pytest.fixture
+def unreported(monkeypatch):
+    """No broken package reported yet in this process (the manager reports each once per run)."""
+    monkeypatch.setenv(REPORTED_ENV, "")
+
+
+def test_plugin_whose_import_fails_is_left_out_and_named_once(fake_distribution, unreported, caplog):
     fake_distribution("broken-plugin", {"broken": "broken_mod"}, {"broken_mod": "import not_a_module_xyz\n"})
+    fake_distribution("acme-sensors", {"acme": "acme_sensors"}, {"acme_sensors": SENSOR_MODULE.format(name="clock")})
+    with caplog.at_level("WARNING", logger="muble.plugins.manager"):
+        pm = make_plugin_manager()
+        registry = Registry(pm)
+    (broken,) = registry.broken
+    assert (broken.name, broken.distribution, broken.target, broken.stage) == \
+        ("broken", "broken-plugin", "broken_mod", "import")
+    assert broken.error == "ModuleNotFoundError: No module named 'not_a_module_xyz'"
+    assert not pm.has_plugin("broken")
+    # Everything else is there: the other installed package and MuBlE's own plugins.
+    assert "clock" in registry.names("sensor") and "oracle" in registry.names("agent")
+    (line,) = [r.getMessage() for r in caplog.records]
+    assert "'broken-plugin'" in line and "not_a_module_xyz" in line and "pip uninstall broken-plugin" in line
+    assert "\n" not in line
+    # A second manager in the same run (a spawned worker inherits the environment) does not say it again.
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="muble.plugins.manager"):
+        assert [b.distribution for b in make_plugin_manager().broken] == ["broken-plugin"]
+    assert caplog.records == []
+
+
+BROKEN_HOOKS = {
+    "raises": "    raise RuntimeError('agents table missing')\n",
+    "returns strings": "    return ['greedy']\n",
+}
+
+
+@pytest.mark.parametrize("how", sorted(BROKEN_HOOKS))
+def test_plugin_whose_registration_fails_is_left_out_with_everything_it_registered(how, fake_distribution,
+                                                                                   unreported):
+    module = SENSOR_MODULE.format(name="clock") + "\n@muble.hookimpl\ndef muble_register_agents():\n" + \
+        BROKEN_HOOKS[how]
+    fake_distribution("acme-broken", {"acme": "acme_broken"}, {"acme_broken": module})
+    registry = Registry(make_plugin_manager())
+    (broken,) = registry.broken
+    assert (broken.distribution, broken.stage) == ("acme-broken", "muble_register_agents")
+    assert ("agents table missing" if how == "raises" else "must return a list of muble.PluginRecord") in broken.error
+    assert "clock" not in registry.names("sensor")  # its sensor, registered by a hook that worked, goes too
+    assert "oracle" in registry.names("agent")
+
+
+def test_plugin_implementing_a_hook_muble_does_not_have_is_left_out(fake_distribution, unreported):
+    module = SENSOR_MODULE.format(name="clock") + "\n@muble.hookimpl\ndef muble_register_teleporters():\n" \
+                                                  "    return []\n"
+    fake_distribution("acme-future", {"acme": "acme_future"}, {"acme_future": module})
+    registry = Registry(make_plugin_manager())
+    (broken,) = registry.broken
+    assert broken.stage == "registration" and "muble_register_teleporters" in broken.error
+    assert "muble_register_sensors" in broken.error  # the hooks there are
+    assert "clock" not in registry.names("sensor")
+
+
+def test_muble_s_own_plugin_failing_to_import_is_an_error(fake_distribution):
+    # A distribution named muble stands for MuBlE's own (the first one on sys.path is the one read).
+    fake_distribution("muble", {"builtin_broken": "builtin_broken"}, {"builtin_broken": "import not_a_module_xyz\n"})
     with pytest.raises(PluginError) as err:
         make_plugin_manager()
-    assert "'broken'" in str(err.value) and "broken-plugin" in str(err.value)
-    assert "not_a_module_xyz" in str(err.value)
-    assert isinstance(err.value.__cause__, ImportError)
+    assert "MuBlE's own plugin 'builtin_broken'" in str(err.value) and "not_a_module_xyz" in str(err.value)
+    assert "Reinstall MuBlE" in str(err.value) and isinstance(err.value.__cause__, ImportError)
 
 
 def test_disable_autoload_skips_external_but_keeps_builtins(fake_distribution, monkeypatch):
