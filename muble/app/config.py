@@ -17,6 +17,7 @@ from omegaconf import MISSING
 from muble.core.ranges import bounded
 from muble.core.types import ObservationMode, Track
 from muble.episode.components import GROUP_OF_KIND
+from muble.episode.loop import DEFAULT_MAX_STEPS
 from muble.io.instructions_io import SHOPVRB2_TEMPLATES
 from muble.plugins.registry import Registry
 from muble.sim.sensor_noise import WristNoise
@@ -78,7 +79,7 @@ class ActionNameStyle(str, Enum):
 class EpisodeConfig:
     """The action loop's limits and what is rendered after every primitive."""
 
-    max_steps: int = bounded(100, ge=1)
+    max_steps: int = bounded(DEFAULT_MAX_STEPS, ge=1)
     cameras: list[str] = field(default_factory=lambda: ["front"])
     # Primitive names in sequence files: "registry" (move, approach, close_gripper, lift, weigh, lower …) or
     # "original" (the original MuBlE's move, approach_grasp, grasp, pick_up, put_down, release).
