@@ -3,9 +3,10 @@
     python scripts/api_reference.py            # HTML into docs/api/ (not kept in git: it is made from the code)
     python scripts/api_reference.py --out DIR
 
-The public API is what plugins and agents use: the ``muble`` package's exports (``muble.__all__``) and the
-modules of ``muble.core``, ``muble.stage`` and ``muble.programs`` the plugin guide (docs/plugins.md) points to. The test suite builds it too and fails on a public name
-without a docstring, so the reference cannot fall behind the code.
+The public API is what plugins and agents use: the modules the plugin guide lists as the public API
+(docs/plugins.md, "The public API"; a test keeps ``API_MODULES`` holding every one of them) and the action loop's
+modules an agent's author reads. The test suite builds it too and fails on a public name without a docstring, so
+the reference cannot fall behind the code.
 """
 from __future__ import annotations
 
@@ -13,10 +14,13 @@ import argparse
 import sys
 from pathlib import Path
 
-# What docs/plugins.md sends a plugin writer to, beside the package's exports.
-API_MODULES = ("muble", "muble.core.types", "muble.programs.program", "muble.programs.descriptions",
-               "muble.core.symbolic", "muble.core.observation", "muble.stage.footprint", "muble.stage.table",
-               "muble.core.object_physics", "muble.core.params", "muble.core.training", "muble.episode.loop",
+# The modules of docs/plugins.md's public API, then those of the action loop.
+API_MODULES = ("muble", "muble.plugins", "muble.core.interfaces", "muble.core.environment", "muble.core.types",
+               "muble.core.errors", "muble.core.scene", "muble.core.objects", "muble.core.params", "muble.core.ranges",
+               "muble.core.symbolic", "muble.core.observation", "muble.core.object_physics",
+               "muble.core.physical_properties", "muble.core.streams", "muble.core.training", "muble.programs.program",
+               "muble.programs.descriptions", "muble.stage.table", "muble.stage.rest", "muble.stage.footprint",
+               "muble.io.scene_io", "muble.io.instructions_io", "muble.episode", "muble.episode.loop",
                "muble.episode.modes")
 
 

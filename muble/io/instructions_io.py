@@ -39,6 +39,8 @@ def program_from_list(program: Any, index: int | None = None) -> list[dict[str, 
 
 
 def instruction_from_dict(d: Any, index: int | None = None) -> Instruction:
+    """One instruction of an instruction file, validated (``index`` is named in a ``SceneValidationError``): the
+    known keys become fields, every other key goes to ``Instruction.extra``."""
     if not isinstance(d, dict):
         raise SceneValidationError(f"{_where(index)}expected a JSON object, got {type(d).__name__}")
     for key in _REQUIRED:

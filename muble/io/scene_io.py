@@ -131,6 +131,7 @@ _OPTIONAL_PARSERS: dict[str, Callable[[Any, int], Any]] = {
 
 
 def object_from_dict(d: Any, index: int) -> SceneObject:
+    """One object of a scene file, validated: a ``SceneValidationError`` names object ``index`` and the field."""
     if not isinstance(d, dict):
         raise SceneValidationError(f"expected an object (dict), got {type(d).__name__}", obj=index)
     for key in (*_OBJ_REQUIRED_STR, *_OBJ_REQUIRED_BOOL, "3d_coords", "orientation", "weight_gt"):
@@ -170,6 +171,7 @@ def object_from_dict(d: Any, index: int) -> SceneObject:
 
 
 def object_to_dict(o: SceneObject) -> dict[str, Any]:
+    """One object as a scene file holds it (what ``object_from_dict`` reads)."""
     d: dict[str, Any] = {}
     if o.explicit_id:
         d["id"] = o.id
@@ -472,8 +474,10 @@ def write_json_atomic(path: str | Path, data: Any, **dump_kwargs: Any) -> None:
 
 
 def save_scene(path: str | Path, scene: SceneGraph) -> None:
+    """Write a single-scene file atomically (``load_scene`` reads it)."""
     write_json_atomic(path, scene_to_dict(scene))
 
 
 def save_scenes(path: str | Path, scenes: list[SceneGraph], info: dict[str, Any] | None = None) -> None:
+    """Write a combined ``{info, scenes}`` file atomically (``load_scenes`` reads it)."""
     write_json_atomic(path, {"info": info or {}, "scenes": [scene_to_dict(s) for s in scenes]})
