@@ -160,8 +160,9 @@ def test_the_check_finds_what_the_list_does_not_hold():
               "x = muble.Sensor\ny = muble.core.observation.MEASURED_EXTRA['weight']\nz = streams.stream\n"
               "w = streams.PROPERTY_STREAMS\nv = muble.get_registry().create('agent', 'oracle')\n")
     assert unlisted(muble_imports(source), public_api()) == [
-        "line 3: muble.TabletopEnv", "line 4: muble.sim.env.TabletopEnv", "line 5: muble.core.observation.MEASURED_EXTRA",
-        "line 8: muble.core.observation.MEASURED_EXTRA", "line 10: muble.core.streams.PROPERTY_STREAMS"]
+        "line 3: muble.TabletopEnv", "line 4: muble.sim.env.TabletopEnv",
+        "line 5: muble.core.observation.MEASURED_EXTRA", "line 8: muble.core.observation.MEASURED_EXTRA",
+        "line 10: muble.core.streams.PROPERTY_STREAMS"]
 
 
 # --- the names that moved -------------------------------------------------------------------------------------
