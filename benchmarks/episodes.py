@@ -28,6 +28,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 def setup(episodes: int):
     from muble.app.config import compose
     from muble.episode.components import build_components, scene_generator
+    from muble.episode.runner import instruction_rng
     from muble.generation.task_mix import choose_from_mix as choose_instruction
     from muble.io.instructions_io import SHOPVRB2_TEMPLATES
     from muble.plugins.registry import get_registry
@@ -42,7 +43,7 @@ def setup(episodes: int):
     try:
         for index in range(episodes):
             scene = generator.generate(index)
-            task, instruction = choose_instruction(tasks, weights, scene, np.random.default_rng([cfg.seed, index, 1]))
+            task, instruction = choose_instruction(tasks, weights, scene, instruction_rng(cfg.seed, index))
             work.append((scene, instruction, task))
             planned.append(len(task.ground_truth(instruction, scene)))
     finally:

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from muble import Outcome
+from muble.core import streams
 from muble.io.scene_io import load_scenes
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.episodes import run_symbolic_episode
@@ -32,12 +33,15 @@ GOAL_PER_S = 5000
 REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "muble-demo" / "NS_AP_demo_scenes.json"
 
 
+INSTRUCTIONS = streams.declare("bench.instructions", "the instructions generated for a scene (repeat, scene index)")
+
+
 def throughput(scenes, seed: int, repeats: int = 1) -> tuple[int, float]:
     start = time.perf_counter()
     made = 0
     for r in range(repeats):
         for s in scenes:
-            made += len(generate_instructions(s, np.random.default_rng([seed, r, s.image_index])))
+            made += len(generate_instructions(s, streams.stream(INSTRUCTIONS, seed, r, s.image_index)))
     return made, time.perf_counter() - start
 
 
@@ -71,7 +75,7 @@ def main() -> None:
     scenes_with: collections.Counter = collections.Counter()
     oracle: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
     for s in scenes:
-        for ins in generate_instructions(s, np.random.default_rng([args.seed, 0, s.image_index])):
+        for ins in generate_instructions(s, streams.stream(INSTRUCTIONS, args.seed, 0, s.image_index)):
             t = ins.template_id
             scenes_with[t] += 1
             words[t].append(len(ins.instruction.split()))

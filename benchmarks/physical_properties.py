@@ -38,7 +38,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: helpers shared with the tests
 
 from muble.core.physical_properties import SCENE_KEYS, model_fields, sampled  # noqa: E402
+from muble.core import streams  # noqa: E402
 from muble_plugins.objects.shopvrb2 import CATALOGUE  # noqa: E402
+
+# Seeded as before named streams (muble.core.streams.legacy_stream): the figures docs/ reports were measured so.
+OBJECT_STREAM = streams.declare_legacy("bench.physical_properties.object", "a measured object: its spec, its property "
+                                       "value and its place (seed, index, property, category, gripper)")
 
 FRICTION_TOLERANCE = 0.10  # relative
 COM_TOLERANCE = 5.0  # mm
@@ -61,8 +66,8 @@ def measure_one(job: tuple) -> dict:
     from tests.support.scenes import simple_scene
 
     prop, gripper, category, index, seed, noise, key = job
-    rng = np.random.default_rng([seed, index, sorted(GOALS).index(prop), len(category), sum(map(ord, category)),
-                                 int(gripper != "Panda")])
+    rng = streams.legacy_stream(OBJECT_STREAM, seed, index, sorted(GOALS).index(prop), len(category),
+                                sum(map(ord, category)), int(gripper != "Panda"))
     registry = get_registry()
     objects = registry.create("object_set", "shopvrb2")
     spec = objects.sample(rng, category)

@@ -25,7 +25,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: h
 
 from muble.core.types import Trajectory  # noqa: E402
 from muble.sim.env import TabletopEnv  # noqa: E402
+from muble.core import streams  # noqa: E402
 from tests.support.scenes import five_object_scene  # noqa: E402
+
+# Seeded as before named streams (muble.core.streams.legacy_stream): the figures docs/ reports were measured so.
+ACTIONS = streams.declare_legacy("bench.physics_loop.actions", "the scripted end-effector deltas (0)")
 
 SIM_SECONDS = 10.0
 REPEATS = 3
@@ -83,7 +87,7 @@ def recorded_ctrl(env: TabletopEnv, snap) -> np.ndarray:
 def step_actions(env: TabletopEnv) -> np.ndarray:
     """Scripted control: small random end-effector deltas, gripper open (the same sequence every run)."""
     count = int(SIM_SECONDS / env.control_dt)
-    actions = np.random.default_rng(0).uniform(-0.2, 0.2, size=(count, 7))
+    actions = streams.legacy_stream(ACTIONS, 0).uniform(-0.2, 0.2, size=(count, 7))
     actions[:, 6] = -1
     return actions
 

@@ -19,7 +19,7 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
-from muble_plugins.renderers.render_world import build_world, random_scene  # noqa: E402
+from muble_plugins.renderers.render_world import build_world, random_scene, world_rng  # noqa: E402
 
 CAMERA = "frontview"
 BLOCK = 2  # keyframes per block; blocks go passes, RGB only, passes, RGB only
@@ -39,7 +39,7 @@ def keyframe(renderer: BlenderRenderer, model, data, step: int) -> float:
 
 def main() -> int:
     logging.basicConfig(level=logging.WARNING)
-    scene = random_scene(np.random.default_rng(0), n_objects=5)
+    scene = random_scene(world_rng(0), n_objects=5)
     model, data = build_world(scene, arm_seed=0)
     renderer = BlenderRenderer()  # the default quality
     cfg = renderer.config

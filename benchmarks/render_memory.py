@@ -16,7 +16,7 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
-from muble_plugins.renderers.render_world import build_world, random_scene  # noqa: E402
+from muble_plugins.renderers.render_world import build_world, random_scene, world_rng  # noqa: E402
 
 SCENES, KEYFRAMES, WARM_UP = 20, 10, 3
 
@@ -34,7 +34,7 @@ def main() -> int:
     renderer = BlenderRenderer(width=96, height=72, samples=1, denoise=False)
     samples, warm = [], 0.0
     for index in range(WARM_UP + SCENES):
-        scene = random_scene(np.random.default_rng(index), n_objects=3 + index % 4, image_index=index)
+        scene = random_scene(world_rng(index), n_objects=3 + index % 4, image_index=index)
         model, data = build_world(scene, arm_seed=index)
         renderer.setup(scene, model)
         for k in range(KEYFRAMES):

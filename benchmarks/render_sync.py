@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support: h
 from muble import SEG_ROBOT, SEG_TABLE  # noqa: E402
 from muble_plugins.renderers.blender import BlenderRenderer  # noqa: E402
 from muble_plugins.renderers.blender.labels import geom_labels  # noqa: E402
-from muble_plugins.renderers.render_world import build_world, random_scene  # noqa: E402
+from muble_plugins.renderers.render_world import build_world, random_scene, world_rng  # noqa: E402
 from tests.support.render_check import mask_iou, mujoco_reference  # noqa: E402
 
 SCENES, WIDTH, HEIGHT = 20, 320, 240
@@ -33,7 +33,7 @@ def main() -> int:
     ious: dict[str, list[float]] = {"object": [], "robot": [], "table": []}
     depth_errors, worst_cases = [], []
     for index in range(SCENES):
-        scene = random_scene(np.random.default_rng(1000 + index), n_objects=3 + index % 4, image_index=index)
+        scene = random_scene(world_rng(1000 + index), n_objects=3 + index % 4, image_index=index)
         model, data = build_world(scene, arm_seed=index)
         renderer.setup(scene, model)
         labels = geom_labels(model, scene)

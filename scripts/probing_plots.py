@@ -145,8 +145,12 @@ def _object(category: str, seed: int, **changes):
     """A SHOP-VRB2 object of ``category``, sampled with ``seed``, with ``changes`` to its model."""
     from muble import get_registry
 
+    from muble.core import streams
+
+    # Seeded as before named streams (legacy_stream): the pictures in docs/images were drawn from these objects.
+    purpose = streams.declare_legacy("script.probing_plots.object", "the sampled object a picture measures (seed)")
     objects = get_registry().create("object_set", "shopvrb2")
-    spec = objects.sample(np.random.default_rng(seed), category)
+    spec = objects.sample(streams.legacy_stream(purpose, seed), category)
     return spec, dataclasses.replace(objects.build(spec), **changes)
 
 

@@ -165,7 +165,8 @@ def _job(cfg: DictConfig, root: Path) -> dict:
                 write_combined(layout, indices(cfg, recorded[split]), muble.__version__)
             produced[split] = len(wanted)
         seeds = {"seed": cfg.seed, "split_seeds": {s: split_seed(cfg.seed, s) for s in sizes},
-                 "indices": "(seed, split, index) -> numpy default_rng streams; OMPL re-seeded per query"}
+                 "indices": "(split seed, index) -> named random streams (muble.core.streams); "
+                            "OMPL re-seeded per query"}
         manifest = make_manifest(seeds, dataset_config_record(config), files=checksums(root))
         write_bytes_atomic(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True).encode())
     print(f"muble generate: {produced} scenes in {root}")

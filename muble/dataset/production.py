@@ -15,13 +15,12 @@ import collections
 import json
 import logging
 import time
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from muble.core.streams import split_seed  # noqa: F401 - a split's seed, read here by generate and eval
+from muble.episode.components import split_episode
 from muble.generation.ground_truth import apply_masks
 from muble.io.atomic import write_bytes_atomic
 from muble.io.layout import DatasetLayout
@@ -40,9 +39,39 @@ class IndexJob:
     index: int
 
 
-def split_seed(seed: int, split: str) -> int:
-    """Each split draws from its own stream (a stable hash of its name, not Python's salted hash)."""
-    return int(seed) * 1_000_003 + zlib.crc32(split.encode())
+def with_split(cfg: Any) -> Any:
+    """``cfg`` as its ``split`` (``muble run``'s, the Gymnasium environments', ``muble serve``'s) is produced
+    (``split_run_config``); ``cfg`` itself when it names no split."""
+    from muble.io.layout import check_split_name
+
+    split = cfg.get("split")
+    return cfg if split is None else split_run_config(cfg, check_split_name(str(split), "split"))
+
+
+def split_run_config(cfg: Any, split: str) -> Any:
+    """A composed config (``DictConfig``) as ``muble generate`` produces ``split`` with it: a protocol split's
+    own ``objects``, ``generator`` and ``dataset`` settings merged over the run's (``split_config``); ``cfg``
+    itself without a protocol. A split the protocol does not name is a ``ConfigError`` that lists its splits.
+    ``muble run``, the Gymnasium environments and ``muble serve`` build their plugins from it when ``split`` is
+    set, then ``split_episode`` makes the split's indices."""
+    from omegaconf import open_dict
+
+    from muble.core.errors import ConfigError, unknown_name
+    from muble.dataset.protocol import SPLIT_GROUPS, protocol_of, split_config
+
+    protocol = protocol_of(cfg)
+    if protocol is None:
+        return cfg
+    if split not in (protocol.get("splits") or {}):
+        raise ConfigError(unknown_name(f"split of protocol '{protocol.get('name')}'", split,
+                                       list(protocol.get("splits") or {})) + "; choose it with split=")
+    # The protocol's settings of the split alone (its common ones, then the split's own), merged over the run's as
+    # split_config merges them over a resolved copy.
+    changes = split_config({"protocol": protocol, **{group: {} for group in SPLIT_GROUPS}}, split)
+    out = cfg.copy()
+    with open_dict(out):
+        out.merge_with({group: changes[group] for group in SPLIT_GROUPS if changes[group]})
+    return out
 
 
 def cached_components(config: dict[str, Any], renderer: bool = True, task: bool = True) -> dict[str, Any]:
@@ -77,13 +106,9 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
     ``episode.planning``, ``episode.keyframes``; ``image`` without sequences; ``writing``: encoding and files)."""
     stage = timings if timings is not None else collections.Counter()
     began = time.perf_counter()
-    from muble.episode.components import image_size
-    from muble.episode.runner import KeyframeStateRecorder, instruction_rng, png_bytes, write_episode
-    from muble.generation.generator import SceneGenerator
-    from muble.generation.task_mix import suited_scene, template_weights
+    from muble.episode.runner import KeyframeStateRecorder, png_bytes, write_episode
     from muble.io.instructions_io import instruction_to_dict
     from muble.io.scene_io import scene_to_dict
-    from muble.plugins.registry import get_registry
 
     from muble.dataset.protocol import split_config
 
@@ -92,23 +117,14 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
     layout = DatasetLayout(Path(ds["root"]), job.split)
     out = layout.split_dir
     components = cached_components(cfg)
-    registry = get_registry()
-    seed = split_seed(cfg["seed"], job.split)
-    generator_options = dict(cfg["generator"], split=job.split)
-    generator = SceneGenerator(generator_options, seed=seed, object_set=components["object_set"],
-                               image_size=image_size(cfg))
-    tasks = {name: registry.create("task", name, {}) for name in ds["templates"]}
-    weights = template_weights(list(tasks), ds["template_weights"])
+    generated: dict[str, float] = {}
     try:
-        suited = suited_scene(generator, tasks, weights, seed, job.index, lambda i: instruction_rng(seed, i))
+        suited = split_episode(cfg, job.split, job.index, components["object_set"], generated)
     finally:
-        generator.close()
-        for name, seconds in generator.timings.items():
+        for name, seconds in generated.items():
             stage[f"scene.{name}"] += seconds
-        stage["scene.other"] += time.perf_counter() - began - sum(generator.timings.values())
+        stage["scene.other"] += time.perf_counter() - began - sum(generated.values())
     scene, task, instruction = suited.scene, suited.task, suited.instruction
-    scene.image_filename = Path(layout.image(job.index)).name
-    instruction.image_filename = scene.image_filename
     written: dict[str, str] = {}
 
     from muble.episode.components import episode_runner

@@ -83,6 +83,47 @@ def scene_generator(cfg: DictConfig, object_set: object):
     return SceneGenerator(options, seed=cfg.seed, object_set=object_set, image_size=image_size(cfg))
 
 
+def split_episode(cfg: Any, split: str, index: int, object_set: Any, timings: dict[str, float] | None = None,
+                  size: tuple[int, int] | None = None):
+    """The scene, template and instruction of index ``index`` of ``split`` as ``muble generate`` makes them
+    (``muble.generation.task_mix.SuitedScene``): the generator seeded with the split's seed (``split_seed``), the
+    index's template and object count from the split's template mix, the first scene sample that suits the
+    template. ``cfg`` is the config as the split is produced (``muble.dataset.protocol.split_config``, or
+    ``muble.dataset.production.split_run_config`` for a composed one) and ``object_set`` built from it.
+    ``muble generate`` makes every index with it, and ``muble run split=S``, the Gymnasium environments and
+    ``muble serve`` make index k of split S with it, so that theirs is index k of the dataset. ``timings`` gets
+    the generator's seconds per stage (``SceneGenerator.timings``). ``size`` is the image size the split is
+    generated at (the scenes' camera, masks and visibility checks), by default ``cfg``'s renderer size: a caller
+    that renders at another size (a Gymnasium environment's small images) passes ``muble generate``'s."""
+    from pathlib import Path
+
+    from muble.core.streams import split_seed
+    from muble.episode.runner import instruction_rng
+    from muble.generation.generator import SceneGenerator
+    from muble.generation.task_mix import suited_scene, template_weights
+    from muble.io.layout import DatasetLayout
+
+    def plain(node: Any) -> Any:
+        return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
+
+    registry = get_registry()
+    seed = split_seed(cfg["seed"], split)
+    ds = cfg["dataset"]
+    generator = SceneGenerator(dict(plain(cfg["generator"]), split=split), seed=seed, object_set=object_set,
+                               image_size=size or image_size(cfg))
+    tasks = {name: registry.create("task", name, {}) for name in plain(ds["templates"])}
+    weights = template_weights(list(tasks), plain(ds["template_weights"]))
+    try:
+        suited = suited_scene(generator, tasks, weights, seed, index, lambda i: instruction_rng(seed, i))
+    finally:
+        generator.close()
+        if timings is not None:
+            timings.update(generator.timings)
+    suited.scene.image_filename = Path(DatasetLayout(Path("."), split).image(index)).name
+    suited.instruction.image_filename = suited.scene.image_filename
+    return suited
+
+
 def generated_env(cfg: DictConfig, components: dict[str, object], index: int):
     """The environment (no sensors) of scene ``index`` as ``cfg``'s generator, object set and robot make it;
     the caller closes it."""

@@ -16,6 +16,7 @@ from collections.abc import Iterable, Iterator
 import mujoco
 import numpy as np
 
+from muble.core import streams
 from muble.core.errors import PlanningError
 from muble.core.interfaces import CollisionWorld
 from muble.core.object_physics import CONTENTS_COLLISION_CLASS
@@ -471,8 +472,10 @@ class MujocoCollisionWorld(CollisionWorld):
         """
         lim = self.kinematics.limits
         ordered = [np.asarray(s, dtype=float) for s in (np.atleast_2d(seeds) if seeds is not None else [self.arm_q])]
-        # A fresh generator per call: the same query always gets the same answer, whatever came before.
-        restarts = np.random.default_rng(self.seed).uniform(lim[:, 0], lim[:, 1], size=(self.ik_restarts, len(lim)))
+        # A fresh generator per call: the same query always gets the same answer, whatever came before. Its older
+        # seeding is kept (legacy_stream): the restarts decide the oracle's arm paths in the shipped sequences.
+        restarts = streams.legacy_stream(streams.IK_RESTARTS, self.seed).uniform(
+            lim[:, 0], lim[:, 1], size=(self.ik_restarts, len(lim)))
         reached_in_collision: list[tuple[str, str]] | None = None
         best_pos_err = np.inf
         for seed in [*ordered, *restarts]:

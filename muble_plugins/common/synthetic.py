@@ -14,7 +14,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from muble.core import physical_properties
+from muble.core import physical_properties, streams
 
 from muble import SceneGraph, SceneObject
 from muble.stage.layout import BoxShape, TableLayout
@@ -49,6 +49,15 @@ CATEGORIES: dict[str, tuple] = {
 
 
 CLOSED = ("soda can", "thermos", "food box")  # closed containers, which can hold loose contents
+
+# A synthetic scene's streams (muble.core.streams), each keyed by the caller's seed and scene key: the stiffnesses
+# and the hidden properties apart from the rest, so that drawing them changes nothing else a scene holds.
+SCENE_STREAM = streams.declare("synthetic.scene", "a synthetic symbolic scene's object count, categories, "
+                               "attribute words, placements and weights (muble_plugins.common.synthetic; the "
+                               "caller's scene key)")
+STIFFNESS_STREAM = streams.declare("synthetic.stiffness", "a synthetic scene's stiffnesses (the caller's scene key)")
+PROPERTIES_STREAM = streams.declare("synthetic.properties", "a synthetic scene's hidden physical properties (the "
+                                    "caller's scene key)")
 PLACE_TRIES = 20  # poses tried per object before another category is drawn in its stead
 
 
@@ -101,9 +110,16 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
                       image_filename=f"SHOP_VRB2_synthetic_{index:06d}.png")
 
 
+def keyed_scene(seed: int, key: tuple[int, ...], index: int, n_objects: tuple[int, int] = (3, 6),
+                properties: bool = True) -> SceneGraph:
+    """``sample_scene`` from the synthetic streams of ``seed`` and ``key`` (the caller's numbers for the scene,
+    e.g. its index), named ``index``; ``properties``: with the hidden physical properties."""
+    return sample_scene(streams.stream(SCENE_STREAM, seed, *key), index, n_objects,
+                        stiffness_rng=streams.stream(STIFFNESS_STREAM, seed, *key),
+                        properties_rng=streams.stream(PROPERTIES_STREAM, seed, *key) if properties else None)
+
+
 def sample_scenes(seed: int, count: int, properties: bool = False) -> list[SceneGraph]:
     """``count`` scenes, scene ``i`` deterministic from ``(seed, i)``; ``properties``: with the hidden physical
     properties (from a stream of their own, so the scenes are otherwise the same)."""
-    return [sample_scene(np.random.default_rng([seed, i]), i, stiffness_rng=np.random.default_rng([seed, i, 5]),
-                         properties_rng=np.random.default_rng([seed, i, 6]) if properties else None)
-            for i in range(count)]
+    return [keyed_scene(seed, (i,), i, properties=properties) for i in range(count)]

@@ -41,12 +41,10 @@ def identity(run: TrainingRun, settings: dict[str, Any]) -> dict[str, Any]:
 
 
 def seed_everything(seed: int) -> None:
-    """Seed Python's, NumPy's and torch's generators; torch uses deterministic kernels."""
-    import numpy as np
-
+    """Seed Python's and torch's generators; torch uses deterministic kernels. (NumPy's global generator is left
+    alone: every numpy draw of MuBlE comes from a named stream, ``muble.core.streams``.)"""
     torch = torch_module()
     random.seed(seed)
-    np.random.seed(seed % 2**32)
     torch.manual_seed(seed)
     torch.use_deterministic_algorithms(True, warn_only=True)
 
@@ -57,16 +55,13 @@ def set_threads(run: TrainingRun) -> None:
 
 
 def rng_states() -> dict[str, Any]:
-    import numpy as np
-
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch_module().get_rng_state()}
+    return {"python": random.getstate(), "torch": torch_module().get_rng_state()}
 
 
 def restore_rng(states: dict[str, Any]) -> None:
-    import numpy as np
-
+    """Python's and torch's generator states (a checkpoint's ``numpy`` state, written before every draw came from
+    a named stream, is not needed)."""
     random.setstate(states["python"])
-    np.random.set_state(states["numpy"])
     torch_module().set_rng_state(states["torch"])
 
 

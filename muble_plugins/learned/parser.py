@@ -36,6 +36,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from muble.core import streams
 from muble.core.errors import ConfigError
 from muble.core.observation import agent_program
 from muble.core.ranges import configured
@@ -50,6 +51,14 @@ STEP_PREFIX, VALUE_SEPARATOR = "S:", "|"
 MAX_POSITIONS = 64  # longest token sequence (text or program) the model has positions for
 OBJECTS_PER_SCENE = (3, 7)  # inclusive: the protocol's scenes have 4 or 5, its long-horizon split 6 or 7
 _WORD = re.compile(r"[a-z0-9]+(?:[-'][a-z0-9]+)*|[^\sa-z0-9]")
+# The training data's streams (muble.core.streams): a scene's and each of its instructions' apart (numpy's lists of
+# entropy once made a scene's stream its first instruction's), keyed by (part: 0 training, 1 validation, scene
+# index[, template k]).
+SCENE_STREAM = streams.declare("train.parser.scene", "a scene of the parser's data: its layout and objects drawn "
+                               "from the object set (part, scene index)")
+INSTRUCTION_STREAM = streams.declare("train.parser.instruction", "the instruction template k writes for a scene of "
+                                     "the parser's data (part, scene index, k)")
+ORDER_STREAM = streams.declare("train.parser.order", "the order of the training pairs in an epoch (epoch)")
 
 
 # --- tokens -------------------------------------------------------------------------------------------------------
@@ -159,9 +168,9 @@ def build_pairs(seed: int, stream: int, scenes: int, protocol: dict | None = Non
     objects = object_set(protocol, objects_name)
     pairs = []
     for i in progress(range(scenes), f"parser data ({'train' if stream == 0 else 'validation'})", scenes):
-        scene = sample_scene(objects, np.random.default_rng([seed, stream, i]), i)
+        scene = sample_scene(objects, streams.stream(SCENE_STREAM, seed, stream, i), i)
         for k, task in enumerate(tasks):
-            for instruction in task.generate(scene, np.random.default_rng([seed, stream, i, k])):
+            for instruction in task.generate(scene, streams.stream(INSTRUCTION_STREAM, seed, stream, i, k)):
                 pairs.append((instruction.instruction, agent_program(instruction.program)))
     return pairs
 
@@ -359,7 +368,7 @@ class ParserTrainer:
         for epoch in range(start_epoch, s["epochs"]):
             t1 = time.perf_counter()
             model.train()
-            order = np.random.default_rng([run.seed, 2, epoch]).permutation(len(sources))
+            order = streams.stream(ORDER_STREAM, run.seed, epoch).permutation(len(sources))
             total, count = 0.0, 0
             for b in bar(range(batches_per_epoch), f"parser epoch {epoch + 1}/{s['epochs']}", batches_per_epoch):
                 rows = order[b * s["batch_size"]:(b + 1) * s["batch_size"]]

@@ -37,6 +37,7 @@ import numpy as np
 
 from muble import (ActionResult, Agent, Answer, Instruction, Observation, ObservationMode, Outcome, SceneGraph, Task,
                    Track, get_registry)
+from muble.core import streams
 from muble.core.interfaces import Trainer
 from muble.core.training import TrainingRun
 from muble.episode import DEFAULT_MAX_STEPS, run_episode
@@ -44,7 +45,7 @@ from muble.episode import DEFAULT_MAX_STEPS, run_episode
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.success import check
 from muble_plugins.common.symbolic import SymbolicWorld
-from muble_plugins.common.synthetic import sample_scene
+from muble_plugins.common.synthetic import keyed_scene
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.ranges import configured
 
@@ -58,13 +59,24 @@ log = logging.getLogger(__name__)
 # family).
 MAX_STEPS = DEFAULT_MAX_STEPS
 
+# The training data's streams (muble.core.streams), each keyed by (part, scene index[, k]) with part 0 for the
+# training scenes and 1 for the validation scenes: the scenes, their instructions and their roll-outs never share
+# a stream (numpy's lists of entropy once made a scene's property draws its first roll-out's).
+INSTRUCTION_STREAM = streams.declare("train.planner.instruction", "the instruction template k writes for a scene "
+                                     "of the learned planner's data (part, scene index, k)")
+ROLLOUT_STREAM = streams.declare("train.planner.rollout", "the explored primitives and simulated slips of the "
+                                 "roll-out of instruction k of a scene (part, scene index, k)")
+ORDER_STREAM = streams.declare("train.planner.order", "the order of the training samples in an epoch (epoch)")
+
+
+def _part(validation: bool) -> int:
+    return 1 if validation else 0
+
 
 def scene_for(seed: int, index: int, validation: bool) -> SceneGraph:
-    """Scene ``index`` of the training (``[seed, index]``, as ``sample_scenes``) or the validation stream
-    (``[seed, index, 1]``: disjoint from every training scene of the seed)."""
-    key = [seed, index, 1] if validation else [seed, index]
-    return sample_scene(np.random.default_rng(key), index, stiffness_rng=np.random.default_rng(key + [5]),
-                        properties_rng=np.random.default_rng(key + [6]))
+    """Scene ``index`` of the training or the validation part: the synthetic scene of key ``(part, index)``
+    (``muble_plugins.common.synthetic.keyed_scene``), so no validation scene is a training scene's draws."""
+    return keyed_scene(seed, (_part(validation), index), index)
 
 
 def instructions_for(scene: SceneGraph, seed: int, index: int, validation: bool,
@@ -73,8 +85,7 @@ def instructions_for(scene: SceneGraph, seed: int, index: int, validation: bool,
     out = []
     for k, name in enumerate(templates):
         task = _task(name)
-        rng = np.random.default_rng([seed, index, 2 if validation else 3, k])
-        out.extend(task.generate(scene, rng))
+        out.extend(task.generate(scene, streams.stream(INSTRUCTION_STREAM, seed, _part(validation), index, k)))
     return out
 
 
@@ -165,7 +176,7 @@ def _scene_rollouts(seed: int, index: int, validation: bool, explore: float, sli
     scene = scene_for(seed, index, validation)
     for k, instruction in enumerate(instructions_for(scene, seed, index, validation, templates)):
         episodes.append((instruction, scene))
-        rng = np.random.default_rng([seed, index, 4 if validation else 6, k])
+        rng = streams.stream(ROLLOUT_STREAM, seed, _part(validation), index, k)
         recorder = _Recorder(rng, explore)
         world = _SlippingWorld(scene, rng, slip)
         run_episode(instruction, world, recorder, check, max_steps=MAX_STEPS)
@@ -251,7 +262,7 @@ class PlannerTrainer(Trainer):
             t, cpu = time.perf_counter(), time.process_time()
             net.train()
             order = torch.randperm(len(train_samples), generator=torch.Generator().manual_seed(
-                run.seed * 1000 + epoch)).tolist()
+                streams.integer_seed(ORDER_STREAM, run.seed, epoch))).tolist()
             hits = total = 0
             loss_sum = 0.0
             steps = -(-len(order) // s["batch_size"])

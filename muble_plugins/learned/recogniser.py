@@ -39,6 +39,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from muble import Trainer
+from muble.core import streams
 from muble.core.errors import ConfigError
 from muble.core.ranges import configured
 from muble.core.training import TrainingRun
@@ -57,6 +58,10 @@ GEOMETRY = 8  # left, top, right, bottom (fractions of the image), sqrt(area fra
 EXTENT_SCALE = 5.0  # metres to the network's input scale (objects are 0.05-0.4 m)
 MARGIN = 0.1  # of the bounding box's longer side, on each side
 MIN_PIXELS = 4  # fewer visible pixels: no crop
+# The training's streams (muble.core.streams), keyed by the run's seed.
+HOLD_OUT_STREAM = streams.declare("train.recogniser.hold_out", "the scenes held out for validation")
+ORDER_STREAM = streams.declare("train.recogniser.order", "the order of the training crops in an epoch (epoch)")
+FLIP_STREAM = streams.declare("train.recogniser.flips", "which training crops an epoch mirrors (epoch)")
 
 
 # -- crops ------------------------------------------------------------------------------------------------------
@@ -354,7 +359,7 @@ def _hold_out(keys: list[str], fraction: float, seed: int) -> set[str]:
     count = int(round(fraction * len(unique)))
     if fraction > 0 and len(unique) > 1:
         count = min(max(count, 1), len(unique) - 1)
-    order = np.random.default_rng([seed, 7919]).permutation(len(unique))
+    order = streams.stream(HOLD_OUT_STREAM, seed).permutation(len(unique))
     return {unique[i] for i in order[:count]}
 
 
@@ -438,8 +443,10 @@ class RecogniserTrainer(Trainer):
             epoch_began = time.perf_counter()
             net.train()
             # The order of an epoch depends only on (seed, epoch), so a resumed run draws the same batches.
-            order = torch.randperm(len(train), generator=torch.Generator().manual_seed(run.seed * 1009 + epoch))
-            flips = torch.rand(len(train), generator=torch.Generator().manual_seed(run.seed * 2003 + epoch)) < 0.5
+            order = torch.randperm(len(train), generator=torch.Generator().manual_seed(
+                streams.integer_seed(ORDER_STREAM, run.seed, epoch)))
+            flips = torch.rand(len(train), generator=torch.Generator().manual_seed(
+                streams.integer_seed(FLIP_STREAM, run.seed, epoch))) < 0.5
             total, batches = 0.0, 0
             steps = range(0, len(train), cfg.batch_size)
             for start in ck.progress(steps, run, f"epoch {epoch + 1}/{cfg.epochs}", len(steps)):

@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from muble import PlanningError, Pose, PoseGoal, Trajectory
+from muble.core import streams
 from muble.stage import free_place
 from muble.stage.free_place import DISC, PLACE_GAP, PLACE_SPACING
 from muble.stage.geometry import hull_2d, yaw_quat
@@ -254,7 +255,8 @@ def plan_descent(env, world, place: Pose, above: np.ndarray, support: int,
     above_goal = PoseGoal(Pose(np.asarray(above, dtype=float), place.quat), *tol.FREE)
     place_goal = PoseGoal(place, *tol.CONTACT)
     lim = world.joint_limits
-    seeds = [env.arm_q(), *np.random.default_rng(7).uniform(lim[:, 0], lim[:, 1], size=(DESCENT_SEEDS, len(lim)))]
+    seeds = [env.arm_q(), *streams.legacy_stream(streams.PLACE_DESCENT, 7).uniform(lim[:, 0], lim[:, 1],
+                                                                              size=(DESCENT_SEEDS, len(lim)))]
     reasons: list[str] = []
     try:
         world.allow_contact([])

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from muble.core import streams
 from muble.core.scene import SceneGraph, SceneObject
 from muble.stage.geometry import yaw_quat
 
@@ -22,6 +23,15 @@ COLOURS = {"red": (0.85, 0.12, 0.1), "blue": (0.12, 0.3, 0.85), "green": (0.15, 
            "grey": (0.55, 0.55, 0.57), "purple": (0.5, 0.2, 0.65)}
 MATERIALS = ("plastic", "metal", "glass", "rubber", "wood", "ceramic")
 SHAPES = ("cuboid", "cylindrical", "hemisphere")
+# The worlds' streams (muble.core.streams), keyed by the caller's seed.
+WORLD_STREAM = streams.declare("render.world", "a renderer world's objects: places, turns, shapes, sizes, "
+                               "materials and colours (seed; muble_plugins.renderers.render_world)")
+ARM_STREAM = streams.declare("render.world_arm", "a renderer world's arm pose about its home pose (arm_seed)")
+
+
+def world_rng(seed: int) -> np.random.Generator:
+    """The generator ``random_scene`` draws world ``seed`` from."""
+    return streams.stream(WORLD_STREAM, seed)
 TABLE_TOP_Z = 0.8
 ROBOT_BASE = (-0.56, 0.0, 0.0)
 
@@ -77,9 +87,9 @@ def build_world(scene: SceneGraph, arm_seed: int | None = None) -> tuple["mujoco
     task = ManipulationTask(mujoco_arena=arena, mujoco_robots=[robot], mujoco_objects=bodies)
     model = mujoco.MjModel.from_xml_string(task.get_xml())
     data = mujoco.MjData(model)
-    rng = np.random.default_rng(arm_seed)
+    rng = None if arm_seed is None else streams.stream(ARM_STREAM, arm_seed)
     for joint, q in zip(robot.joints, robot.init_qpos):
-        noise = 0.0 if arm_seed is None else rng.uniform(-0.3, 0.3)
+        noise = 0.0 if rng is None else rng.uniform(-0.3, 0.3)
         data.joint(joint).qpos = q + noise
     for obj, body in zip(scene.objects, bodies):
         lowest = body.bottom_offset[2]

@@ -19,7 +19,7 @@ def render_sheet(path: Path, width: int = 640, height: int = 480, samples: int =
     from PIL import Image
 
     from muble.io.image_grid import contact_sheet
-    from muble_plugins.renderers.render_world import build_world, material_rig, random_scene
+    from muble_plugins.renderers.render_world import build_world, material_rig, random_scene, world_rng
 
     from .renderer import BlenderRenderer
 
@@ -30,7 +30,7 @@ def render_sheet(path: Path, width: int = 640, height: int = 480, samples: int =
         renderer.setup(scene, model)
         images.append(renderer.render(data, "materials").rgb)
         captions.append("plastic metal glass rubber wood ceramic")
-        scene = random_scene(np.random.default_rng(7), n_objects=5)
+        scene = random_scene(world_rng(7), n_objects=5)
         model, data = build_world(scene, arm_seed=7)
         renderer.setup(scene, model)
         start = data.qpos[:7].copy()

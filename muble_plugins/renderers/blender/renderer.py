@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from muble.core import streams
 from muble.core.errors import RenderError, unknown_name
 from muble.core.interfaces import Renderer
 from muble.core.ranges import configured
@@ -33,6 +34,11 @@ if TYPE_CHECKING:  # pragma: no cover
 log = logging.getLogger(__name__)
 
 TABLE_RINGS = 120.0  # growth rings per metre across the table's grain
+# The light rig's jitter of a scene without lamps of its own, seeded as before named streams (legacy_stream): the
+# material classes' measured looks (tests/render_blender) and the reference sheet were drawn under these lights.
+LIGHT_RIG_STREAM = streams.declare_legacy("render.blender_light_rig", "the jitter of the Blender renderer's key, "
+                                          "fill and back lights for a scene without lamps of its own (renderer "
+                                          "seed, image index)")
 # The table is drawn this much lower than it stands. An object resting on it has its base in the table's top
 # face, and rays leaving a glass base there skip or double-hit the coplanar faces: a dark pool under every glass.
 # A quarter of a pixel at the SHOP-VRB2 camera's distance parts them.
@@ -138,8 +144,8 @@ class BlenderRenderer(Renderer):
         if getattr(scene, "lamp_params", None):
             build_scene_lamps(collection, scene.lamp_params, centre, cfg, scene.extra.get("lamp_energy"))
         else:
-            rng = np.random.default_rng([cfg.seed, int(scene.image_index)])
-            build_lights(collection, centre, radius, cfg, rng)
+            build_lights(collection, centre, radius, cfg, streams.legacy_stream(LIGHT_RIG_STREAM, cfg.seed,
+                                                                                int(scene.image_index)))
         camera_data = bpy.data.cameras.new("muble_camera")
         camera_data.sensor_fit = "VERTICAL"
         camera_data.clip_start, camera_data.clip_end = 0.01, 100.0
