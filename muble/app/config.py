@@ -172,6 +172,10 @@ class MubleConfig:
     protocol: Any = None  # the frozen protocol's splits (muble_conf/protocol, muble.dataset.protocol), or none
     seed: int = bounded(0, ge=0)  # numpy seeds are non-negative
     scene_index: int = bounded(0, ge=0)
+    # muble run, the Gymnasium environments, muble serve: with a split name, scene_index is that split's index as
+    # muble generate makes it (the split's seed, its protocol settings and template mix); none: the configured
+    # task on scene scene_index of the generator seeded with seed.
+    split: str | None = None
     dry_run: bool = False  # build every configured plugin and write the manifest, but run nothing
     output: OutputConfig = field(default_factory=OutputConfig)
 

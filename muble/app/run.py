@@ -1,9 +1,11 @@
 """``muble run``: one SHOP-VRB2 episode on the configured robot, renderer, planner, task, objects and agent.
 
-It generates scene ``scene_index`` from ``seed``, picks an instruction of the configured task, lets the agent
-act with real physics, renders a keyframe after every primitive, and writes the scene, the sequence file, the
-keyframes, a GIF, the keyframes' MuJoCo states (``keyframes/<episode>_states.npz``, for ``muble render
---keyframes``) and a manifest under the run's output folder. The last line printed is the outcome.
+It generates scene ``scene_index`` from ``seed``, picks an instruction of the configured task (with
+``split=NAME``: index ``scene_index`` of that split as ``muble generate`` makes it, its scene, template and
+instruction, see ``muble.episode.components.split_episode``), lets the agent act with real physics, renders a
+keyframe after every primitive, and writes the scene, the sequence file, the keyframes, a GIF, the keyframes'
+MuJoCo states (``keyframes/<episode>_states.npz``, for ``muble render --keyframes``) and a manifest under the
+run's output folder. The last line printed is the outcome.
 """
 from __future__ import annotations
 
@@ -89,19 +91,11 @@ def _physical_properties_hint(cfg: DictConfig, components: dict[str, Any]) -> st
             f"{override} {where} (the physical family; docs/physical_properties.md)")
 
 
-def job(cfg: DictConfig) -> dict:
-    from muble.episode.runner import NoInstructionError, choose_instruction, no_instruction, write_episode
+def _configured_scene(cfg: DictConfig, components: dict[str, Any]) -> tuple[Any, Any]:
+    """Scene ``scene_index`` of the generator seeded with ``seed`` and the configured task's instruction for it;
+    a task with none for the scene is an error that names a scene that has one."""
+    from muble.episode.runner import NoInstructionError, choose_instruction, no_instruction
 
-    out_dir = Path(cfg.output.dir)
-    components = build_components(cfg)
-    manifest = make_manifest({"seed": cfg.seed, "scene_index": cfg.scene_index},
-                             OmegaConf.to_container(cfg, resolve=True))
-    summary = {kind: type(c).__name__ for kind, c in components.items() if kind != "sensors" and c is not None}
-    if cfg.dry_run:
-        write_json_atomic(out_dir / "manifest.json", manifest, indent=2)
-        print(f"muble run: dry run; built {', '.join(f'{k}={v}' for k, v in summary.items())}; "
-              f"manifest in {out_dir}")
-        return summary
     generator = scene_generator(cfg, components["object_set"])
     try:
         scene = generator.generate(cfg.scene_index)
@@ -117,11 +111,41 @@ def job(cfg: DictConfig) -> dict:
             raise no_instruction(cfg.task.name, cfg.scene_index, cfg.seed, hint) from None
     finally:
         generator.close()
+    return scene, instruction
+
+
+def job(cfg: DictConfig) -> dict:
+    from muble.dataset.production import split_seed, with_split
+    from muble.episode.components import split_episode
+    from muble.episode.runner import write_episode
+
+    cfg = with_split(cfg)  # with split=NAME: a protocol split's own objects, generator and template mix
+    split = None if cfg.get("split") is None else str(cfg.split)
+    out_dir = Path(cfg.output.dir)
+    components = build_components(cfg)
+    seeds = {"seed": cfg.seed, "scene_index": cfg.scene_index}
+    if split is not None:
+        seeds.update(split=split, split_seed=split_seed(cfg.seed, split))
+    manifest = make_manifest(seeds, OmegaConf.to_container(cfg, resolve=True))
+    summary = {kind: type(c).__name__ for kind, c in components.items() if kind != "sensors" and c is not None}
+    if cfg.dry_run:
+        write_json_atomic(out_dir / "manifest.json", manifest, indent=2)
+        print(f"muble run: dry run; built {', '.join(f'{k}={v}' for k, v in summary.items())}; "
+              f"manifest in {out_dir}")
+        return summary
+    if split is None:
+        task = components["task"]
+        scene, instruction = _configured_scene(cfg, components)
+        stem = f"episode_{cfg.seed}_{cfg.scene_index:06d}"
+    else:
+        suited = split_episode(cfg, split, cfg.scene_index, components["object_set"])
+        scene, instruction, task = suited.scene, suited.instruction, suited.task
+        log.info("index %d of split %s as muble generate makes it: template %s (the split's template mix; "
+                 "task= is not used)", cfg.scene_index, split, suited.template)
+        stem = f"episode_{cfg.seed}_{split}_{cfg.scene_index:06d}"
     log.info("instruction: %s", instruction.instruction)
     recorder = KeyframeStateRecorder(components["renderer"], len(cfg.episode.cameras))
-    output = episode_runner(cfg, {**components, "renderer": recorder}).execute(scene, instruction,
-                                                                              components["task"])
-    stem = f"episode_{cfg.seed}_{cfg.scene_index:06d}"
+    output = episode_runner(cfg, {**components, "renderer": recorder}).execute(scene, instruction, task)
     states = recorder.keyframe_states(output, cfg.robot.name, cfg.objects.name, cfg.episode.cameras[0])
     written = write_episode(output, out_dir, stem, gif=cfg.output.gif, action_names=cfg.episode.action_names,
                             states=states)

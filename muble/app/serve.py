@@ -104,12 +104,13 @@ def episode_factory(overrides: tuple[str, ...], render: bool, verbose: bool) -> 
     """The ``EpisodeFactory`` of ``muble serve``'s config, built inside the simulation process (a fresh
     interpreter: the command line's quiet logging is set up here again)."""
     from muble.app.config import compose
+    from muble.dataset.production import with_split
     from muble.episode.sources import EpisodeFactory
     from muble.quiet import quiet_third_party
 
     quiet_third_party(verbose)
     logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format=LOG_FORMAT)
-    return EpisodeFactory(compose("run", list(overrides)), render=render)
+    return EpisodeFactory(with_split(compose("run", list(overrides))), render=render)
 
 
 def serve_protocol_split(cfg: Any) -> str | None:

@@ -2,7 +2,8 @@
 
 Three sources, the same for the Gymnasium environments and the remote agent server:
 - **generated**: scene ``scene_index`` of the generator seeded with ``seed`` and an instruction of a template (or
-  of a template mix), exactly as ``muble run`` and ``muble generate`` choose them;
+  of a template mix), exactly as ``muble run`` chooses them; with ``split=NAME`` in the config, index
+  ``scene_index`` of that split as ``muble generate`` makes it (``muble.episode.components.split_episode``);
 - **dataset**: the stored scene and instruction of ``split``/``index`` under ``dataset.root``, as ``muble eval``
   reads them;
 - **data**: a scene and an instruction given as SHOP-VRB2 JSON data.
@@ -70,15 +71,22 @@ class EpisodeFactory:
     """Builds the configured plugins once; makes episodes from any source and a runner per episode.
 
     ``cfg`` is a composed MuBlE config (``muble.app.config.compose("run", overrides)``). ``render`` renders a
-    keyframe with the configured renderer after every primitive (a fresh renderer per episode).
+    keyframe with the configured renderer after every primitive (a fresh renderer per episode). With ``split``
+    set, generated episodes are that split's indices; ``cfg`` then comes with the split's own settings
+    (``muble.dataset.production.split_run_config``, which the Gymnasium environment and the server apply), and
+    ``split_size`` is the image size ``muble generate`` makes the split at where ``cfg``'s renderer size is
+    another (default: ``cfg``'s).
     """
 
-    def __init__(self, cfg: Any, render: bool = True):
+    def __init__(self, cfg: Any, render: bool = True, split_size: tuple[int, int] | None = None):
         from omegaconf import OmegaConf
 
         from muble.episode.components import build_components
+        from muble.io.layout import check_split_name
         from muble.plugins.registry import get_registry
 
+        self.split = None if cfg.get("split") is None else check_split_name(str(cfg.split), "split")
+        self.split_size = split_size
         self.cfg = cfg
         self.render = render
         self.registry = get_registry()
@@ -138,11 +146,17 @@ class EpisodeFactory:
         ``templates`` and ``weights`` default to the configured mix (``dataset.templates`` and
         ``dataset.template_weights``, read and checked as ``muble generate`` reads them); named templates without
         weights get equal shares. (``muble generate`` goes the other way: the template of each index first, then a
-        scene that suits it; so the same index is not the same episode in both.)"""
+        scene that suits it; so the same index is not the same episode in both.)
+
+        With ``split`` configured, the episode is index ``scene_index`` of that split as ``muble generate`` makes
+        it, its template the one the split's mix gives the index: naming ``templates`` or ``weights`` then is a
+        ``ConfigError``, and an index with no scene that suits its template a ``SceneGenerationError``."""
         from muble.episode.runner import choose_instruction, instruction_rng
         from muble.generation.task_mix import choose_from_mix, template_weights
 
         seed = int(self.cfg.seed)
+        if self.split is not None:
+            return self._split_episode(int(scene_index), templates, weights)
         if templates is None and weights is None:
             weights = list(self.cfg.dataset.template_weights)
         templates = list(templates or self.mix)
@@ -160,6 +174,21 @@ class EpisodeFactory:
         if instruction is None:
             return None
         return EpisodeSpec(scene, instruction, task, {**source, "template": instruction.template_id})
+
+    def _split_episode(self, index: int, templates: Sequence[str] | None, weights: Sequence[float] | None
+                       ) -> EpisodeSpec:
+        from muble.core.streams import split_seed
+        from muble.episode.components import split_episode
+
+        if templates is not None or weights is not None:
+            raise ConfigError(f"with split={self.split} an index's template is the one the split's template mix "
+                              "gives it (dataset.templates, dataset.template_weights): name no template, or set "
+                              "split=null to choose one")
+        suited = split_episode(self.cfg, self.split, index, self.components["object_set"], size=self.split_size)
+        return EpisodeSpec(suited.scene, suited.instruction, suited.task,
+                           {"kind": "generated", "seed": int(self.cfg.seed), "split": self.split,
+                            "split_seed": split_seed(int(self.cfg.seed), self.split), "scene_index": index,
+                            "template": suited.template})
 
     def stored(self, split: str, index: int, root: str | Path | None = None) -> EpisodeSpec:
         """The stored scene and instruction of ``split``/``index`` under ``root`` (default ``dataset.root``)."""

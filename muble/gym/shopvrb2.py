@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from muble.core.errors import ConfigError, PhysicsError, SceneValidationError
+from muble.core.errors import ConfigError, PhysicsError, SceneGenerationError, SceneValidationError
 from muble.core.types import Outcome
 from muble.dataset.shipped import check_plays_alone, episodes_root
 from muble.episode.plain import MalformedDecision, decision_from_plain, observation_to_plain, plain
@@ -34,7 +34,7 @@ from muble.episode.components import benchmark_settings, image_size
 from muble.episode.modes import track_instruction
 from muble.episode.sources import EPISODE_FORMS, EpisodeFactory, EpisodeSpec, episode_kind
 from muble.episode.stepped import EpisodeStateError, EpisodeThread, Step, SteppedEpisode
-from muble.gym.config import environment_config
+from muble.gym.config import environment_config, generation_size
 from muble.gym.spaces import as_text, image_space, json_text, text_space
 from muble.io.instructions_io import instruction_to_dict
 
@@ -78,7 +78,9 @@ class ShopVRB2Env(gym.Env):
     reads them; named templates without weights get equal shares); ``render=False`` leaves the images out (faster, no GL).
 
     ``reset(seed=s)`` draws the scene index from the seeded generator (same seed, same scene and instruction);
-    ``reset(options=...)`` picks an episode: ``{"scene_index": i, "template": t}`` (a generated scene),
+    ``reset(options=...)`` picks an episode: ``{"scene_index": i, "template": t}`` (a generated scene; with
+    ``split=NAME`` among the overrides, ``{"scene_index": i}`` is index ``i`` of that split as ``muble generate``
+    makes it, its template the split's),
     ``{"split": "val", "index": i}`` (a stored dataset episode under ``dataset.root``) or ``{"scene": {...},
     "instruction": {...}}`` (SHOP-VRB2 JSON data). ``info["instruction"]`` holds the instruction record an
     in-process agent receives (its program included, the stored ground-truth actions left out), ``info["track"]``
@@ -95,7 +97,12 @@ class ShopVRB2Env(gym.Env):
         if render_mode is not None and not render:
             raise ConfigError("render_mode='rgb_array' needs render=True (the images are what it shows)")
         self.cfg = environment_config(config, overrides, DEFAULT_OVERRIDES)
-        self.factory = EpisodeFactory(self.cfg, render=render)
+        # With split=NAME its scenes are made at the image size muble generate made them at, not at this one's.
+        split_size = generation_size(config, overrides) if self.cfg.get("split") is not None else None
+        self.factory = EpisodeFactory(self.cfg, render=render, split_size=split_size)
+        if self.factory.split is not None and (templates is not None or template_weights is not None):
+            raise ConfigError(f"with split={self.factory.split} an index's template is the one the split's "
+                              "template mix gives it: pass no templates or template_weights, or set split=null")
         self.templates = list(templates) if templates else self.factory.mix
         for t in self.templates:
             self.factory.task(t)  # an unknown template fails here, listing the valid ones
@@ -136,7 +143,11 @@ class ShopVRB2Env(gym.Env):
             step, spec = None, None
             for _ in range(SCENE_TRIES):
                 index = int(self.np_random.integers(0, 2**31 - 1))
-                spec = self._generated(index, self.templates)
+                try:
+                    spec = self._generated(index, self.templates)
+                except SceneGenerationError as e:  # with split=NAME: no scene of the index suits its template
+                    log.info("scene %d: %s; drawing another", index, e)
+                    continue
                 if spec is None:
                     continue
                 step = self._start(spec)

@@ -17,8 +17,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from muble.core.errors import ConfigError, InitialStateError, SceneValidationError
-from muble.gym.config import environment_config
+from muble.core.errors import ConfigError, InitialStateError, SceneGenerationError, SceneValidationError
+from muble.gym.config import environment_config, generation_size
 from muble.gym.spaces import image_space
 from muble.sim.spaces import control_space, proprioception, proprioception_space
 
@@ -55,8 +55,9 @@ class TabletopGymEnv(gym.Env):
     Configure with ``config`` (a Hydra-composed MuBlE config) and/or ``overrides`` (``["robot=UR5e",
     "renderer.width=224", "renderer.height=224"]``); ``camera`` picks the view. ``reset(seed=s)`` draws the scene
     index from the seeded generator (same seed, same scene); ``reset(options={"scene_index": i})`` or
-    ``{"scene": {...}}`` (SHOP-VRB2 JSON data) chooses it. ``render=False`` leaves the image out of the observation
-    (proprioception only; no renderer and no GL context are made).
+    ``{"scene": {...}}`` (SHOP-VRB2 JSON data) chooses it. With ``split=NAME`` among the overrides, scene ``i`` is
+    the scene of index ``i`` of that split as ``muble generate`` makes it. ``render=False`` leaves the image out of
+    the observation (proprioception only; no renderer and no GL context are made).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
@@ -73,6 +74,8 @@ class TabletopGymEnv(gym.Env):
         from muble.plugins.registry import get_registry
 
         self.cfg = environment_config(config, overrides, default_overrides(overrides))
+        # With split=NAME its scenes are made at the image size muble generate made them at, not at this one's.
+        self.split_size = generation_size(config, overrides) if self.cfg.get("split") is not None else None
         self.render_mode = render_mode
         self.camera = camera
         self.robot = OmegaConf.to_container(self.cfg.robot, resolve=True)
@@ -109,10 +112,10 @@ class TabletopGymEnv(gym.Env):
                 try:
                     self._build(self._scene(index))
                     break
-                except InitialStateError as e:
+                except (InitialStateError, SceneGenerationError) as e:
                     if fixed is not None:
                         raise
-                    log.info("scene %d does not start at rest (%s); drawing another", index, e)
+                    log.info("scene %d cannot be used (%s); drawing another", index, e)
             else:
                 raise ConfigError(f"none of {SCENE_TRIES} drawn scenes starts at rest")
         return self._observation(), {"scene_index": index, "objects": len(self.env.scene.objects)}
@@ -147,7 +150,13 @@ class TabletopGymEnv(gym.Env):
         if index not in self._scenes:
             if len(self._scenes) >= 8:
                 self._scenes.pop(next(iter(self._scenes)))
-            self._scenes[index] = self.generator.generate(index)
+            if self.cfg.get("split") is None:
+                self._scenes[index] = self.generator.generate(index)
+            else:  # index ``index`` of the split as muble generate makes it (its template's suited scene)
+                from muble.episode.components import split_episode
+
+                self._scenes[index] = split_episode(self.cfg, str(self.cfg.split), index,
+                                                    self.components["object_set"], size=self.split_size).scene
         return copy.deepcopy(self._scenes[index])
 
     def _build(self, scene) -> None:

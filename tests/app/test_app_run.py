@@ -121,3 +121,46 @@ def test_a_task_without_an_instruction_for_the_scene_is_named_and_a_suited_scene
         assert choose_instruction(components["task"], generator.generate(index), 5, index, "stack_order")
     finally:
         generator.close()
+
+
+def test_run_with_a_split_plays_the_index_muble_generate_wrote(tmp_path):
+    """``muble run split=S scene_index=k`` is index k of split S: with the frozen protocol, its scene file is the
+    shipped one (what ``muble generate protocol=shopvrb2_v2 benchmark.split=mini`` writes: test_app_protocol),
+    its instruction the shipped instruction and the oracle's primitives the recorded ground truth. Only the masks
+    are drawn in another frame: the protocol's generation draws them in the scene as built, ``muble run`` in its
+    episode's first keyframe."""
+    from muble.dataset.protocol import load_protocol, shipped_files
+
+    out = tmp_path / "run"
+    result = subprocess.run([sys.executable, "-m", "muble.app.cli", "protocol=shopvrb2_v2", "split=mini",
+                             "scene_index=2", f"hydra.run.dir={out}"], capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.stdout.strip().splitlines()[-1].startswith("outcome: success"), result.stdout
+    files = shipped_files(load_protocol("shopvrb2_v2"), "mini")
+    shipped_scene = json.loads(files["mini/scenes/SHOP_VRB2_mini_000002.json"])
+    shipped = json.loads(files["mini/instructions/SHOP_VRB2_mini_000002.json"])
+    manifest = json.loads((out / "manifest.json").read_text())
+    (scene_path,) = [p for p in manifest["outputs"] if p.startswith("scenes/")]
+    (sequence_path,) = [p for p in manifest["outputs"] if p.startswith("sequences/")]
+    scene = json.loads((out / scene_path).read_text())
+
+    def without_masks(value):
+        if isinstance(value, dict):
+            return {k: without_masks(v) for k, v in value.items() if k != "mask"}
+        return [without_masks(v) for v in value] if isinstance(value, list) else value
+
+    assert without_masks(scene) == without_masks(shipped_scene)
+    assert scene["image_filename"] == shipped_scene["image_filename"] == "SHOP_VRB2_mini_000002.png"
+    sequence = json.loads((out / sequence_path).read_text())
+    assert sequence["info"]["instruction"] == shipped["instruction"]
+    assert [[o["robot"]["action"][0]] for o in sequence["observations"][1:]] == \
+        [[name] for name, _ in shipped["ground_truth_actions"]]
+    assert manifest["seeds"]["split"] == "mini" and manifest["seeds"]["split_seed"] != manifest["seeds"]["seed"]
+
+
+def test_run_names_a_split_the_protocol_does_not_have(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "muble.app.cli", "protocol=shopvrb2_v2", "split=minis",
+                             f"hydra.run.dir={tmp_path}"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr[-2000:]
+    assert "unknown split 'minis' of protocol 'shopvrb2_v2' (did you mean 'mini'?)" in result.stderr, result.stderr
+    assert "choose it with split=" in result.stderr and "Traceback" not in result.stderr

@@ -142,3 +142,40 @@ def test_shopvrb2_keeps_one_renderer_across_resets_and_draws_what_a_fresh_one_dr
         kept.close()
         fresh.close()
     assert kept.factory._kept_renderer is None  # closed with the environment, on its worker thread
+
+
+@pytest.mark.slow
+def test_with_a_split_both_environments_index_scenes_as_muble_generate_does():
+    """``split=mini`` among the overrides: ``scene_index`` 2 is index 2 of the protocol's mini split as ``muble
+    generate`` writes it (the shipped files; test_app_protocol), its objects and, in ShopVRB2, its instruction and
+    template, generated at generate's image size while the environments render at their own small one."""
+    from muble.dataset.protocol import load_protocol, shipped_files
+    from muble.io.scene_io import scene_to_dict
+
+    files = shipped_files(load_protocol("shopvrb2_v2"), "mini")
+    shipped = json.loads(files["mini/instructions/SHOP_VRB2_mini_000002.json"])
+    objects = [{k: v for k, v in o.items() if k != "mask"}
+               for o in json.loads(files["mini/scenes/SHOP_VRB2_mini_000002.json"])["objects"]]
+    split = ["protocol=shopvrb2_v2", "split=mini"]
+
+    def unmasked(scene) -> list[dict]:
+        return [{k: v for k, v in o.items() if k != "mask"} for o in scene_to_dict(scene)["objects"]]
+
+    env = gymnasium.make("MuBlE/ShopVRB2-v0", overrides=split, render=False)
+    try:
+        _, info = env.reset(options={"scene_index": 2})
+        assert info["instruction"]["instruction"] == shipped["instruction"]
+        assert info["template"] == shipped["template_id"] and info["source"]["split"] == "mini"
+        assert unmasked(env.unwrapped.spec_now.scene) == objects
+        with pytest.raises(ConfigError, match="with split=mini an index's template is the one the split's"):
+            env.reset(options={"scene_index": 2, "template": "move_single"})
+    finally:
+        env.close()
+    table = gymnasium.make("MuBlE/Tabletop-v0", overrides=split, render=False)
+    try:
+        assert table.reset(options={"scene_index": 2})[1]["objects"] == len(objects)
+        assert unmasked(table.unwrapped._scene(2)) == objects
+    finally:
+        table.close()
+    with pytest.raises(ConfigError, match="unknown split 'minis' of protocol"):
+        gymnasium.make("MuBlE/ShopVRB2-v0", overrides=["protocol=shopvrb2_v2", "split=minis"], render=False)
