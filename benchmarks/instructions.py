@@ -3,10 +3,17 @@
 The statistics (words per instruction, ground-truth primitives per plan, oracle success in the symbolic
 world) cover every generated instruction.
 
-Run from the repository root: ``python benchmarks/instructions.py [--scenes 1000]``. Timings cover generation
-only (descriptions with their ambiguity checks, option rejection, text, program with recorded outputs), on
-scenes sampled beforehand. The anchor is the original MuBlE generator run on this machine type on its ten demo
-scenes repeated 50 times: 4,032 instructions in 1.21 s wall, interpreter start included (about 3,300/s).
+Run from the repository root: ``python benchmarks/instructions.py [--scenes 1000] [--original CHECKOUT]``.
+Timings cover generation only (descriptions with their ambiguity checks, option rejection, text, program with
+recorded outputs), on scenes sampled beforehand. The anchor is the original MuBlE generator run on this machine
+type on its ten demo scenes repeated 50 times: 4,032 instructions in 1.21 s wall, interpreter start included
+(about 3,300/s).
+
+The acceptance compares CPU-seconds on one core with both generators measured in the same run: given a checkout
+of the original repository (github.com/michaal94/MuBlE) as ``--original``, its own generator runs on the same demo
+scenes x50 in a child process on this process's core (as its demo runs it, interpreter start and JSON output
+included, as the anchor was), and ``speed_vs_original`` is this generator's instructions per CPU-second over
+the original's.
 """
 from __future__ import annotations
 
@@ -14,6 +21,10 @@ import argparse
 import collections
 import json
 import os
+import resource
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -45,6 +56,30 @@ def throughput(scenes, seed: int, repeats: int = 1) -> tuple[int, float]:
     return made, time.perf_counter() - start
 
 
+def original_generator(checkout: Path, scenes_file: Path, repeats: int) -> tuple[int, float]:
+    """Instructions made and CPU-seconds (user and system) of the original MuBlE generator on the scenes of
+    ``scenes_file`` repeated ``repeats`` times: ``instruction_generation/generate_instructions.py`` of a checkout
+    of its repository with the configuration of its demo (its progress lines off), in a child process."""
+    folder = checkout / "instruction_generation"
+    if not (folder / "generate_instructions.py").is_file():
+        raise SystemExit(f"--original {checkout}: no instruction_generation/generate_instructions.py there; give a "
+                         "checkout of github.com/michaal94/MuBlE")
+    with tempfile.TemporaryDirectory() as tmp:
+        data = json.loads(scenes_file.read_text())
+        data["scenes"] = data["scenes"] * repeats
+        scenes, out = Path(tmp) / "scenes.json", Path(tmp) / "out" / "instructions.json"
+        scenes.write_text(json.dumps(data))
+        config = json.loads((checkout / "demo" / "configs" / "instruction_generation.json").read_text())
+        config.update(input_scene_file=str(scenes), output_instruction_file=str(out), verbose=False)
+        (Path(tmp) / "config.json").write_text(json.dumps(config))
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run([sys.executable, "generate_instructions.py", "-c", str(Path(tmp) / "config.json")],
+                       cwd=folder, check=True, stdout=subprocess.DEVNULL)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        made = len(json.loads(out.read_text())["instructions"])
+    return made, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
 def summary(values: list[int]) -> dict:
     if not values:
         return {}
@@ -56,6 +91,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--original", type=Path, default=None,
+                        help="a checkout of the original MuBlE repository, to run its generator in the same run")
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
@@ -63,11 +100,15 @@ def main() -> None:
     scenes = sample_scenes(args.seed, args.scenes)
     throughput(scenes[:20], args.seed)  # warm caches and imports
     made, seconds = throughput(scenes, args.seed)
-    reference_rate = None
+    reference_rate = reference_cpu_rate = original_cpu_rate = None
     if REFERENCE.is_file():
         _, demo = load_scenes(REFERENCE)
+        cpu = time.process_time()
         ref_made, ref_seconds = throughput(demo, args.seed, repeats=50)
-        reference_rate = ref_made / ref_seconds
+        reference_rate, reference_cpu_rate = ref_made / ref_seconds, ref_made / (time.process_time() - cpu)
+        if args.original is not None:
+            original_made, original_cpu = original_generator(args.original, REFERENCE, 50)
+            original_cpu_rate = original_made / original_cpu
 
     # Acceptance statistics over every scene: words, plan lengths, templates per scene, oracle outcomes.
     words: dict[str, list[int]] = collections.defaultdict(list)
@@ -96,6 +137,9 @@ def main() -> None:
         "scenes": len(scenes), "instructions": made, "seconds": round(seconds, 3),
         "reference_scenes_x50_per_s": round(reference_rate, 1) if reference_rate else None,
         "anchor_original_per_s": round(ANCHOR_PER_S, 1),
+        "reference_scenes_x50_per_cpu_s": round(reference_cpu_rate, 1) if reference_cpu_rate else None,
+        "original_scenes_x50_per_cpu_s": round(original_cpu_rate, 1) if original_cpu_rate else None,
+        "speed_vs_original": round(reference_cpu_rate / original_cpu_rate, 3) if original_cpu_rate else None,
         "scenes_with_template": dict(scenes_with),
         "words": summary(all_words), "plan_primitives": summary(all_plans),
         "plan_primitives_by_template": {t: {k: v for k, v in summary(plan_lengths[t]).items() if k != "histogram"}

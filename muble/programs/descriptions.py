@@ -10,6 +10,7 @@ plugins use ``SceneIndex`` and ``describe`` to word their instructions (docs/plu
 from __future__ import annotations
 
 from itertools import combinations
+from operator import itemgetter
 
 from muble.core.scene import SceneGraph
 
@@ -63,6 +64,18 @@ words it as a noun phrase."""
 _SUBSETS = [c for k in range(len(DESCRIPTION_ATTRIBUTES) + 1) for c in combinations(DESCRIPTION_ATTRIBUTES, k)]
 
 
+def _values_of(attrs: tuple[str, ...]):
+    """A function from an object's values (in ``DESCRIPTION_ATTRIBUTES`` order) to the tuple of its ``attrs`` values."""
+    at = [DESCRIPTION_ATTRIBUTES.index(a) for a in attrs]
+    if len(at) > 1:
+        return itemgetter(*at)
+    return (lambda values: (values[at[0]],)) if at else (lambda values: ())
+
+
+# Each subset with its getter: a scene's index is built from all 32 for every scene generated.
+_SUBSET_VALUES = [(attrs, _values_of(attrs)) for attrs in _SUBSETS]
+
+
 class SceneIndex:
     """Descriptions of one scene.
 
@@ -73,14 +86,13 @@ class SceneIndex:
     def __init__(self, scene: SceneGraph, extra_steps: int = 0):
         self.scene = scene
         self.objects = {o.id: o for o in scene.objects}
-        ids = [o.id for o in scene.objects]
-        values = {o.id: {a: getattr(o, a) for a in DESCRIPTION_ATTRIBUTES} for o in scene.objects}
+        rows = [(o.id, tuple(getattr(o, a) for a in DESCRIPTION_ATTRIBUTES)) for o in scene.objects]
         unique: dict[int, list[tuple[int, Description]]] = {}
         groups: dict[tuple[int, ...], list[tuple[int, Description]]] = {}
-        for attrs in _SUBSETS:
+        for attrs, values_of in _SUBSET_VALUES:
             buckets: dict[tuple[str, ...], list[int]] = {}
-            for i in ids:
-                buckets.setdefault(tuple(values[i][a] for a in attrs), []).append(i)
+            for i, values in rows:
+                buckets.setdefault(values_of(values), []).append(i)
             for key, members in buckets.items():
                 desc = tuple(zip(attrs, key))
                 if len(members) == 1:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from muble.core.scene import SceneGraph, SceneObject
-from muble.stage.free_place import free_places
+from muble.stage.free_place import Footprint, free_places
 from muble.stage.geometry import hull_2d, quat_matrix
 from muble.stage.table import scene_part_region
 
@@ -59,8 +59,48 @@ def height(obj: SceneObject) -> float:
 def outline(obj: SceneObject) -> np.ndarray:
     """The footprint of ``obj``'s bounding box on the table plane as the object stands (its pose): the convex
     hull, counter-clockwise, of the box's corners seen from above."""
-    corners = (_UNIT_BOX * extents(obj)) @ quat_matrix(obj.orientation).T
-    return hull_2d(corners[:, :2]) + np.asarray(obj.position[:2], dtype=float)
+    return _outline(_corners(extents(obj), obj.orientation), np.asarray(obj.position[:2], dtype=float))
+
+
+def _corners(size: tuple[float, float, float], quat) -> np.ndarray:
+    """The eight corners of a box of extents ``size`` about its origin (``_UNIT_BOX``), turned by ``quat``."""
+    return (_UNIT_BOX * size) @ quat_matrix(quat).T
+
+
+def _outline(corners: np.ndarray, position: np.ndarray) -> np.ndarray:
+    return hull_2d(corners[:, :2]) + position
+
+
+class Outlines:
+    """The ``outline``s of a scene's objects as ``Footprint``s, each built at most once: for checks that ask for
+    the same footprints many times (the tasks' room check asks for every object's on each option it tries). A
+    footprint knows its box's corners at once and builds the outline (a convex hull) only when a search needs it.
+
+    An entry is keyed by the object's id together with everything its outline is computed from (its extents,
+    orientation and position on the table), so an object that was moved, turned or resized, or another scene's
+    object under the same id, gets a new footprint and is never answered from a stale one. The outlines built
+    are read-only: they are shared between calls."""
+
+    def __init__(self) -> None:
+        self._known: dict[tuple, Footprint] = {}
+
+    def __call__(self, obj: SceneObject) -> Footprint:
+        size = extents(obj)
+        # Bytes, not numbers: -0.0 and 0.0 (equal as keys) give outlines whose zeros differ in sign.
+        key = (obj.id, np.array(size).tobytes(), np.asarray(obj.orientation, dtype=float).tobytes(),
+               np.asarray(obj.position[:2], dtype=float).tobytes())
+        found = self._known.get(key)
+        if found is None:
+            corners = _corners(size, obj.orientation)
+            position = np.asarray(obj.position[:2], dtype=float)
+
+            def build() -> np.ndarray:
+                shape = _outline(corners, position)
+                shape.flags.writeable = False
+                return shape
+
+            found = self._known[key] = Footprint(corners[:, :2] + position, build)
+        return found
 
 
 def axis_outline(obj: SceneObject) -> np.ndarray:

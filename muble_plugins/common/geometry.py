@@ -10,8 +10,8 @@ from muble import SceneGraph, SceneObject
 from muble.core.observation import TOUCHING_TABLE
 from muble.programs.program import table_parts_of
 from muble.stage import rest
-from muble.stage.footprint import footprint_radius, outline
-from muble.stage.free_place import free_places
+from muble.stage.footprint import Outlines, footprint_radius
+from muble.stage.free_place import first_free_place, has_free_place
 from muble.stage.geometry import tilt_deg
 from muble.stage.table import BELOW_TABLE, scene_part_region
 
@@ -31,20 +31,28 @@ ROOM_SPACING = 0.01
 
 
 def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: float = ROOM_GAP,
-                 spacing: float = ROOM_SPACING) -> bool:
+                 spacing: float = ROOM_SPACING, outlines: Outlines | None = None) -> bool:
     """Whether ``movers``, put down one after another on ``part`` (each at the free place nearest the part's
     centre, as the placing primitives choose), all find room beside the objects that stay and those placed
     before: the free-place rule of ``muble.stage.free_place`` on the outlines of the scene's bboxes
-    (``muble.stage.footprint.outline``), ``gap`` apart, on a ``spacing`` grid."""
+    (``muble.stage.footprint.outline``), ``gap`` apart, on a ``spacing`` grid. ``outlines``: the scene's outline
+    memo, for a caller that asks about one scene many times.
+
+    Only the places of the movers put down before another one matter (``first_free_place``); for the last, any
+    place will do (``has_free_place``), which most often needs no outline built at all."""
     (x0, x1), (y0, y1) = scene_part_region(scene, part)
+    footprints = outlines if outlines is not None else Outlines()
     moving = {o.id for o in movers}
-    obstacles = [outline(o) for o in scene.objects if o.id not in moving]
-    for obj in movers:
-        held = outline(obj) - np.asarray(obj.position[:2], dtype=float)
-        places = free_places((x0, y0), (x1, y1), held, obstacles, gap=gap, spacing=spacing)
-        if not places:
+    obstacles = [footprints(o) for o in scene.objects if o.id not in moving]
+    for n, obj in enumerate(movers):
+        # outline - position, point by point (subtracting is adding the negation, to the bit)
+        held = footprints(obj).shifted(-np.asarray(obj.position[:2], dtype=float))
+        if n == len(movers) - 1:
+            return has_free_place((x0, y0), (x1, y1), held, obstacles, gap=gap, spacing=spacing)
+        place = first_free_place((x0, y0), (x1, y1), held, obstacles, gap=gap, spacing=spacing)
+        if place is None:
             return False
-        obstacles.append(held + places[0])
+        obstacles.append(held.shifted(place))
     return True
 
 

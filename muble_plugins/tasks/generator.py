@@ -15,6 +15,7 @@ from muble import ConfigError, Instruction, SceneGraph
 from muble.core.errors import unknown_name
 from muble.programs.descriptions import SceneIndex
 from muble.programs.program import execute
+from muble.stage.footprint import Outlines
 
 from muble_plugins.tasks.templates import ALL_TEMPLATES, TEMPLATES, OptionContext, Template
 
@@ -42,10 +43,12 @@ def _fill_io(program: list[dict[str, Any]], scene: SceneGraph) -> None:
 
 
 def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.Generator, *, count: int = 1,
-                          index: SceneIndex | None = None, weight_margin: float = 2.0) -> list[Instruction]:
-    """Up to ``count`` instructions of ``template`` for ``scene`` (``count < 0``: one per valid option)."""
+                          index: SceneIndex | None = None, weight_margin: float = 2.0,
+                          outlines: Outlines | None = None) -> list[Instruction]:
+    """Up to ``count`` instructions of ``template`` for ``scene`` (``count < 0``: one per valid option);
+    ``outlines``: the scene's outline memo, where the caller lists other templates for the same scene."""
     index = index or SceneIndex(scene)
-    context = OptionContext(index, weight_margin)
+    context = OptionContext(index, weight_margin, outlines if outlines is not None else Outlines())
     options = list(template.options(context))
     if not options:
         return []
@@ -92,10 +95,11 @@ def generate_instructions(scene: SceneGraph, rng: np.random.Generator, *, templa
     if unknown:
         raise ConfigError(unknown_name("template", unknown[0], list(ALL_TEMPLATES)))
     index = SceneIndex(scene, extra_steps)
+    outlines = Outlines()  # each object's outline once for all the templates
     out: list[Instruction] = []
     for name in templates or list(TEMPLATES):
         out += generate_for_template(ALL_TEMPLATES[name], scene, rng, count=per_template, index=index,
-                                     weight_margin=weight_margin)
+                                     weight_margin=weight_margin, outlines=outlines)
     for k, ins in enumerate(out):
         ins.extra["instruction_idx"] = k
     return out

@@ -18,6 +18,7 @@ from typing import Callable, Iterator
 
 from muble.programs.descriptions import SceneIndex
 from muble.programs.program import QUANTITIES, table_parts_of
+from muble.stage.footprint import Outlines
 
 from muble_plugins.common.geometry import room_on_part
 from muble_plugins.tasks.template_data import DataTemplate, read_template_file
@@ -67,6 +68,9 @@ def _memo(method):
 class OptionContext:
     index: SceneIndex
     weight_margin: float
+    # The scene's object outlines for the room check, computed once per object (``Outlines``; a generator that
+    # lists several templates' options for one scene hands each context the same memo).
+    outlines: Outlines = field(default_factory=Outlines)
     # Memos: the scene does not change while the options are listed.
     _parts: dict[int, frozenset[str]] = field(default_factory=dict)
     _ranked: dict[tuple, object] = field(default_factory=dict)
@@ -89,7 +93,7 @@ class OptionContext:
 
     def room(self, movers: list[int], part: str) -> bool:
         """Whether the objects ``movers``, put down one after another on ``part``, all find room there."""
-        return room_on_part(self.index.scene, [self.obj(i) for i in movers], part)
+        return room_on_part(self.index.scene, [self.obj(i) for i in movers], part, outlines=self.outlines)
 
     @_memo
     def by_weight(self, group: tuple[int, ...]) -> list[int] | None:

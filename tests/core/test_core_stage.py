@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from muble import ConfigError, SceneObject
 from muble.generation.config import STAGE_OPTIONS, GeneratorConfig, on_stage
 from muble.stage.footprint import axis_outline, height, outline, world_extents
-from muble.stage.geometry import polygon_distance, quat_matrix, turn_deg, yaw_quat
+from muble.stage.geometry import hull_2d, polygon_distance, quat_matrix, turn_deg, yaw_quat
 from muble.stage.layout import BoxShape, Placement, TableLayout, distance_to_point, fits
 from muble.stage.rest import SETTLED_DISPLACEMENT, SETTLED_TURN, settled, upright
 from muble.stage.table import STAGES, UNNAMED_STAGE, part_region
@@ -114,3 +114,100 @@ def test_one_layout_sampler_places_the_synthetic_scenes_as_the_generator_places_
     # The sampler refuses what breaks a rule: a box wider than the reach area beside the robot never fits.
     layout = TableLayout.on_stage(stage)
     assert layout.try_place(BoxShape(0.5, 1.3), np.random.default_rng(0), 50) is None
+
+
+def _random_outlines(rng, count: int, region) -> list[np.ndarray]:
+    """Outlines of turned boxes of 3-25 cm standing in and around ``region`` ((x0, x1), (y0, y1))."""
+    (x0, x1), (y0, y1) = region
+    shapes = []
+    for _ in range(count):
+        size = rng.uniform(0.03, 0.25, 2)
+        corners = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]]) * size
+        c, s = math.cos(a := rng.uniform(0, 2 * math.pi)), math.sin(a)
+        centre = rng.uniform([x0 - 0.1, y0 - 0.1], [x1 + 0.1, y1 + 0.1])
+        shapes.append(hull_2d(corners @ np.array([[c, -s], [s, c]]).T + centre))
+    return shapes
+
+
+def test_the_nearest_and_any_free_place_are_free_places_own_answers():
+    """``first_free_place`` is ``free_places(...)[0]`` to the bit and ``has_free_place`` its emptiness, on empty,
+    crowded and full boxes, with gaps, turns and preferred points; both answers occur."""
+    from muble.stage.free_place import first_free_place, free_places, has_free_place
+
+    rng = np.random.default_rng(11)
+    region = ((0.28, 0.74), (-0.32, -0.04))
+    lo, hi = (region[0][0], region[1][0]), (region[0][1], region[1][1])
+    answers = set()
+    for trial in range(150):
+        obstacles = _random_outlines(rng, int(rng.integers(0, 9)), region)
+        held = _random_outlines(rng, 1, ((-0.01, 0.01), (-0.01, 0.01)))[0]
+        gap, yaw = float(rng.choice([0.0, 0.015, 0.02, 0.06])), float(rng.choice([0.0, rng.uniform(-3, 3)]))
+        prefer = None if trial % 3 else rng.uniform(lo, hi)
+        places = free_places(lo, hi, held, obstacles, prefer, gap, 0.01, yaw)
+        first = first_free_place(lo, hi, held, obstacles, prefer, gap, 0.01, yaw)
+        if places:
+            assert first is not None and first.tobytes() == places[0].tobytes(), trial
+        else:
+            assert first is None, trial
+        assert has_free_place(lo, hi, held, obstacles, gap, 0.01, yaw) == bool(places), trial
+        answers.add(bool(places))
+    assert answers == {True, False}
+    empty = ((0.3, 0.0), (0.2, 0.1))  # a box with no centre
+    assert first_free_place(*empty, held, []) is None and not has_free_place(*empty, held, [])
+
+
+def test_a_search_builds_only_the_regions_and_outlines_its_answer_needs(monkeypatch):
+    """A box far from every obstacle is answered without a forbidden region or an outline built; a crowded one
+    builds the regions next to the answer only, and each footprint's outline once."""
+    from muble.stage import free_place
+    from muble.stage.free_place import Footprint, first_free_place, free_places, has_free_place
+
+    built = []
+    forbidden = free_place.forbidden
+    monkeypatch.setattr(free_place, "forbidden", lambda *a: built.append(1) or forbidden(*a))
+
+    def footprint(shape):
+        def build():
+            outlines.append(1)
+            return shape
+        return Footprint(shape, build)
+
+    outlines = []
+    square = np.array([[-0.02, -0.02], [0.02, -0.02], [0.02, 0.02], [-0.02, 0.02]])
+    far = [footprint(square + [1.5, 1.5]), footprint(square + [-1.0, 0.3])]
+    held = footprint(square)
+    assert has_free_place((0.3, -0.3), (0.7, 0.3), held, far)
+    assert np.allclose(first_free_place((0.3, -0.3), (0.7, 0.3), held, far), [0.5, 0.0], rtol=0, atol=1e-12)
+    assert built == [] and outlines == []
+    # An obstacle on the box's centre and one in its far corner: only the first decides the nearest place.
+    near, corner = square * 3 + [0.5, 0.0], square + [0.3, -0.3]
+    shapes = [footprint(near), footprint(corner)]
+    want = free_places((0.3, -0.3), (0.7, 0.3), square, [near, corner])[0]
+    built.clear()
+    assert first_free_place((0.3, -0.3), (0.7, 0.3), held, shapes).tobytes() == want.tobytes()
+    assert len(built) == 1 and len(outlines) == 2  # the held outline and the centre obstacle's
+    first_free_place((0.3, -0.3), (0.7, 0.3), held, shapes)
+    assert len(outlines) == 2  # built once
+
+
+def test_outlines_are_built_once_per_object_and_never_stale():
+    """The room check's memo gives one footprint per object as it stands, its outline ``outline``'s to the bit; a
+    moved, turned or resized object (or another with the same id) gets its own, never the old one."""
+    from muble.stage.footprint import Outlines
+
+    memo = Outlines()
+    obj = _object((0.3, 0.1, 0.02), yaw_quat(0.4), (0.5, -0.1))
+    first = memo(obj)
+    assert memo(obj) is first and first.outline is first.outline
+    assert first.outline.tobytes() == outline(obj).tobytes() and not first.outline.flags.writeable
+    # The corners it rules out far centres with hold the outline.
+    assert polygon_distance(first.outline, hull_2d(first.around)) == 0.0
+    assert sorted(map(tuple, first.outline)) == sorted(map(tuple, hull_2d(first.around)))
+    for changed in (dataclasses.replace(obj, position=np.array([0.52, -0.1, 0.0])),
+                    dataclasses.replace(obj, orientation=yaw_quat(0.5)),
+                    dataclasses.replace(obj, bbox={"x": 0.3, "y": 0.12, "z": 0.02}),
+                    dataclasses.replace(obj, model="other", bbox={"x": 0.2, "y": 0.1, "z": 0.02})):
+        again = memo(changed)
+        assert again is not first and again.outline.tobytes() == outline(changed).tobytes()
+    obj.position = np.array([0.6, 0.1, 0.0])  # moved in place
+    assert memo(obj) is not first and memo(obj).outline.tobytes() == outline(obj).tobytes()

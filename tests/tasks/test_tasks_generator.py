@@ -128,3 +128,45 @@ def test_room_on_a_part_takes_footprints_as_the_objects_stand():
     assert not room_on_part(scene, [across], "left")
     # Turned a quarter round, a box's x and y extents are the other way about on the table: the same room.
     assert room_on_part(scene, [box(3, 0.5, 0.2, (0.01, 0.30), yaw=np.pi / 2)], "left")
+
+
+def _room_as_the_rule_states(scene, movers, part, gap=0.02, spacing=0.01) -> bool:
+    """The room check written plainly: every mover, in turn, at ``free_places``' first place on the part, beside
+    the outlines of the objects that stay and of those put down before it."""
+    from muble.stage.footprint import outline
+    from muble.stage.free_place import free_places
+    from muble.stage.table import scene_part_region
+
+    (x0, x1), (y0, y1) = scene_part_region(scene, part)
+    moving = {o.id for o in movers}
+    obstacles = [outline(o) for o in scene.objects if o.id not in moving]
+    for obj in movers:
+        held = outline(obj) - np.asarray(obj.position[:2], dtype=float)
+        places = free_places((x0, y0), (x1, y1), held, obstacles, gap=gap, spacing=spacing)
+        if not places:
+            return False
+        obstacles.append(held + places[0])
+    return True
+
+
+def test_the_room_check_answers_as_the_rule_states_it():
+    """The room check builds outlines and forbidden regions only where they decide the answer (one memo per
+    scene): its answers are the plain rule's, for one to three movers in every order on every part, with both
+    answers occurring (a crowded left part too)."""
+    import itertools
+    from pathlib import Path
+
+    from muble.io.scene_io import load_scene
+    from muble.stage.footprint import Outlines
+
+    crowded = load_scene(Path(__file__).parent / "data" / "left_part_full.json")
+    answers = []
+    for scene in [crowded, *sample_scenes(21, 8)]:
+        memo = Outlines()
+        tuples = [t for k in (1, 2, 3) for t in itertools.permutations(scene.objects, k)][:30]
+        for movers in tuples:
+            for part in ("left", "right", "front", "back"):
+                want = _room_as_the_rule_states(scene, list(movers), part)
+                assert room_on_part(scene, list(movers), part, outlines=memo) == want, ([o.id for o in movers], part)
+                answers.append(want)
+    assert True in answers and False in answers
