@@ -83,6 +83,7 @@ from muble.core.object_physics import (  # noqa: F401  (re-exported: the names a
     stiffness_of_solref,
 )
 from muble.core.objects import ObjectModel
+from muble.stage.geometry import quat_matrix
 
 COLLISION_GROUP = 3
 VISUAL_GROUP = 2
@@ -254,13 +255,6 @@ def contents_radius(cavity_half: np.ndarray) -> float:
     return float(min(CONTENTS_RADIUS, CONTENTS_FILL * float(np.min(cavity_half))))
 
 
-def _quat_matrix(quat) -> np.ndarray:
-    w, x, y, z = np.asarray(quat, dtype=float) / np.linalg.norm(quat)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def contents_mjcf(model: ObjectModel, body: str, pos, quat) -> tuple[list[str], str]:
     """The cavity's wall geoms (``{body}_wall0`` … ``5``, for the container's body) and the contents body
     ``{body}_contents`` (free joint ``{body}_contents_joint``, ball geom ``{body}_contents_col``), a world body of
@@ -283,7 +277,7 @@ def contents_mjcf(model: ObjectModel, body: str, pos, quat) -> tuple[list[str], 
     radius = contents_radius(half)
     mass = float(model.contents_mass)
     rest = centre - np.array([0.0, 0.0, hz - radius])  # on the cavity's floor, in object coordinates
-    world = np.asarray(pos, dtype=float) + _quat_matrix(quat) @ rest
+    world = np.asarray(pos, dtype=float) + quat_matrix(quat) @ rest
     moment = 0.4 * mass * radius**2
     ball = (
         f'<body name="{body}_contents" pos="{_floats(world)}" quat="{_floats(quat)}">'

@@ -7,8 +7,7 @@ import numpy as np
 
 from muble.core.observation import MEASURED_EXTRA, TOUCHING_TABLE
 from muble.core.scene import SceneGraph
-from muble.stage.footprint import world_extents
-from muble.stage.geometry import tilt_deg
+from muble.stage.geometry import tilt_deg, world_extents
 
 RAISED_HEIGHT = 0.01  # m above its resting height counts as raised
 
@@ -22,7 +21,7 @@ def object_bbox(env, obj_id: int) -> dict[str, float]:
 
 def world_bbox(env, obj_id: int) -> dict[str, float]:
     """Extents (x, y, z) of the world-axis-aligned box that holds the object's bbox as it stands now
-    (``muble.stage.footprint.world_extents``)."""
+    (``muble.stage.geometry.world_extents``)."""
     bbox = object_bbox(env, obj_id)
     ext = world_extents((bbox["x"], bbox["y"], bbox["z"]), env.object_pose(obj_id).quat)
     return {"x": float(ext[0]), "y": float(ext[1]), "z": float(ext[2])}

@@ -3,8 +3,8 @@ world's free spot.
 
 A scene object's ``bbox`` is its bounding box in its own frame: the full extents {x, y, z} along its own axes,
 centred on its origin (the centre of its base) across and rising from it, or the eight corners of that box.
-Where the box lies in the world follows from the object's pose: ``world_extents`` gives the world-axis-aligned box
-that holds it, ``outline`` its footprint on the table.
+Where the box lies in the world follows from the object's pose: ``muble.stage.geometry.world_extents`` gives the
+world-axis-aligned box that holds it, ``outline`` its footprint on the table.
 
 No physics reads these: they serve worlds and checks that know objects only by their scene-graph records (the
 symbolic world's ``move`` and ``lower``, the tasks' success checks and room checks). Where the symbolic world
@@ -17,7 +17,7 @@ import numpy as np
 
 from muble.core.scene import SceneGraph, SceneObject
 from muble.stage.free_place import Footprint, free_places
-from muble.stage.geometry import hull_2d, quat_matrix
+from muble.stage.geometry import hull_2d, quat_matrix, world_extents
 from muble.stage.table import scene_part_region
 
 # Sizes (m) assumed for an object whose record has no bbox.
@@ -37,12 +37,6 @@ def extents(obj: SceneObject) -> tuple[float, float, float]:
         span = pts.max(axis=0) - pts.min(axis=0)
         return float(span[0]), float(span[1]), float(span[2])
     return 2 * DEFAULT_RADIUS, 2 * DEFAULT_RADIUS, DEFAULT_HEIGHT
-
-
-def world_extents(size, quat) -> np.ndarray:
-    """Full size along world x, y, z of the world-axis-aligned box that holds a box of object-frame extents
-    ``size`` (x, y, z) turned by ``quat`` (w, x, y, z)."""
-    return np.abs(quat_matrix(quat)) @ np.asarray(size, dtype=float)
 
 
 def footprint_radius(obj: SceneObject) -> float:

@@ -1,7 +1,10 @@
 """Geometry shared by the simulation, the scene generator and the plugins: turns about the vertical, tilt from it,
-turns between two orientations, and convex outlines on the table plane (hulls, distances).
+turns between two orientations, rotation matrices of quaternions, the world box of a turned box, the vertices of
+a collision mesh where it stands, and convex outlines on the table plane (hulls, distances).
 
-Quaternions are MuJoCo's and the scene graph's: (w, x, y, z). Rotations go through ``scipy.spatial.transform``.
+Quaternions are MuJoCo's and the scene graph's: (w, x, y, z). Rotations go through ``scipy.spatial.transform``,
+except ``quat_matrix`` (a closed form) and ``mujoco_quat_matrix`` (MuJoCo's own): each caller keeps the one it
+has always used, since their last bits differ and grasps and placements are computed from them.
 """
 from __future__ import annotations
 
@@ -37,6 +40,34 @@ def quat_matrix(quat) -> np.ndarray:
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def mujoco_quat_matrix(quat) -> np.ndarray:
+    """3x3 rotation matrix of the quaternion ``quat`` (w, x, y, z) as MuJoCo computes it (``mju_quat2Mat``, not
+    normalised): the same bits as the simulation's own poses."""
+    import mujoco
+
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, dtype=float))
+    return rot.reshape(3, 3)
+
+
+def world_extents(size, quat) -> np.ndarray:
+    """Full size along world x, y, z of the world-axis-aligned box that holds a box of object-frame extents
+    ``size`` (x, y, z) turned by ``quat`` (w, x, y, z)."""
+    return np.abs(quat_matrix(quat)) @ np.asarray(size, dtype=float)
+
+
+def mesh_vertices(model, geom: int) -> np.ndarray:
+    """The vertices (n x 3, the geom's own frame) of the mesh of MuJoCo mesh geom ``geom`` in ``model``."""
+    mesh = model.geom_dataid[geom]
+    start, n = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+    return model.mesh_vert[start:start + n]
+
+
+def geom_world_vertices(model, data, geom: int) -> np.ndarray:
+    """World positions (n x 3) of the vertices of MuJoCo mesh geom ``geom`` as it stands in ``data``."""
+    return mesh_vertices(model, geom) @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
 
 
 def tilt_deg(quat) -> float:

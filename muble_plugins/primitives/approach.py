@@ -11,6 +11,7 @@ import numpy as np
 from muble import ActionResult, JointGoal, Param, PlanningError, Pose, PoseGoal, PrimitiveAction, SceneGraph
 from muble.core.params import argument
 from muble.core.symbolic import ArmState, set_flag
+from muble.stage.geometry import mujoco_quat_matrix
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
 from muble_plugins.primitives.common import ATTEMPT, PART_OPEN, checked_result, rotated
@@ -307,9 +308,7 @@ def _pad_overlap(env, body: str, grasp: Pose, grip) -> float:
     Rays along the approach through the space between the open pads find the object's surface nearest the hand.
     """
     m, d = env.model, env.data
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, grasp.quat)
-    rot = rot.reshape(3, 3)
+    rot = mujoco_quat_matrix(grasp.quat)
     centre = grasp.pos + rot @ grip.open_centre
     closing, approach = rot @ grip.closing, rot @ grip.approach
     across = np.cross(approach, closing)

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from muble import Pose
-from muble.stage.geometry import yaw_quat
+from muble.stage.geometry import mesh_vertices, mujoco_quat_matrix, yaw_quat
 
 TABLE_CLEARANCE = 0.004  # m the lowest fingertip stays above the table top in a grasp pose
 PRE_GRASP = 0.10  # m back along the approach from the grasp pose where the straight move in starts
@@ -26,12 +26,6 @@ SWEEP_STEP = np.radians(6.0)  # rad between grasps swept about an object's verti
 CLEAR_ENOUGH = 0.02  # m between the open hand and a neighbour beyond which a grasp is not ranked lower
 TOUCHING = 0.002  # m: an open hand closer than this to a neighbour at the grasp pose cannot be used there
 CROWDED = 10.0  # rank penalty putting such grasps after every other
-
-
-def _quat_mat(quat) -> np.ndarray:
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, np.asarray(quat, dtype=float))
-    return rot.reshape(3, 3)
 
 
 def _mat_quat(mat: np.ndarray) -> np.ndarray:
@@ -72,7 +66,7 @@ class GripGeometry:
     def site_pose(self, frame: Pose, width: float) -> Pose:
         """Grip-site pose that puts the pads' midpoint on ``frame`` with the fingers closing along its x axis and
         the hand approaching along its z axis."""
-        site_rot = _quat_mat(frame.quat) @ self._frame_in_site().T
+        site_rot = mujoco_quat_matrix(frame.quat) @ self._frame_in_site().T
         return Pose(frame.pos - site_rot @ self.centre(width), _mat_quat(site_rot))
 
     def _frame_in_site(self) -> np.ndarray:
@@ -155,9 +149,7 @@ def _reach(m, d, site: int, g: int, axis: np.ndarray) -> float:
     centre = rot.T @ (d.geom_xpos[g] - origin)
     geom_rot = rot.T @ d.geom_xmat[g].reshape(3, 3)
     if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
-        mesh = m.geom_dataid[g]
-        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-        return float((m.mesh_vert[start:start + n] @ geom_rot.T @ axis).max() + centre @ axis)
+        return float((mesh_vertices(m, g) @ geom_rot.T @ axis).max() + centre @ axis)
     if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
         return float(centre @ axis + np.abs(axis @ geom_rot) @ m.geom_size[g])
     return float(centre @ axis + m.geom_rbound[g])
@@ -166,7 +158,7 @@ def _reach(m, d, site: int, g: int, axis: np.ndarray) -> float:
 def _compose(pose_pos, pose_quat, pos, quat) -> tuple[np.ndarray, np.ndarray]:
     out = np.empty(4)
     mujoco.mju_mulQuat(out, pose_quat, np.asarray(quat, dtype=float))
-    return pose_pos + _quat_mat(pose_quat) @ np.asarray(pos, dtype=float), out
+    return pose_pos + mujoco_quat_matrix(pose_quat) @ np.asarray(pos, dtype=float), out
 
 
 def _turned(quat: np.ndarray, angle: float) -> np.ndarray:
@@ -177,7 +169,7 @@ def _turned(quat: np.ndarray, angle: float) -> np.ndarray:
 
 
 def _axis(quat: np.ndarray, k: int) -> np.ndarray:
-    return _quat_mat(quat)[:, k]
+    return mujoco_quat_matrix(quat)[:, k]
 
 
 def grasp_approach(grasp: Pose) -> np.ndarray:
@@ -214,10 +206,10 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
     min_width = grip.closed_gap + SQUEEZE_MARGIN if grip is not None else 0.0
     rest_x = None
     if rest_quat is not None:
-        rest_x = _quat_mat(rest_quat) @ (grip.closing if grip is not None else np.array([1.0, 0.0, 0.0]))
+        rest_x = mujoco_quat_matrix(rest_quat) @ (grip.closing if grip is not None else np.array([1.0, 0.0, 0.0]))
     tip = grip.tip_depth if grip is not None else 0.0
     drafts = []  # (rank without clearance, order made, grasp frame pose, width held, sweep)
-    pose_rot = _quat_mat(object_pose.quat)  # the object's rotation, for every frame (``_compose``'s)
+    pose_rot = mujoco_quat_matrix(object_pose.quat)  # the object's rotation, for every frame (``_compose``'s)
     for index, (frame, (on_axis, swept)) in enumerate(zip(model.grasp_frames,
                                                           _frame_sweeps(model, clearance is not None))):
         if not min_width <= frame.width <= max_width:
@@ -232,7 +224,7 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
                 yaws += [np.pi / 2, -np.pi / 2]
             for yaw in yaws:
                 q = _turned(quat, yaw)
-                axes = _quat_mat(q)
+                axes = mujoco_quat_matrix(q)
                 approach, closing = axes[:, 2], axes[:, 0]
                 # The fingertips reach past the pads along the approach; they must stay off the table top.
                 p = pos.copy()
@@ -311,7 +303,7 @@ def _sweeps(frame, frames, on_axis: bool, grasp_type: str) -> list[tuple[float, 
     if on_axis:
         return [(a, 1.0) for a in (0.0, -np.pi / 12, np.pi / 12)]
     radial = np.array([frame.position[0], frame.position[1], 0.0])
-    closing = _quat_mat(frame.quat)[:, 0].copy()
+    closing = mujoco_quat_matrix(frame.quat)[:, 0].copy()
     closing[2] = 0.0
     size = np.linalg.norm(closing) * np.linalg.norm(radial)
     if size < 1e-9 or abs(closing @ radial) < 0.99 * size:
@@ -376,7 +368,7 @@ def hand_clearance(world, target_body: int | str, ignore=(), reach: float = CLEA
         if not world.scratch_data(user)[1]:  # used by another since: its poses again (the hand's are set below)
             d.qpos[:] = qpos
             mujoco.mj_kinematics(m, d)
-        rot = _quat_mat(pose.quat)
+        rot = mujoco_quat_matrix(pose.quat)
         best = reach
         centres = pose.pos + rel_pos @ rot.T
         # Bounding spheres first (all hand geoms at once); a zero bound (a plane) is always measured.

@@ -16,7 +16,7 @@ from muble import PlanningError, Pose, PoseGoal, Trajectory
 from muble.core import streams
 from muble.stage import free_place
 from muble.stage.free_place import DISC, PLACE_GAP, PLACE_SPACING
-from muble.stage.geometry import hull_2d, yaw_quat
+from muble.stage.geometry import geom_world_vertices, hull_2d, yaw_quat
 from muble.stage.rest import resting_height
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import tolerances as tol
@@ -52,9 +52,7 @@ def geom_heights(env, g: int) -> tuple[float, float]:
     """World z of geom ``g``'s lowest and highest points (a mesh's vertices, else its bounding sphere's)."""
     m, d = env.model, env.data
     if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
-        mesh = m.geom_dataid[g]
-        start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-        z = (m.mesh_vert[start : start + n] @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g])[:, 2]
+        z = geom_world_vertices(m, d, g)[:, 2]
         return float(z.min()), float(z.max())
     return float(d.geom_xpos[g][2] - m.geom_rbound[g]), float(d.geom_xpos[g][2] + m.geom_rbound[g])
 
@@ -181,9 +179,7 @@ def footprint(env, body: int) -> np.ndarray:
         rot, pos = d.geom_xmat[g].reshape(3, 3), d.geom_xpos[g]
         kind = m.geom_type[g]
         if kind == mujoco.mjtGeom.mjGEOM_MESH:
-            mesh = m.geom_dataid[g]
-            start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-            points.append((m.mesh_vert[start:start + n] @ rot.T + pos)[:, :2])
+            points.append(geom_world_vertices(m, d, g)[:, :2])
         elif kind == mujoco.mjtGeom.mjGEOM_BOX:
             corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * m.geom_size[g]
             points.append((corners @ rot.T + pos)[:, :2])

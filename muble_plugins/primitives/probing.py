@@ -17,7 +17,7 @@ from muble.core import physical_properties
 from muble.core.observation import MEASURED_EXTRA
 from muble.core.params import argument
 from muble.core.symbolic import ArmState
-from muble.stage.geometry import tilt_deg
+from muble.stage.geometry import geom_world_vertices, tilt_deg
 from muble_plugins.primitives import context as ctx
 from muble_plugins.primitives import handling
 from muble_plugins.primitives import measure as measuring
@@ -231,10 +231,9 @@ def _height_above_table(env, obj_id: int) -> float:
     low = np.inf
     for g in np.flatnonzero((m.geom_bodyid == body) & (m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)):
         if m.geom_contype[g] or m.geom_conaffinity[g]:
-            mesh = m.geom_dataid[g]
-            start, n = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
-            low = min(low, float((m.mesh_vert[start:start + n] @ d.geom_xmat[g].reshape(3, 3).T)[:, 2].min()
-                                 + d.geom_xpos[g][2]))
+            # The lowest vertex's z plus the geom's height, as before: adding is monotone, so the lowest sum
+            # is the lowest z plus it, to the bit.
+            low = min(low, float(geom_world_vertices(m, d, g)[:, 2].min()))
     return low - env.table().top_z
 
 

@@ -78,3 +78,55 @@ def test_hull_keeps_the_extreme_points_and_passes_degenerate_ones_through():
     assert np.all(edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0] > 0)
     line = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]])
     assert np.array_equal(hull_2d(line), line) and hull_2d(line).flags.c_contiguous
+
+
+def test_the_rotation_matrices_of_a_quaternion_are_muble_s_and_mujoco_s():
+    """``quat_matrix`` (a closed form, normalising) and ``mujoco_quat_matrix`` (MuJoCo's ``mju_quat2Mat``, to the
+    bit) are the same rotation; each caller keeps its own, since their last bits differ."""
+    import mujoco
+    from scipy.spatial.transform import Rotation
+
+    from muble.stage.geometry import mujoco_quat_matrix, quat_matrix
+
+    for rot in Rotation.random(300, rng=np.random.default_rng(4)):
+        quat = rot.as_quat(scalar_first=True)
+        own = np.empty(9)
+        mujoco.mju_quat2Mat(own, quat)
+        assert np.array_equal(mujoco_quat_matrix(quat), own.reshape(3, 3))
+        assert np.allclose(quat_matrix(quat), rot.as_matrix(), rtol=0, atol=1e-12)
+        assert np.allclose(mujoco_quat_matrix(quat), rot.as_matrix(), rtol=0, atol=1e-12)
+    assert np.allclose(quat_matrix([2.0, 0.0, 0.0, 0.0]), np.eye(3))  # normalised first
+
+
+def test_a_mesh_geom_s_world_vertices_are_where_mujoco_puts_the_geom():
+    """The vertices of a collision mesh where it stands: the mesh's own vertices turned and moved by the geom's
+    world frame (MuJoCo's ``geom_xmat``, ``geom_xpos``), the same bits as the expression each caller wrote before;
+    the lowest z plus the geom's height, as one caller took it, is the lowest world z to the bit."""
+    import mujoco
+
+    from muble.stage.geometry import geom_world_vertices, mesh_vertices
+
+    tetra = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.05, 0.0], [0.0, 0.0, 0.03]]
+    xml = f"""<mujoco><asset><mesh name="m" vertex="{' '.join(str(v) for p in tetra for v in p)}"/></asset>
+    <worldbody><body pos="0.4 -0.2 0.8" euler="20 -35 70"><freejoint/>
+    <geom name="g" type="mesh" mesh="m" pos="0.01 0.02 -0.03" euler="5 10 15"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    g = model.geom("g").id
+    local = mesh_vertices(model, g)
+    assert local.shape == (4, 3)
+    world = geom_world_vertices(model, data, g)
+    rot, pos = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g]
+    assert np.array_equal(world, local @ rot.T + pos)
+    assert np.allclose(world, [pos + rot @ v for v in local], rtol=0, atol=1e-12)
+    # MuJoCo recentres a mesh on its centre of mass and stores it in single precision: its local vertices are the
+    # tetrahedron's moved and turned, so the edge lengths are kept.
+    edges = [np.linalg.norm(np.subtract(tetra[i], tetra[j])) for i in range(4) for j in range(i + 1, 4)]
+    found = [np.linalg.norm(world[i] - world[j]) for i in range(4) for j in range(i + 1, 4)]
+    assert np.allclose(sorted(found), sorted(edges), rtol=0, atol=1e-6)
+    assert float(world[:, 2].min()) == float((local @ rot.T)[:, 2].min() + pos[2])
+    rng = np.random.default_rng(5)
+    for _ in range(2000):  # adding is monotone: the least sum is the least term's sum, whatever the rounding
+        terms, shift = rng.uniform(-1.0, 1.0, 50) * 10.0 ** rng.uniform(-3, 1), rng.uniform(-2.0, 2.0)
+        assert float((terms + shift).min()) == float(terms.min() + shift)

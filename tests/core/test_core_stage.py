@@ -12,8 +12,8 @@ from scipy.spatial.transform import Rotation
 
 from muble import ConfigError, SceneObject
 from muble.generation.config import STAGE_OPTIONS, GeneratorConfig, on_stage
-from muble.stage.footprint import axis_outline, height, outline, world_extents
-from muble.stage.geometry import hull_2d, polygon_distance, quat_matrix, turn_deg, yaw_quat
+from muble.stage.footprint import axis_outline, height, outline
+from muble.stage.geometry import hull_2d, polygon_distance, quat_matrix, turn_deg, world_extents, yaw_quat
 from muble.stage.layout import BoxShape, Placement, TableLayout, distance_to_point, fits
 from muble.stage.rest import SETTLED_DISPLACEMENT, SETTLED_TURN, settled, upright
 from muble.stage.table import STAGES, UNNAMED_STAGE, part_region

@@ -225,10 +225,11 @@ def test_grasp_candidates_rank_as_when_every_frame_was_swept_and_composed_per_sc
 def _reference_candidates(object_pose, model, table_top, max_width, rest_quat, clearance, limit):
     """``grasp_candidates`` without a gripper as it was before each object's swept frames were kept: every frame
     swept and composed with the object's pose one by one."""
+    from muble.stage.geometry import mujoco_quat_matrix
     from muble_plugins.primitives.grasping import (CLEAR_ENOUGH, CROWDED, TABLE_CLEARANCE, TOUCHING, _axis,
-                                                   _compose, _quat_mat, _sweeps, _swept, _turned)
+                                                   _compose, _sweeps, _swept, _turned)
 
-    rest_x = _quat_mat(rest_quat) @ np.array([1.0, 0.0, 0.0])
+    rest_x = mujoco_quat_matrix(rest_quat) @ np.array([1.0, 0.0, 0.0])
     drafts = []
     for index, frame in enumerate(model.grasp_frames):
         if not 0.0 <= frame.width <= max_width:
