@@ -396,7 +396,7 @@ class DisturbanceEvent:
         return out
 
 
-class Disturbance(ABC):
+class Disturbance(ABC):  # noqa: B024 - every hook is optional; an ABC like the other plugin kinds
     """A physical event the world applies during an episode while the agent still acts (plugin kind
     ``disturbance``, docs/closed_loop.md). It never writes a pose: it acts through MuJoCo (a force on an object,
     ``Environment.apply_force``; a grip that loosens) and the world moves as the physics says.

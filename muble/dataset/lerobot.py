@@ -72,7 +72,7 @@ def read_sequence(path: Path, split_dir: Path) -> dict[str, Any]:
             raise TypeError("'observations' must be a non-empty list")
         if not isinstance(images, list) or len(images) != len(observations):
             raise TypeError(f"'image_paths' must list one image per observation ({len(observations)})")
-        for i, o in enumerate(observations):
+        for o in observations:
             robot = o["robot"]
             _state(robot), float(robot["weight_measurement"]), robot["action"][0]
     except (KeyError, IndexError, TypeError, ValueError) as e:

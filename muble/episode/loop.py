@@ -236,7 +236,7 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
             return agent_failed("agent.reset", e)
         while True:
             try:
-                decision = calls("agent.act", lambda: agent.act(told, seen))
+                decision = calls("agent.act", lambda seen=seen: agent.act(told, seen))
             except PlanningError as e:  # the agent's program cannot be carried out in this scene
                 return finish(Outcome.PROGRAM_FAILURE, str(e))
             except Exception as e:  # noqa: BLE001 - see above

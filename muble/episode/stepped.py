@@ -195,7 +195,7 @@ class SteppedEpisode:
             kind, payload = self._from_worker.get(timeout=self.timeout)
         except queue.Empty:
             self.close()
-            raise EpisodeStateError(f"the episode did not answer within {self.timeout:.0f} s; it was abandoned")
+            raise EpisodeStateError(f"the episode did not answer within {self.timeout:.0f} s; it was abandoned") from None
         if kind == "error":
             self.error = payload
             self.last = Step(self.last.observation if self.last else None, done=True)

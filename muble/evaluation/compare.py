@@ -122,8 +122,10 @@ def _warnings(runs: list[Run]) -> list[str]:
 
 def _covered(run: Run) -> str:
     """What a run evaluated, per split: ``mini (first 20 of 100 episodes)`` or ``mini (100 episodes)``."""
-    return ", ".join(f"{split} ({partial_words(entry.get('partial')) or f'{len(entry['episodes'])} episodes'})"
-                     for split, entry in run.results["splits"].items())
+    # Each part's words apart: an f-string may not reuse its outer quote inside a field before Python 3.12.
+    words = {split: partial_words(entry.get("partial")) or f"{len(entry['episodes'])} episodes"
+             for split, entry in run.results["splits"].items()}
+    return ", ".join(f"{split} ({covered})" for split, covered in words.items())
 
 
 def compare(runs: list[Run]) -> dict[str, Any]:

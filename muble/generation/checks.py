@@ -158,7 +158,7 @@ def stacks_stand(models: list[ObjectModel], placements: list[Placement], pairs: 
             return f"object {top} has nothing of object {base} under it when centred over it"
         release = height + depth + STACK_DROP
         stack = {p for _, b, _ in placed for p in parts[b]} | set(parts[base]) | set(parts[top])
-        blocked = _in_the_way(model, data, lambda origin: place(top, origin), tb, stack,
+        blocked = _in_the_way(model, data, lambda origin, top=top: place(top, origin), tb, stack,
                               [centre[0], centre[1], release])
         if blocked is not None:
             return (f"object {top} set down on object {base} comes within {STACK_CLEARANCE * 1000:.0f} mm of object "
@@ -181,7 +181,6 @@ def _in_the_way(model, data, place, body: int, allowed: set[int], release) -> in
     """The first body other than ``allowed`` that ``body``, lowered straight down onto ``release`` (its origin, where
     ``place(origin)`` puts it) from ``STACK_SWEEP`` above, comes within ``STACK_CLEARANCE`` of; ``None`` when the
     way is clear. The body's pose is left at the last height tried."""
-    import mujoco
 
     geoms = np.flatnonzero(model.geom_bodyid == body)
     margins = model.geom_margin[geoms].copy()

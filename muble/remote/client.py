@@ -104,7 +104,7 @@ class RemoteClient:
             frames = self.socket.recv_multipart()
         except zmq.Again:
             self._connect()  # a REQ socket that missed its reply cannot send again
-            raise RemoteError("timeout", f"no reply from {self.address} within {self.timeout_ms / 1000:.0f} s")
+            raise RemoteError("timeout", f"no reply from {self.address} within {self.timeout_ms / 1000:.0f} s") from None
         reply = json.loads(frames[0])
         if reply.get("type") == "error":
             raise RemoteError(reply["error"]["code"], reply["error"]["message"])

@@ -221,7 +221,10 @@ class PlannerTrainer(Trainer):
         previous = ck.resume_from(path, "planner", run, ident)
 
         start, cpu = time.perf_counter(), time.process_time()
-        bar = (lambda items: ck.progress(items, run, "roll-outs", total=len(items)))
+
+        def bar(items):
+            return ck.progress(items, run, "roll-outs", total=len(items))
+
         train_samples, _ = rollouts(run.seed, range(s["scenes"]), False, s["explore"], s["slip"], bar,
                                     self.templates)
         val_samples, val_episodes = rollouts(run.seed, range(s["validation_scenes"]), True, s["explore"],

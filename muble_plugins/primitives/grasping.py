@@ -244,7 +244,7 @@ def grasp_candidates(object_pose: Pose, model, table_top: float, max_width: floa
         return [site_of(d) for d in drafts[:limit]]
     scored = []
     order = sorted(drafts, key=lambda item: item[:2]) if limit is not None else drafts
-    for k, draft in enumerate(order):
+    for draft in order:
         if limit is not None and len(scored) >= limit:
             scored.sort(key=lambda item: item[:2])
             del scored[limit:]

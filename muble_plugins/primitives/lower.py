@@ -317,7 +317,7 @@ def _retreat(env, held_body: int, between: np.ndarray) -> ctx.MotionReport:
     for _ in range(UNHOOK_TRIES):
         start_z = float(d.xpos[held_body][2])
         rise = _straight(env, world, np.array([0.0, 0.0, RETREAT]), pose.quat, held_body,
-                         stop=lambda e: e.data.xpos[held_body][2] - start_z > CAUGHT_RISE)
+                         stop=lambda e, start_z=start_z: e.data.xpos[held_body][2] - start_z > CAUGHT_RISE)
         report = placement.merge(report, rise)
         if not rise.stopped:
             break

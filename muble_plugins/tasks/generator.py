@@ -7,7 +7,7 @@ given the random generator's state and the scene.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 

@@ -86,7 +86,7 @@ def test_an_episode_page_shows_keyframes_decisions_truth_and_the_other_runs(site
     # An episode that weighs sets the measurement beside the scene file's weight.
     weighing = [(r["index"], s) for line in (runs["oracle"] / "episodes_mini.jsonl").read_text().splitlines()
                 for r in [json.loads(line)] for s in r["steps"] if s["action"].startswith("weigh(")]
-    for index, step in weighing:
+    for index, _step in weighing:
         episode = (site / "runs" / "oracle" / "mini" / f"{index:06d}.html").read_text()
         assert "Measured against true values" in episode
 

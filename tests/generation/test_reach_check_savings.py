@@ -138,7 +138,7 @@ def _reference_solve(kin, target_pos, target_quat, seed, position_tolerance=1e-3
     pos_err = rot_err = np.inf
     it = 0
     with _solve_errors():
-        for it in range(1, max_iterations + 1):
+        for _ in range(1, max_iterations + 1):
             d.qpos[kin.qpos_adr] = q
             mujoco.mj_kinematics(m, d)
             np.subtract(target_pos, d.site_xpos[site], out=err[:3])
@@ -299,7 +299,7 @@ def test_inverse_kinematics_on_the_robot_alone_gives_the_same_iterates_and_leave
     down = own.ee_pose(own.arm_q).quat
     rng = np.random.default_rng(11)
     outcomes = set()
-    for k in range(24):
+    for _ in range(24):
         goal = PoseGoal(Pose(np.array([0.45, -0.1, 0.95]) + rng.uniform(-0.35, 0.35, 3), down))
         results = []
         for w in (own, fast):

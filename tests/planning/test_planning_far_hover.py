@@ -5,7 +5,6 @@ out of reach after its first object was put back; with the lower hovers both are
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 

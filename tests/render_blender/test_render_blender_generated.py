@@ -1,7 +1,6 @@
 """One frame geometry: on a generated scene, Blender's and MuJoCo's default frames line up pixel for pixel."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from muble import SEG_ROBOT, SEG_TABLE, get_registry

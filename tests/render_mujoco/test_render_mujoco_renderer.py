@@ -1,7 +1,6 @@
 """The MuJoCo renderer against independent geometry: projected meshes, ray-plane depth, label mapping."""
 from __future__ import annotations
 
-import math
 
 import mujoco
 import numpy as np

@@ -1,5 +1,4 @@
 """The same scene and action sequence give a bitwise-identical final state in two separate processes."""
-import hashlib
 import subprocess
 import sys
 

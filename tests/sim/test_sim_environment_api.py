@@ -96,7 +96,7 @@ def test_sim_the_sensing_members_read_the_hand_the_fingers_and_the_load(panda_en
     axes = env.closing_axes()
     assert axes.shape == (2, 3) and np.allclose(np.linalg.norm(axes, axis=1), 1.0) and np.allclose(axes[0], -axes[1])
     pressed = {0: 0.0, 1: 0.0}
-    for side, contact, push in env.finger_contacts(2):
+    for side, _contact, push in env.finger_contacts(2):
         pressed[side] += float(push @ axes[side])  # each finger presses the object along its own closing
     assert pressed[0] > 1.0 and pressed[1] > 1.0, pressed
     calls = []

@@ -56,7 +56,7 @@ def test_oracle_solves_every_task_type(episodes):
 
 
 def test_ground_truth_plans_are_5_to_46_primitives_and_start_without_weights(episodes):
-    for name, task, ins, scene in episodes:
+    for _name, task, ins, scene in episodes:
         plan = task.ground_truth(ins, scene)
         # Squeezing needs no lift: measuring one stiffness is move, approach, close_gripper, squeeze.
         shortest = 4 if ins.program[-1]["type"] == "query_stiffness" else 5
@@ -70,7 +70,7 @@ def test_ground_truth_plans_are_5_to_46_primitives_and_start_without_weights(epi
 
 
 def test_weighing_is_needed_before_weight_decisions(episodes):
-    for name, task, ins, scene in episodes:
+    for _name, task, ins, scene in episodes:
         if any(s["type"] in ("filter_weight", "order_weight", "query_weight") for s in ins.program):
             assert any(a.name == "weigh" for a in task.ground_truth(ins, scene))
 
@@ -180,7 +180,7 @@ def test_random_agent_rarely_succeeds(episodes):
 
 def test_oracle_works_from_a_scene_graph_without_hover_flags(episodes):
     """A world that reports only in_hand and raised (by height), no hover flags: the oracle must still finish."""
-    for name, task, ins, scene in episodes[::7]:
+    for _name, task, ins, scene in episodes[::7]:
         world = SymbolicWorld(scene)
         oracle = OracleAgent()
         observation = Observation(scene=world.scene)

@@ -64,7 +64,7 @@ def test_every_physical_template_yields_instructions(generated):
     assert set(counts) == set(PHYSICAL_TEMPLATES), counts
     assert counts["measure_friction_single"] >= 0.9 * SCENES and counts["measure_com_single"] >= 0.9 * SCENES
     assert counts["measure_contents_single"] >= 0.4 * SCENES
-    for name, _, ins, scene in generated:
+    for _name, _, ins, scene in generated:
         assert 5 <= len(ins.instruction.split()) <= 16, ins.instruction
         truth = execute(ins.program, scene, weights="ground_truth")
         assert truth.outputs[-1] == ins.program[-1]["output"]
@@ -82,7 +82,7 @@ def _measured_objects(actions) -> dict[str, list[int]]:
 
 
 def test_oracle_solves_every_physical_instruction_measuring_only_what_it_compares(generated):
-    for name, task, ins, scene in generated:
+    for _name, task, ins, scene in generated:
         result = run_symbolic_episode(ins, scene, OracleAgent(task=task))
         assert result.outcome is Outcome.SUCCESS, (ins.instruction, [str(a) for a in result.actions])
         measured = _measured_objects(result.actions)

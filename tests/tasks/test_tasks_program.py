@@ -47,7 +47,7 @@ def test_unknown_weights_become_measurement_subgoals(reference):
     trace = execute(ins.program, scene)
     assert not trace.complete and set(trace.pending_weights) == {2, 3}
     with pytest.raises(PlanningError, match="weigh objects"):
-        trace.final
+        _ = trace.final
     # One measurement is not enough; both are.
     assert execute(ins.program, scene, known_weights={2: 58.0}).pending_weights == (3,)
     done = execute(ins.program, scene, known_weights={2: 58.0, 3: 80.0})

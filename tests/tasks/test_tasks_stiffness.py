@@ -54,7 +54,7 @@ def test_every_stiffness_template_yields_instructions_over_200_scenes(generated)
     assert counts["measure_stiffness_single"] >= 0.9 * SCENES
     assert counts["pick_up_stiffness"] >= 0.45 * SCENES
     assert counts["stack_stiffness_order"] >= 6
-    for name, _, ins, scene in generated:
+    for _name, _, ins, scene in generated:
         assert 5 <= len(ins.instruction.split()) <= 16
         steps = [s["type"] for s in ins.program]
         assert {"query_stiffness", "filter_stiffness", "order_stiffness"} & set(steps)
@@ -63,7 +63,7 @@ def test_every_stiffness_template_yields_instructions_over_200_scenes(generated)
 
 
 def test_oracle_solves_every_stiffness_instruction_by_squeezing_first(generated):
-    for name, task, ins, scene in generated[::2]:
+    for _name, task, ins, scene in generated[::2]:
         result = run_symbolic_episode(ins, scene, OracleAgent(task=task))
         assert result.outcome is Outcome.SUCCESS, (ins.instruction, [str(a) for a in result.actions])
         first = next(k for k, s in enumerate(ins.program) if s["type"] in STIFFNESS_STEPS)
@@ -82,7 +82,7 @@ def test_oracle_solves_every_stiffness_instruction_by_squeezing_first(generated)
 
 
 def test_ground_truth_plans_squeeze_right_after_grasping(generated):
-    for name, task, ins, scene in generated[::5]:
+    for _name, task, ins, scene in generated[::5]:
         plan = task.ground_truth(ins, scene)
         assert 4 <= len(plan) <= 46
         for k, action in enumerate(plan):
@@ -118,7 +118,7 @@ def test_measured_programs_stop_at_unmeasured_stiffness(generated):
     ids = ins.program[-3]["output"]
     assert trace.pending_stiffness == tuple(ids) and not trace.complete
     with pytest.raises(PlanningError, match="squeeze objects"):
-        trace.final
+        _ = trace.final
     known = {i: scene.object(i).stiffness for i in ids}
     assert execute(ins.program, scene, known_stiffness=known).final == ins.program[-1]["output"]
 
