@@ -11,7 +11,7 @@ import numpy as np
 
 from muble import ActionCall, ActionResult, Disturbance, DisturbanceEvent, bounded, get_registry
 from muble.stage.rest import at_rest
-from muble.stage.free_place import free_mask
+from muble.stage.free_place import free_mask, free_places
 from muble.stage.table import part_box
 from muble_plugins.primitives.placement import footprint, obstacles
 
@@ -155,8 +155,9 @@ class Bump(AfterPutDown):
     """An object just set down on the table is knocked sideways to another free place on the table: a horizontal
     force low on the object (so that it slides standing, as a nudge at its base would move it) drives it about
     ``min_distance``..``max_distance`` (drawn, with the direction) to a free place on the table (``_goal``: out of
-    the part it was put in where one is free); then it comes to rest. Where no place is free it waits for the next
-    put-down on the table."""
+    the part it was put in where one is free; a shorter or longer knock where none is, ``_near_goal``); then it comes
+    to rest. Where the object has no free place at all, the nearest other object standing alone on the table is
+    knocked instead; where none has, it waits for the next put-down on the table."""
 
     def __init__(self, config: BumpConfig) -> None:
         if config.max_distance < config.min_distance:
@@ -178,6 +179,15 @@ class Bump(AfterPutDown):
     def act(self, env, obj: int, action: ActionCall, step: int) -> DisturbanceEvent | None:
         goal = self._goal(env, obj)
         if goal is None:
+            # The object just put down has no free place to go (a tray takes most of the table): the nearest
+            # other object standing alone on the table is knocked instead, so that the bump planned acts.
+            for other in self._neighbours(env, obj):
+                goal = self._goal(env, other)
+                if goal is not None:
+                    logger.info("bump: no free place for object %d; object %d is knocked instead", obj, other)
+                    obj = other
+                    break
+        if goal is None:
             logger.info("bump: no free place %.0f cm from object %d", self.distance * 100, obj)
             return None
         start = env.object_pose(obj).pos.copy()
@@ -185,6 +195,24 @@ class Bump(AfterPutDown):
         end = env.object_pose(obj).pos
         logger.info("bump: object %d knocked %.1f cm", obj, 100 * float(np.linalg.norm(end[:2] - start[:2])))
         return _pushed("bump", step, f"put-down {self.nth} on the table", obj, push, start, goal, end)
+
+    @staticmethod
+    def _neighbours(env, obj: int) -> list[int]:
+        """The other objects that stand on the table with nothing on them, nearest ``obj`` first."""
+        here = env.object_pose(obj).pos[:2]
+        alone = []
+        for other in env.object_ids:
+            if other == obj or other == env.held_object or not _on_table(env, other):
+                continue
+            top = env.object_top(other)
+            outline = footprint(env, env.model.body(env.names.objects[other]).id)
+            lo, hi = outline.min(axis=0), outline.max(axis=0)
+            if any(env.object_pose(k).pos[2] > env.object_pose(other).pos[2] + 0.01 and env.object_top(k) > top
+                   and np.all(env.object_pose(k).pos[:2] >= lo) and np.all(env.object_pose(k).pos[:2] <= hi)
+                   for k in env.object_ids if k != other):
+                continue  # something stands on it: knocking it would carry a stack
+            alone.append(other)
+        return sorted(alone, key=lambda o: float(np.linalg.norm(env.object_pose(o).pos[:2] - here)))
 
     def _goal(self, env, obj: int) -> np.ndarray | None:
         """A free place for the object: its footprint there keeps ``clearance`` from every other's, and on the way
@@ -212,6 +240,24 @@ class Bump(AfterPutDown):
                 continue
             if free_mask(way, outline, others, self.config.clearance if start_free else PATH_GAP).all():
                 return goal
+        return self._near_goal(here, outline, others, lo, hi, start_free)
+
+    def _near_goal(self, here, outline, others, lo, hi, start_free: bool) -> np.ndarray | None:
+        """Where no place ``min_distance`` or more away is free (a large object, or one put down at the table's
+        edge among others, or a table mostly taken by a tray): the nearest free place ``NEAREST_BUMP`` to
+        ``FARTHEST_FALLBACK_BUMP`` away, on the table's parts, along a free way, the clearance halved and halved again before the bump waits for another
+        put-down. Every disturbance planned then acts where any room is left."""
+        for clearance in (self.config.clearance, self.config.clearance / 2, self.config.clearance / 4):
+            places = free_places(lo, hi, outline, others, prefer=here, gap=clearance, spacing=0.01)
+            for goal in places:
+                distance = float(np.linalg.norm(goal - here))
+                if distance < NEAREST_BUMP:
+                    continue
+                if distance > FARTHEST_FALLBACK_BUMP:
+                    break
+                way = here + np.linspace(0.0, 1.0, max(2, int(distance / 0.01)))[1:, None] * (goal - here)
+                if free_mask(way, outline, others, clearance if start_free else PATH_GAP).all():
+                    return goal
         return None
 
 
@@ -225,6 +271,8 @@ def _parts(env, xy: np.ndarray) -> set[str]:
 
 
 FARTHEST_BUMP = 0.2  # m an object is knocked at most, where no place at the drawn distance is free
+NEAREST_BUMP = 0.03  # m an object is knocked at least, where no place min_distance away is free
+FARTHEST_FALLBACK_BUMP = 0.35  # m it is knocked at most then: across a table mostly taken by a tray or a board
 PATH_GAP = 0.003  # m kept from every other object on the way, where the object starts nearer than the clearance
 
 
@@ -277,7 +325,8 @@ def knock_off(env, obj: int, over: float, goal: np.ndarray, speed: float) -> dic
     push's figures as ``slide_to`` does."""
     push = Push(env, obj)
     body = push.body
-    bottom = env.object_top(obj) - env.object_bbox(obj)["z"]
+    top = env.object_top(obj)
+    bottom = top - env.object_bbox(obj)["z"]
     rise = max(0.0, over - bottom)
     start = env.data.xipos[body].copy()
     # Up and a third of the way across at once: out from under the hand that has just let it go (its fingers hang
@@ -430,6 +479,9 @@ class Topple(AfterPutDown):
             logger.info("topple: no free place beside object %d for object %d", base, obj)
             return None
         goal, over = found
+        if _hand_in_the_way(env, obj, over):
+            logger.info("topple: the hand leaves object %d no room to rise out of object %d", obj, base)
+            return None
         start = env.object_pose(obj).pos.copy()
         push = knock_off(env, obj, over, goal, self.config.speed)
         end = env.object_pose(obj).pos
@@ -452,27 +504,59 @@ class Topple(AfterPutDown):
         others_ids = [i for i in env.object_ids if i != top]
         lo, hi = _table_region(env)
         base_top = env.object_top(base)
-        fallback = None
-        for turn in np.radians(np.arange(0, 360, 15)):
-            a = self.angle + turn
-            direction = np.array([np.cos(a), np.sin(a)])
-            for distance in np.arange(0.02, 0.3, 0.01):
-                goal = here + distance * direction
-                if np.any(goal < lo) or np.any(goal > hi):
+
+        def over(goal: np.ndarray) -> float:
+            return max([base_top] + [env.object_top(j) for j, outline_j in zip(others_ids, others)
+                                     if _near_way(outline_j, here, goal, reach)]) + KNOCK_CLEARANCE
+
+        # Less clearance only where none is found with more: a crowded table, or a stack at its edge (the grasp
+        # that picks the object up again then turns to where the fingers have room).
+        for clearance in (self.config.clearance, *(c for c in FALLBACK_CLEARANCES if c < self.config.clearance)):
+            fallback = None
+            for turn in np.radians(np.arange(0, 360, 15)):
+                a = self.angle + turn
+                direction = np.array([np.cos(a), np.sin(a)])
+                for distance in np.arange(0.02, 0.3, 0.01):
+                    goal = here + distance * direction
+                    if np.any(goal < lo) or np.any(goal > hi):
+                        break
+                    if not free_mask(goal[None], outline, others, clearance)[0]:
+                        continue
+                    height = over(goal)
+                    if height <= base_top + KNOCK_LIFT:
+                        return goal, height
+                    if fallback is None or height < fallback[1]:
+                        fallback = (goal, height)
                     break
-                if not free_mask(goal[None], outline, others, self.config.clearance)[0]:
-                    continue
-                over = max([base_top] + [env.object_top(j) for j, outline_j in zip(others_ids, others)
-                                         if _near_way(outline_j, here, goal, reach)]) + KNOCK_CLEARANCE
-                if over <= base_top + KNOCK_LIFT:
-                    return goal, over
-                if fallback is None or over < fallback[1]:
-                    fallback = (goal, over)
-                break
-        return fallback
+            if fallback is not None:
+                return fallback
+            # No ray from the stack reaches a free place (the stack stands outside the parts' box, by its edge):
+            # the free place on the parts nearest the drawn direction's.
+            aim = here + 0.1 * np.array([np.cos(self.angle), np.sin(self.angle)])
+            places = free_places(lo, hi, outline, others, prefer=aim, gap=clearance, spacing=0.01)
+            if places:
+                return places[0], over(places[0])
+        return None
 
 
+# m of clearance a topple settles for, in turn, where its configured clearance leaves no free place
+FALLBACK_CLEARANCES = (0.04, 0.03, 0.02)
 KNOCK_LIFT = 0.06  # m above the base's top a knocked-off object is carried at most, while a lower way is free
+
+
+def _hand_in_the_way(env, obj: int, over: float) -> bool:
+    """Whether the open hand hangs over the middle of ``obj`` (its grip site within half the object's reach of its
+    centre) lower above its top than the rise to ``over`` (world z, its bottom's), with ``KNOCK_CLEARANCE``: a can
+    deep in a bowl with the fingers just above it. A knock would press it against the fingers, so the topple
+    waits for the next stacking. (A hand beside the middle leaves room: the first leg moves the object across
+    as it rises, out from under the fingers.)"""
+    hand = env.ee_pose().pos
+    here = env.object_pose(obj).pos[:2]
+    body = env.model.body(env.names.objects[obj]).id
+    reach = float(np.max(np.linalg.norm(footprint(env, body) - here, axis=1)))
+    top = env.object_top(obj)
+    rise = max(0.0, over - (top - env.object_bbox(obj)["z"]))
+    return float(np.linalg.norm(hand[:2] - here)) < 0.5 * reach and hand[2] - top < rise + KNOCK_CLEARANCE
 
 
 def _near_way(outline: np.ndarray, start: np.ndarray, goal: np.ndarray, reach: float) -> bool:

@@ -231,3 +231,30 @@ def test_no_observation_mode_shows_a_disturbance():
             assert snoop.found == [], (mode, snoop.found)
     finally:
         renderer.close()
+
+
+@pytest.mark.parametrize("index, kind", [(193, "bump"), (183, "topple"), (194, "topple")])
+def test_a_planned_disturbance_acts_on_a_crowded_table(index, kind, tmp_path):
+    """Frozen closed_loop episodes where the first choice of place finds no room: in 193 a tray takes most of the
+    table, so the plate just put down cannot be knocked anywhere and a neighbour standing alone is knocked
+    instead; in 183 no place keeps the topple's 5 cm from every object; in 194 the stack stands outside the
+    parts' box, by the table's edge, where no ray from it meets a free place. The disturbance planned acts all
+    the same, the knocked object ends at rest standing, and the oracle recovers."""
+    from omegaconf import OmegaConf
+
+    from muble.app.config import compose
+    from muble.dataset.protocol import load_protocol, shipped_root
+    from muble.evaluation.episodes import EvalJob, evaluate_index
+
+    root = shipped_root(load_protocol("shopvrb2_v2"), "closed_loop")
+    cfg = compose("eval", ["protocol=shopvrb2_v2", "benchmark.split=closed_loop", f"dataset.root={root}",
+                           f"output.dir={tmp_path}", "dataset.splits=[closed_loop]"])
+    record = evaluate_index(EvalJob(OmegaConf.to_container(cfg, resolve=True), "closed_loop", index))
+    events = record["disturbances"]
+    assert len(events) == record["disturbances_planned"], (events, record["disturbances_planned"])
+    knocked = [e for e in events if e["kind"] == kind]
+    assert len(knocked) == 1, events
+    moved = np.hypot(*(np.array(knocked[0]["detail"]["ended"][:2]) - knocked[0]["detail"]["from"]))
+    assert moved > 0.02, knocked[0]
+    assert abs(knocked[0]["detail"]["ended"][2]) < 0.005, knocked[0]  # on the table, not on another object
+    assert record["outcome"] == "success", (record["outcome"], record["error"])
