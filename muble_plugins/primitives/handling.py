@@ -252,5 +252,5 @@ def shake(env, ends: tuple[np.ndarray, np.ndarray], period: float, cycles: int) 
     rattles = peak > max(RATTLE_FORCE, RATTLE_NOISE_SIGMAS * env.sensor_noise.force_white_n)
     logger.debug("shake object %d: largest unexplained wrist force %.3f N -> %s", obj_id, peak,
                  "rattles" if rattles else "solid")
-    env.measurements.setdefault(obj_id, {})["rattles"] = rattles
+    # Not recorded here: the primitive records it once it knows the object stayed in the hand throughout.
     return ShakeReading(rattles, peak)

@@ -371,6 +371,7 @@ class Shake(_LiftedReading):
         if env.held_object != held:
             return ActionResult(False, info=info, failure_reason=f"object {held} slipped out of the hand while "
                                                                  "shaken")
+        env.measurements.setdefault(held, {})[self.measures] = bool(reading.rattles)
         return ActionResult(True, measurement=bool(reading.rattles), info=info)
 
     def _ends(self, env, amplitude: float):

@@ -201,6 +201,27 @@ def test_sim_shake_hears_loose_contents_and_not_a_solid_can(object_set):
         assert result.measurement is (grams > 0), result.info
 
 
+
+def test_sim_a_shake_that_loses_the_object_fails_and_leaves_no_rattle_reading(object_set):
+    """The fingers open during the swings (a disturbance, run after every control step): the wrist was read, so a
+    reading exists, but the object is no longer in the hand. The shake fails, and nothing says whether it
+    rattles (as for push: a reading counts only when the primitive succeeded)."""
+    env = _picked(_sampled(object_set, "soda can", 5, contents_mass=0.015))
+    steps = []
+
+    def let_go(e):
+        steps.append(1)
+        if len(steps) == 10 and e.held_object is not None:
+            e.open_gripper()
+
+    env.control_listeners.append(let_go)
+    result = _act(env, "shake")
+    assert len(steps) > 10, steps  # the swings ran past the moment the hand opened
+    assert not result.success and "slipped out of the hand" in result.failure_reason, result
+    assert "peak_force" in result.info, result.info
+    assert "rattles" not in env.measurements.get(0, {}), env.measurements
+    assert "rattles_measured" not in env.sync_scene_graph().object(0).extra
+
 def test_sim_probing_primitives_have_symbolic_effects():
     scene = simple_scene([(0.5, 0.0)], [_box()])
     obj = scene.objects[0]
