@@ -131,8 +131,12 @@ class Environment(Protocol):
     def object_top(self, obj_id: int) -> float:
         """World z of the object's highest point, from its collision geometry as it stands now."""
 
+    def world_bbox(self, obj_id: int) -> dict[str, float]:
+        """Extents {"x", "y", "z"} (m) of the object's world-axis-aligned bounding box, as it stands now (a scene
+        object's ``bbox`` is another thing: its extents in its own frame)."""
+
     def object_bbox(self, obj_id: int) -> dict[str, float]:
-        """Extents {"x", "y", "z"} (m) of the object's world-axis-aligned bounding box."""
+        """Deprecated name of ``world_bbox`` (it warns); goes with the next minor release."""
 
     def touches_support(self, obj_id: int, tolerance: float = 0.001) -> bool:
         """The object touches the table or another object (live contacts within ``tolerance`` m)."""

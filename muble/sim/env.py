@@ -388,9 +388,16 @@ class TabletopEnv:
                 tops[-1] = float(verts[:, 2].max())
         return float(max(tops)) if tops else float(d.xpos[b][2])
 
-    def object_bbox(self, obj_id: int) -> dict[str, float]:
-        """Extents {"x", "y", "z"} (m) of the object's world-axis-aligned bounding box."""
+    def world_bbox(self, obj_id: int) -> dict[str, float]:
+        """Extents {"x", "y", "z"} (m) of the object's world-axis-aligned bounding box, as it stands now."""
         return sync.world_bbox(self, obj_id)
+
+    def object_bbox(self, obj_id: int) -> dict[str, float]:
+        """Deprecated name of ``world_bbox``: the world-axis-aligned box, not the object-frame extents a scene
+        object's ``bbox`` holds. Warns; goes with the next minor release."""
+        warnings.warn("Environment.object_bbox() is deprecated: call Environment.world_bbox() (the same world-axis-"
+                      "aligned box)", DeprecationWarning, stacklevel=2)
+        return self.world_bbox(obj_id)
 
     def touches_support(self, obj_id: int, tolerance: float = 0.001) -> bool:
         """The object touches the table or another object (live contacts within ``tolerance`` m)."""

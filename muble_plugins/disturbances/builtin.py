@@ -313,7 +313,7 @@ def slide_to(env, obj: int, goal: np.ndarray, speed: float) -> dict:
     rest; returns the peak force, the impulse (N·s) and the time the force acted. The force carries the
     object's weight times its friction with the table beside a speed servo, capped at three times its weight."""
     push = Push(env, obj)
-    bottom = env.object_top(obj) - env.object_bbox(obj)["z"]
+    bottom = env.object_top(obj) - env.world_bbox(obj)["z"]
     push.drive(lambda pos: np.append(goal, pos[2]), speed, planar=True, height=bottom + PUSH_HEIGHT)
     return push.done()
 
@@ -326,7 +326,7 @@ def knock_off(env, obj: int, over: float, goal: np.ndarray, speed: float) -> dic
     push = Push(env, obj)
     body = push.body
     top = env.object_top(obj)
-    bottom = top - env.object_bbox(obj)["z"]
+    bottom = top - env.world_bbox(obj)["z"]
     rise = max(0.0, over - bottom)
     start = env.data.xipos[body].copy()
     # Up and a third of the way across at once: out from under the hand that has just let it go (its fingers hang
@@ -555,7 +555,7 @@ def _hand_in_the_way(env, obj: int, over: float) -> bool:
     body = env.model.body(env.names.objects[obj]).id
     reach = float(np.max(np.linalg.norm(footprint(env, body) - here, axis=1)))
     top = env.object_top(obj)
-    rise = max(0.0, over - (top - env.object_bbox(obj)["z"]))
+    rise = max(0.0, over - (top - env.world_bbox(obj)["z"]))
     return float(np.linalg.norm(hand[:2] - here)) < 0.5 * reach and hand[2] - top < rise + KNOCK_CLEARANCE
 
 

@@ -12,7 +12,7 @@ class ObjectState(Sensor):
         for obj_id in env.object_ids:
             pose = env.object_pose(obj_id)
             out[obj_id] = {
-                "position": pose.pos, "quaternion": pose.quat, "bbox": env.object_bbox(obj_id),
+                "position": pose.pos, "quaternion": pose.quat, "bbox": env.world_bbox(obj_id),
                 "in_hand": env.held_object == obj_id, "raised": env.is_raised(obj_id),
             }
         return out

@@ -50,11 +50,13 @@ def test_sim_environment_geometry_answers_match_the_physics(panda_env, scene_mod
     assert env.object_ids == sorted(models)
     for obj_id in env.object_ids:
         # standing upright on the table top (z = 0): the highest point is the object's height
-        top, height = env.object_top(obj_id), env.object_bbox(obj_id)["z"]
+        top, height = env.object_top(obj_id), env.world_bbox(obj_id)["z"]
         assert height == pytest.approx(models[obj_id].extents[2], abs=0.002)
         assert top == pytest.approx(height, abs=0.003), f"object {obj_id}: top {top:.4f} m, height {height:.4f} m"
         assert env.touches_support(obj_id), f"object {obj_id} rests on the table"
         assert not env.is_raised(obj_id) and not env.is_lifted(obj_id)
+    with pytest.warns(DeprecationWarning, match=r"object_bbox\(\) is deprecated: call Environment\.world_bbox"):
+        assert env.object_bbox(0) == env.world_bbox(0)  # the old name of the world box, for one more release
     lo, hi = part_box(env, "left")
     assert (lo < hi).all() and hi[1] <= 0.0  # "left" is -y, seen from the scene camera
     # the top-down grasp frame points the grip site's z axis down, and yaw turns it about the vertical

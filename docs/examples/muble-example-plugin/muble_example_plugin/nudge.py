@@ -43,7 +43,7 @@ class Nudge(muble.Disturbance):
         target = min(resting, key=lambda i: float(np.linalg.norm(env.object_pose(i).pos[:2] - hand)))
         mass = float(env.model.body_subtreemass[env.model.body(env.names.objects[target]).id])
         force = self.config.strength * mass * 9.81 * np.array([np.cos(self.angle), np.sin(self.angle), 0.0])
-        low = env.object_top(target) - env.object_bbox(target)["z"] + 0.003
+        low = env.object_top(target) - env.world_bbox(target)["z"] + 0.003
         position = env.object_pose(target).pos
         env.apply_force(target, force, np.array([position[0], position[1], low]))
         env.advance(self.config.duration)
