@@ -1,125 +1,117 @@
-"""Symbolic SHOP-VRB2 scenes sampled from the attribute vocabulary, for generator statistics and tests.
+"""Symbolic scenes of a registered object set, for training data, generator statistics and tests.
 
-No physics: objects get attributes, flags, a ground-truth weight and stiffness, a bounding box and a spot on the
-table, which is all instruction generation and symbolic planning read; with ``properties_rng`` also the hidden
-physical properties (``muble.core.physical_properties``) the SHOP-VRB2 object set gives its objects: friction and
-a centre of mass to the pickupable ones, loose contents (or none) to the closed pickupable ones. The spots come from the scene generator's
-layout sampler (``muble.stage.layout``) on the stage's reach area, with the bounding boxes' outlines for the
-objects' footprints.
+No physics: objects get what the object set draws for them (``ObjectSet.sample``: category, model, colour,
+material, size word and scale, weight, stiffness) and what its models say of them (``ObjectSet.build``: extents,
+stackable, stack_base, pickupable, closed), a spot on the table, and with ``properties_rng`` the hidden physical
+properties (``muble.core.physical_properties``) the set says each object carries, drawn as the scene generator
+draws them. That is all instruction generation and symbolic planning read, and it is what ``muble generate`` puts in
+a scene file, so a model trained on these scenes sees the benchmark's objects: there is no second catalogue here.
+The object set defaults to SHOP-VRB2's (``shopvrb2``) through the registry; ``object_set(protocol)`` gives a
+protocol's training pool. Building a model costs a dictionary look-up once its (model, scale) geometry is in the
+set's in-memory cache (``muble_plugins.objects.build_cache``), so thousands of scenes cost seconds.
+
+The spots come from the scene generator's layout sampler (``muble.stage.layout``) on the stage's reach area, with
+the models' extents as the objects' footprints.
 """
 from __future__ import annotations
 
+import json
 import math
-from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 
 from muble.core import physical_properties, streams
+from muble.core.errors import ConfigError
 
-from muble import SceneGraph, SceneObject
+from muble import ObjectSet, SceneGraph, SceneObject
 from muble.stage.layout import BoxShape, TableLayout
 from muble.stage.table import STAGES, UNNAMED_STAGE
 
-from muble_plugins.common.materials import STIFFNESS_RANGE
-
-COLOURS = ("brown", "white", "gray", "blue", "purple", "green", "yellow", "cyan", "red", "black")
-# category: shapes, materials, sizes, (stackable, stack_base, pickupable), weight range g, extents m (x, y, z)
-CATEGORIES: dict[str, tuple] = {
-    "plate": (("flat",), ("ceramic", "plastic"), ("small", "medium-sized"), (False, True, False),
-              (180, 290), (0.16, 0.16, 0.012)),
-    "bowl": (("hemisphere",), ("ceramic", "plastic", "glass"), ("small", "medium-sized"), (True, True, True),
-             (120, 215), (0.12, 0.12, 0.05)),
-    "glass": (("cylindrical", "cuboid"), ("glass", "plastic"), ("medium-sized",), (True, False, True),
-              (50, 95), (0.07, 0.07, 0.10)),
-    "baking tray": (("flat",), ("metal", "rubber"), ("medium-sized", "large"), (False, True, False),
-                    (220, 370), (0.24, 0.16, 0.03)),
-    "soda can": (("cylindrical",), ("metal",), ("medium-sized",), (True, False, True),
-                 (110, 130), (0.066, 0.066, 0.12)),
-    "food box": (("cylindrical", "cuboid"), ("plastic",), ("small", "medium-sized"), (False, True, False),
-                 (150, 215), (0.10, 0.10, 0.10)),
-    "mug": (("cylindrical",), ("ceramic",), ("small", "medium-sized"), (True, False, True),
-            (55, 115), (0.10, 0.08, 0.09)),
-    "chopping board": (("cuboid", "irregularly shaped"), ("plastic", "rubber", "wooden"), ("large",),
-                       (False, True, False), (360, 500), (0.24, 0.15, 0.02)),
-    "thermos": (("cylindrical",), ("metal",), ("medium-sized",), (False, False, True),
-                (235, 255), (0.08, 0.08, 0.25)),
-    "wine glass": (("irregularly shaped",), ("glass", "plastic"), ("medium-sized",), (False, False, True),
-                   (95, 115), (0.08, 0.08, 0.18)),
-}
-
-
-CLOSED = ("soda can", "thermos", "food box")  # closed containers, which can hold loose contents
-
-# A synthetic scene's streams (muble.core.streams), each keyed by the caller's seed and scene key: the stiffnesses
-# and the hidden properties apart from the rest, so that drawing them changes nothing else a scene holds.
-SCENE_STREAM = streams.declare("synthetic.scene", "a synthetic symbolic scene's object count, categories, "
-                               "attribute words, placements and weights (muble_plugins.common.synthetic; the "
-                               "caller's scene key)")
-STIFFNESS_STREAM = streams.declare("synthetic.stiffness", "a synthetic scene's stiffnesses (the caller's scene key)")
+# A synthetic scene's streams (muble.core.streams), each keyed by the caller's seed and scene key: the hidden
+# properties apart from the rest, so that drawing them changes nothing else a scene holds.
+SCENE_STREAM = streams.declare("synthetic.scene", "a synthetic symbolic scene's object count, objects (the object "
+                               "set's draws: attributes, weights, stiffnesses) and placements "
+                               "(muble_plugins.common.synthetic; the caller's scene key)")
 PROPERTIES_STREAM = streams.declare("synthetic.properties", "a synthetic scene's hidden physical properties (the "
                                     "caller's scene key)")
-PLACE_TRIES = 20  # poses tried per object before another category is drawn in its stead
+PLACE_TRIES = 20  # poses tried per object before another object is drawn in its stead
+DEFAULT_OBJECT_SET = "shopvrb2"
+
+_OBJECT_SETS: dict[str, ObjectSet] = {}
 
 
-def _pick(rng: np.random.Generator, items: tuple) -> str:
-    return items[int(rng.integers(len(items)))]
+def object_set(protocol: dict | None = None, name: str = DEFAULT_OBJECT_SET) -> ObjectSet:
+    """The registered object set ``name`` as ``muble generate`` samples it: with a protocol, its training split's
+    pool (the protocol's common object options and its ``train`` split's), so that no held-out model, finish or
+    property range of an evaluation split is drawn. One instance per set and options in a process (its geometry
+    cache is what keeps the scenes cheap)."""
+    from muble.plugins.registry import get_registry
+
+    params: dict[str, Any] = {}
+    if protocol and name != DEFAULT_OBJECT_SET:
+        raise ConfigError(f"object set {name!r} with a protocol: a protocol's pools are SHOP-VRB2 objects; "
+                          f"train without protocol=... for the {name!r} set")
+    if protocol:
+        train = ((protocol.get("splits") or {}).get("train") or {}).get("objects") or {}
+        for key, value in {**((protocol.get("common") or {}).get("objects") or {}), **train}.items():
+            params[key] = value
+    key = json.dumps([name, params], sort_keys=True, default=str)
+    if key not in _OBJECT_SETS:
+        _OBJECT_SETS[key] = get_registry().create("object_set", name, params)
+    return _OBJECT_SETS[key]
 
 
 def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6),
-                 stiffness_rng: np.random.Generator | None = None,
-                 properties_rng: np.random.Generator | None = None) -> SceneGraph:
-    """A scene of ``n_objects`` (inclusive range) objects placed on the unnamed stage's table as the scene generator
-    places them (``muble.stage.layout.TableLayout``); stiffnesses come from ``stiffness_rng`` (none without it),
-    the hidden physical properties from ``properties_rng`` (none without it)."""
+                 properties_rng: np.random.Generator | None = None,
+                 objects: ObjectSet | None = None) -> SceneGraph:
+    """A scene of ``n_objects`` (inclusive range) objects of ``objects`` (default: ``object_set()``) placed on the
+    unnamed stage's table as the scene generator places them (``muble.stage.layout.TableLayout``); the hidden
+    physical properties from ``properties_rng`` (none without it). An object that finds no room is drawn again."""
+    objects = objects if objects is not None else object_set()
     n = int(rng.integers(n_objects[0], n_objects[1] + 1))
-    names = list(CATEGORIES)
-    objects: list[SceneObject] = []
     layout = TableLayout.on_stage(STAGES[UNNAMED_STAGE])
-    while len(objects) < n:
-        name = names[int(rng.integers(len(names)))]
-        shapes, materials, sizes, flags, (w0, w1), ext = CATEGORIES[name]
-        material = _pick(rng, materials)
-        scale = {"small": 0.8, "medium-sized": 1.0, "large": 1.1}[size := _pick(rng, sizes)]
-        ex, ey, ez = (e * scale for e in ext)
+    specs, models, scene_objects = [], [], []
+    while len(scene_objects) < n:
+        spec = objects.sample(rng)
+        model = objects.build(spec)
+        ex, ey, ez = (float(e) for e in model.extents)
         placement = layout.try_place(BoxShape(ex, ey), rng, PLACE_TRIES)
         if placement is None:
-            continue  # no room for this one: sample another category
-        objects.append(SceneObject(
-            id=len(objects), model=name.replace(" ", "_") + "1", name=name, shape=_pick(rng, shapes), size=size,
-            material=material, colour="transparent" if material == "glass" else _pick(rng, COLOURS),
-            position=placement.position, orientation=placement.quat,
-            weight_gt=round(float(rng.uniform(w0, w1)), 1), stackable=flags[0], stack_base=flags[1],
-            pickupable=flags[2], rotation=math.degrees(placement.yaw), bbox={"x": ex, "y": ey, "z": ez},
+            continue  # no room for this one: draw another
+        specs.append(spec)
+        models.append(model)
+        scene_objects.append(SceneObject(
+            id=len(scene_objects), model=spec.model, name=spec.category, shape=spec.shape, size=spec.size,
+            material=spec.material, colour=spec.colour, position=placement.position, orientation=placement.quat,
+            weight_gt=round(float(spec.weight_g), 1), stiffness=spec.stiffness, stackable=bool(model.stackable),
+            stack_base=bool(model.stack_base), pickupable=bool(model.pickupable),
+            movability="portable" if model.pickupable else "stationary", scale_factor=float(spec.scale),
+            rotation=math.degrees(placement.yaw), bbox={"x": ex, "y": ey, "z": ez},
         ))
-    if stiffness_rng is not None:
-        # The SHOP-VRB2 object set's ground-truth stiffness ranges (N/m) by material, drawn log-uniformly from a
-        # stream of their own, so that they change nothing else a seed gives.
-        for o in objects:
-            low, high = STIFFNESS_RANGE[o.material]
-            o.stiffness = round(float(np.exp(stiffness_rng.uniform(np.log(low), np.log(high)))), 1)
     if properties_rng is not None:
-        for o in objects:
-            if not o.pickupable:
-                continue
-            model = SimpleNamespace(extents=(o.bbox["x"], o.bbox["y"], o.bbox["z"]), closed=o.name in CLOSED)
-            carried = ("friction", "com_offset") + (("contents",) if model.closed else ())
-            for name in carried:
-                o.extra[physical_properties.SCENE_KEYS[name]] = physical_properties.sampled(
-                    name, properties_rng, model, o.weight_gt)
-    return SceneGraph(objects=objects, split="synthetic", image_index=index,
+        # As the scene generator draws them: property by property, each for the objects in scene order that the
+        # object set says carry it (ObjectSet.physical_properties).
+        for name in physical_properties.PROPERTIES:
+            key = physical_properties.SCENE_KEYS[name]
+            for o, spec, model in zip(scene_objects, specs, models):
+                if name in objects.physical_properties(spec):
+                    o.extra[key] = physical_properties.sampled(name, properties_rng, model, o.weight_gt)
+    return SceneGraph(objects=scene_objects, split="synthetic", image_index=index,
                       image_filename=f"SHOP_VRB2_synthetic_{index:06d}.png")
 
 
 def keyed_scene(seed: int, key: tuple[int, ...], index: int, n_objects: tuple[int, int] = (3, 6),
-                properties: bool = True) -> SceneGraph:
+                properties: bool = True, objects: ObjectSet | None = None) -> SceneGraph:
     """``sample_scene`` from the synthetic streams of ``seed`` and ``key`` (the caller's numbers for the scene,
     e.g. its index), named ``index``; ``properties``: with the hidden physical properties."""
     return sample_scene(streams.stream(SCENE_STREAM, seed, *key), index, n_objects,
-                        stiffness_rng=streams.stream(STIFFNESS_STREAM, seed, *key),
-                        properties_rng=streams.stream(PROPERTIES_STREAM, seed, *key) if properties else None)
+                        properties_rng=streams.stream(PROPERTIES_STREAM, seed, *key) if properties else None,
+                        objects=objects)
 
 
-def sample_scenes(seed: int, count: int, properties: bool = False) -> list[SceneGraph]:
+def sample_scenes(seed: int, count: int, properties: bool = False,
+                  objects: ObjectSet | None = None) -> list[SceneGraph]:
     """``count`` scenes, scene ``i`` deterministic from ``(seed, i)``; ``properties``: with the hidden physical
     properties (from a stream of their own, so the scenes are otherwise the same)."""
-    return [keyed_scene(seed, (i,), i, properties=properties) for i in range(count)]
+    return [keyed_scene(seed, (i,), i, properties=properties, objects=objects) for i in range(count)]

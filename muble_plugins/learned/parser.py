@@ -1,9 +1,9 @@
 """The instruction parser: instruction text to the agent-side program, a small sequence-to-sequence Transformer.
 
-Data: (instruction, program) pairs generated for the run's seed. Each scene is laid out like the synthetic
-scenes (``muble_plugins.common.synthetic``) and its objects are drawn from an object set through the registry
-(``trainer.object_set``: SHOP-VRB2's by default, the protocol's training pool when the run has one), so names, colours (``metallic`` included),
-materials, shapes and sizes are those of generated datasets. Every one of the ten SHOP-VRB2 template tasks then
+Data: (instruction, program) pairs generated for the run's seed. Each scene is a synthetic scene
+(``muble_plugins.common.synthetic``) of an object set through the registry (``trainer.object_set``: SHOP-VRB2's by
+default, the protocol's training pool when the run has one), so names, colours (``metallic`` included), materials,
+shapes and sizes are those of generated datasets. Every one of the ten SHOP-VRB2 template tasks then
 writes its instruction for the scene (``Task.generate``); the target is ``agent_program`` of its program: each
 step's type and words, nothing computed on the ground truth. Validation scenes come from a stream of their own,
 disjoint from the training scenes.
@@ -124,36 +124,19 @@ def template_names() -> list[str]:
 
 
 def object_set(protocol: dict | None = None, name: str = "shopvrb2"):
-    """The object set ``name`` as ``muble generate`` samples it: with a protocol, its training split's pool."""
-    from muble.plugins.registry import get_registry
+    """The object set ``name`` as ``muble generate`` samples it: with a protocol, its training split's pool
+    (``muble_plugins.common.synthetic.object_set``)."""
+    from muble_plugins.common import synthetic
 
-    params: dict[str, Any] = {"cache_dir": None}
-    if protocol and name != "shopvrb2":
-        raise ConfigError(f"trainer.object_set={name!r} with a protocol: a protocol's pools are SHOP-VRB2 objects; "
-                          f"train without protocol=... for the {name!r} set")
-    if protocol:
-        train = ((protocol.get("splits") or {}).get("train") or {}).get("objects") or {}
-        for key, value in {**((protocol.get("common") or {}).get("objects") or {}), **train}.items():
-            params[key] = value
-    return get_registry().create("object_set", name, params)
+    return synthetic.object_set(protocol, name)
 
 
 def sample_scene(objects, rng: np.random.Generator, index: int):
-    """A symbolic scene: the synthetic layout, every object redrawn from ``objects`` (its category kept where the
-    set samples it), with the set's attribute words, weights, stiffnesses and affordances."""
+    """A symbolic scene of ``objects`` (``muble_plugins.common.synthetic.sample_scene``): the set's attribute
+    words, weights, stiffnesses, extents and affordances, laid out as the scene generator lays them out."""
     from muble_plugins.common import synthetic
 
-    scene = synthetic.sample_scene(rng, index, n_objects=OBJECTS_PER_SCENE)
-    enabled = set(objects.categories())
-    for o in scene.objects:
-        spec = objects.sample(rng, category=o.name if o.name in enabled else None)
-        category = objects.catalogue[spec.category]
-        nominal = {"small": 0.8, "medium-sized": 1.0, "large": 1.1}[o.size]
-        o.bbox = {k: v * spec.scale / nominal for k, v in o.bbox.items()}
-        o.model, o.name, o.colour, o.material = spec.model, spec.category, spec.colour, spec.material
-        o.size, o.shape, o.weight_gt, o.stiffness = spec.size, spec.shape, spec.weight_g, spec.stiffness
-        o.stackable, o.stack_base, o.pickupable = category.stackable, category.stack_base, category.pickupable
-    return scene
+    return synthetic.sample_scene(rng, index, n_objects=OBJECTS_PER_SCENE, objects=objects)
 
 
 def build_pairs(seed: int, stream: int, scenes: int, protocol: dict | None = None,

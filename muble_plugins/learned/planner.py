@@ -1,7 +1,8 @@
 """``muble train trainer=planner``: the learned planner (NS-AP style), trained on the oracle's symbolic roll-outs.
 
 **Data.** Scenes are sampled deterministically from the run's seed (``muble_plugins.common.synthetic``: symbolic
-SHOP-VRB2 scenes, 3 to 6 objects, attributes, weights and stiffnesses of the object set's ranges); every SHOP-VRB2
+scenes of 3 to 6 objects of the SHOP-VRB2 object set, or of the protocol's training pool, as the object set draws
+them); every SHOP-VRB2
 template task writes an instruction for each scene it suits (``Task.generate``), and the built-in oracle
 (``OracleAgent``, the task's ``next_actions``) plays it in the symbolic world through the core action loop. Every
 state the agent side observes is labelled with the oracle's next decision (a primitive and its target, or stop).
@@ -35,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from muble import (ActionResult, Agent, Answer, Instruction, Observation, ObservationMode, Outcome, SceneGraph, Task,
-                   Track, get_registry)
+from muble import (ActionResult, Agent, Answer, Instruction, ObjectSet, Observation, ObservationMode, Outcome,
+                   SceneGraph, Task, Track, get_registry)
 from muble.core import streams
 from muble.core.interfaces import Trainer
 from muble.core.training import TrainingRun
@@ -45,7 +46,7 @@ from muble.episode import DEFAULT_MAX_STEPS, run_episode
 from muble_plugins.agents.oracle import OracleAgent
 from muble_plugins.common.success import check
 from muble_plugins.common.symbolic import SymbolicWorld
-from muble_plugins.common.synthetic import keyed_scene
+from muble_plugins.common.synthetic import keyed_scene, object_set
 from muble.core.errors import ConfigError, unknown_name
 from muble.core.ranges import configured
 
@@ -73,10 +74,11 @@ def _part(validation: bool) -> int:
     return 1 if validation else 0
 
 
-def scene_for(seed: int, index: int, validation: bool) -> SceneGraph:
+def scene_for(seed: int, index: int, validation: bool, objects: ObjectSet | None = None) -> SceneGraph:
     """Scene ``index`` of the training or the validation part: the synthetic scene of key ``(part, index)``
-    (``muble_plugins.common.synthetic.keyed_scene``), so no validation scene is a training scene's draws."""
-    return keyed_scene(seed, (_part(validation), index), index)
+    (``muble_plugins.common.synthetic.keyed_scene``), so no validation scene is a training scene's draws, of
+    ``objects`` (default: the SHOP-VRB2 object set; a protocol's run: its training pool)."""
+    return keyed_scene(seed, (_part(validation), index), index, objects=objects)
 
 
 def instructions_for(scene: SceneGraph, seed: int, index: int, validation: bool,
@@ -154,9 +156,10 @@ class _Recorder(Agent):
 
 
 def rollouts(seed: int, indices: range, validation: bool, explore: float, slip: float, progress=None,
-             templates: tuple[str, ...] = TEMPLATES
+             templates: tuple[str, ...] = TEMPLATES, objects: ObjectSet | None = None
              ) -> tuple[list[tuple[np.ndarray, int, int]], list[tuple[Instruction, SceneGraph]]]:
-    """Labelled states of the oracle's roll-outs on the scenes ``indices``, and the (instruction, scene) pairs."""
+    """Labelled states of the oracle's roll-outs on the scenes ``indices`` (of ``objects``: ``scene_for``), and
+    the (instruction, scene) pairs."""
     samples: list[tuple[np.ndarray, int, int]] = []
     episodes: list[tuple[Instruction, SceneGraph]] = []
     items = progress(indices) if progress else indices
@@ -165,15 +168,16 @@ def rollouts(seed: int, indices: range, validation: bool, explore: float, slip: 
     quiet.setLevel(logging.WARNING)  # the oracle logs every failed primitive it retries: most explored ones
     try:
         for index in items:
-            _scene_rollouts(seed, index, validation, explore, slip, samples, episodes, templates)
+            _scene_rollouts(seed, index, validation, explore, slip, samples, episodes, templates, objects)
     finally:
         quiet.setLevel(level)
     return samples, episodes
 
 
 def _scene_rollouts(seed: int, index: int, validation: bool, explore: float, slip: float,
-                    samples: list, episodes: list, templates: tuple[str, ...] = TEMPLATES) -> None:
-    scene = scene_for(seed, index, validation)
+                    samples: list, episodes: list, templates: tuple[str, ...] = TEMPLATES,
+                    objects: ObjectSet | None = None) -> None:
+    scene = scene_for(seed, index, validation, objects)
     for k, instruction in enumerate(instructions_for(scene, seed, index, validation, templates)):
         episodes.append((instruction, scene))
         rng = streams.stream(ROLLOUT_STREAM, seed, _part(validation), index, k)
@@ -225,10 +229,13 @@ class PlannerTrainer(Trainer):
         def bar(items):
             return ck.progress(items, run, "roll-outs", total=len(items))
 
+        # The objects of the protocol's training pool when the run has a protocol: no held-out model, finish or
+        # property range of an evaluation split is in the data.
+        objects = object_set(run.protocol)
         train_samples, _ = rollouts(run.seed, range(s["scenes"]), False, s["explore"], s["slip"], bar,
-                                    self.templates)
+                                    self.templates, objects)
         val_samples, val_episodes = rollouts(run.seed, range(s["validation_scenes"]), True, s["explore"],
-                                             s["slip"], bar, self.templates)
+                                             s["slip"], bar, self.templates, objects)
         data_s, data_cpu_s = time.perf_counter() - start, time.process_time() - cpu
 
         model = {"in_dim": FEATURE_DIM, "width": s["width"], "heads": s["heads"], "layers": s["layers"],

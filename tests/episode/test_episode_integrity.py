@@ -29,7 +29,6 @@ def instruction_for(template: str, seed: int = 0, tries: int = 200):
     task = get_registry().create("task", template, {})
     for index in range(tries):
         scene = sample_scene(np.random.default_rng([seed, index]), index,
-                             stiffness_rng=np.random.default_rng([seed, index, 5]),
                              properties_rng=np.random.default_rng([seed, index, 6]))
         found = task.generate(scene, np.random.default_rng([seed, index, 1]))
         if found:
@@ -67,7 +66,7 @@ def test_agent_sees_no_ground_truth_and_only_its_own_measurements(episodes, temp
 
 
 def test_the_snoop_finds_a_hidden_physical_property_anywhere_but_in_a_measurement_of_its_own():
-    scene = sample_scene(np.random.default_rng(0), 0, stiffness_rng=np.random.default_rng(1))
+    scene = sample_scene(np.random.default_rng(0), 0)
     scene.objects[0].extra.update({physical_properties.FRICTION: 0.4137, physical_properties.COM_OFFSET:
                                    [0.01237, -0.00711], physical_properties.CONTENTS: 21.37})
     secrets = hidden_values(scene)
