@@ -326,13 +326,13 @@ def reset_agent(agent: Agent, instruction: Instruction, observation: Observation
     keyword arguments it does not take (with one ``MubleDeprecationWarning`` per agent class naming them), so it
     still plays its episodes instead of failing each as ``agent_error``. Its ``reset`` is inspected once per
     class."""
-    keywords = {"track": track, "mode": mode}
+    keywords: dict[str, Any] = {"track": track, "mode": mode}
     taken = _reset_keywords(type(agent))
     agent.reset(instruction, observation, **{k: v for k, v in keywords.items() if taken is None or k in taken})
 
 
 @functools.cache
-def _reset_keywords(cls: type) -> frozenset[str] | None:
+def _reset_keywords(cls: type[Agent]) -> frozenset[str] | None:
     """The keywords of ``RESET_KEYWORDS`` that ``cls.reset`` takes; None when it takes any (``**kwargs``) or its
     signature cannot be read. Warns once for a class whose ``reset`` misses some."""
     try:

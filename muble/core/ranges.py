@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Mapping, TypeVar
+from typing import TYPE_CHECKING, Any, Mapping, TypeVar, cast
 
 from muble.core.errors import ConfigError
 
@@ -141,7 +141,7 @@ def checked_node(schema: type, *layers: Any, owner: str) -> "DictConfig":
     problems = range_violations(merged)
     if problems:
         raise ConfigError(f"{owner}: value out of range: {'; '.join(problems)}")
-    return merged
+    return cast("DictConfig", merged)  # a dataclass schema merges to a DictConfig
 
 
 def configured(schema: type[T], config: T | Mapping[str, Any] | None = None,
@@ -150,4 +150,4 @@ def configured(schema: type[T], config: T | Mapping[str, Any] | None = None,
     fields), then ``overrides``, checked as ``checked_node`` checks them."""
     from omegaconf import OmegaConf
 
-    return OmegaConf.to_object(checked_node(schema, config, overrides, owner=owner))
+    return cast(T, OmegaConf.to_object(checked_node(schema, config, overrides, owner=owner)))

@@ -15,6 +15,7 @@ than ``decision_timeout`` to decide ends it as ``timeout`` (``AgentCalls``). Age
 """
 from __future__ import annotations
 
+import functools
 import logging
 import queue
 import traceback
@@ -236,7 +237,7 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
             return agent_failed("agent.reset", e)
         while True:
             try:
-                decision = calls("agent.act", lambda seen=seen: agent.act(told, seen))
+                decision = calls("agent.act", functools.partial(agent.act, told, seen))
             except PlanningError as e:  # the agent's program cannot be carried out in this scene
                 return finish(Outcome.PROGRAM_FAILURE, str(e))
             except Exception as e:  # noqa: BLE001 - see above
@@ -280,10 +281,10 @@ def run_episode(instruction: Instruction, world: World, agent: Agent, judge: "Ta
                 if failures >= max_failures:
                     return finish(Outcome.EXECUTION_ERROR,
                                   f"{failures} primitives failed, the last {last_failure}")
-        result = finish(Outcome.SUCCESS)  # the record as the judge sees it; its outcome is the judge's
-        result.outcome = judge.judge(instruction, result) if isinstance(judge, Task) else \
-            judge(instruction, result.final_scene, answer)
-        result.error = None if result.outcome is Outcome.SUCCESS else last_failure
-        return result
+        record = finish(Outcome.SUCCESS)  # the record as the judge sees it; its outcome is the judge's
+        record.outcome = judge.judge(instruction, record) if isinstance(judge, Task) else \
+            judge(instruction, record.final_scene, answer)
+        record.error = None if record.outcome is Outcome.SUCCESS else last_failure
+        return record
     finally:
         calls.close()

@@ -221,8 +221,9 @@ def measured_against_truth(steps: list[dict[str, Any]], scene: dict[str, Any] | 
             continue
         label, unit = measures[name]
         target = args.get("target", step.get("held"))  # without a target: the object in the hand
-        obj = objects.get(int(target)) if target is not None and str(target).lstrip("-").isdigit() else None
-        true = true_reading(label, obj, int(target)) if obj else None
+        index = int(target) if target is not None and str(target).lstrip("-").isdigit() else None
+        obj = objects.get(index) if index is not None else None
+        true = true_reading(label, obj, index) if obj and index is not None else None
         measured = step["measurement"]
         error, error_text = reading_error(measured, true, unit)
         rows.append({"action": step["action"], "what": label, "unit": unit, "measured": measured, "true": true,

@@ -85,7 +85,8 @@ def split_indices(layout: DatasetLayout) -> SplitIndices:
     elif present - listed:
         log.warning("%s: %d indices have instruction files the manifest does not list (%s …); evaluating them too",
                     layout.split, len(present - listed), sorted(present - listed)[:5])
-    indices, skipped = [], []
+    indices: list[int] = []
+    skipped: list[int] = []
     for index in sorted(listed | present):
         (skipped if _says_no_template(layout.split_dir / layout.instruction(index)) else indices).append(index)
     return SplitIndices(layout.split, indices, skipped, source)

@@ -26,7 +26,7 @@ def contact_sheet(images: list[np.ndarray], columns: int = SHEET_COLUMNS, width:
     draw = ImageDraw.Draw(sheet)
     for i, image in enumerate(images):
         x, y = 4 + (i % columns) * (width + 4), 4 + (i // columns) * (height + 4)
-        sheet.paste(Image.fromarray(image).resize((width, height), Image.LANCZOS), (x, y))
+        sheet.paste(Image.fromarray(image).resize((width, height), Image.Resampling.LANCZOS), (x, y))
         caption = labels[i] if labels else str(i)
         draw.rectangle([x, y, x + 8 * len(caption) + 6, y + 14], fill=(0, 0, 0))
         draw.text((x + 3, y + 1), caption, fill=(255, 255, 255))

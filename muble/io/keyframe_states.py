@@ -12,6 +12,7 @@ import io
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,7 @@ class KeyframeStates:
 
 def keyframe_states_bytes(states: KeyframeStates) -> bytes:
     """The ``.npz`` archive of ``states`` (written through ``write_bytes_atomic`` by the caller)."""
-    arrays = {"qpos": np.asarray(states.qpos, dtype=np.float64)}
+    arrays: dict[str, Any] = {"qpos": np.asarray(states.qpos, dtype=np.float64)}
     for key in STATE_KEYS:
         value = getattr(states, key)
         if value is not None:

@@ -138,7 +138,7 @@ def object_from_dict(d: Any, index: int) -> SceneObject:
         if key not in d:
             raise SceneValidationError("missing required field", obj=index, field=key)
     strings = {k: _string(d[k], obj=index, field=k) for k in _OBJ_REQUIRED_STR}
-    flags = {k: _bool(d[k], obj=index, field=k) for k in _OBJ_REQUIRED_BOOL}
+    flags: dict[str, Any] = {k: _bool(d[k], obj=index, field=k) for k in _OBJ_REQUIRED_BOOL}
     position = _vector(d["3d_coords"], 3, obj=index, field="3d_coords", bound=MAX_COORDINATE_M)
     orientation = _vector(d["orientation"], 4, obj=index, field="orientation")
     norm = float(np.linalg.norm(orientation))
@@ -150,7 +150,7 @@ def object_from_dict(d: Any, index: int) -> SceneObject:
     obj_id = d.get("id", index)
     if not isinstance(obj_id, int) or isinstance(obj_id, bool) or obj_id < 0:
         raise SceneValidationError(f"id must be a non-negative integer, got {obj_id!r:.40}", obj=index, field="id")
-    optional = {attr: _OPTIONAL_PARSERS[key](d[key], index) for key, attr in _OBJ_OPTIONAL.items() if key in d}
+    optional: dict[str, Any] = {attr: _OPTIONAL_PARSERS[key](d[key], index) for key, attr in _OBJ_OPTIONAL.items() if key in d}
     return SceneObject(
         id=obj_id,
         model=strings["file"],

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import functools
-from typing import Any
+from typing import Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -43,7 +43,7 @@ class Registry:
         self.searchpath: list[str] = []
         for impl in reversed(pm.hook.muble_config_searchpath.get_hookimpls()):
             try:
-                self.searchpath += [str(p) for p in impl.function() or []]
+                self.searchpath += [str(p) for p in cast("list[str] | None", impl.function()) or []]
             except Exception as e:  # noqa: BLE001 - as above
                 self._failed(impl.plugin_name, "muble_config_searchpath", e)
         left_out = {b.name for b in pm.broken}
@@ -110,13 +110,14 @@ class Registry:
 
 def _options(params: dict[str, Any] | DictConfig) -> dict[str, Any]:
     if isinstance(params, DictConfig):
-        params = OmegaConf.to_container(params, resolve=True)
+        params = cast("dict[str, Any]", OmegaConf.to_container(params, resolve=True))
     return {k: v for k, v in dict(params).items() if k != "name"}
 
 
 def validated_config(kind: str, record: PluginRecord, params: dict[str, Any] | DictConfig) -> Any:
     """The record's config dataclass with ``params`` on its defaults, types and ranges checked
     (``muble.core.ranges.configured``): an unknown key is an error listing the valid ones."""
+    assert record.config is not None, "only a record with a config dataclass has one to validate"
     return configured(record.config, _options(params), owner=f"{kind} '{record.name}'")
 
 
@@ -126,7 +127,8 @@ def validate_params(kind: str, record: PluginRecord, params: dict[str, Any] | Di
     params = _options(params)
     if record.config is None:
         return params
-    return OmegaConf.to_container(checked_node(record.config, params, owner=f"{kind} '{record.name}'"), resolve=True)
+    node = checked_node(record.config, params, owner=f"{kind} '{record.name}'")
+    return cast("dict[str, Any]", OmegaConf.to_container(node, resolve=True))
 
 
 @functools.cache

@@ -106,7 +106,7 @@ class ProgramTrace:
     def final(self) -> Any:
         if self.pending:
             raise PlanningError(f"program stopped at step {len(self.outputs)}: "
-                                f"{QUANTITIES[self.pending_property].verb} objects {list(self.pending)} first")
+                                f"{QUANTITIES[str(self.pending_property)].verb} objects {list(self.pending)} first")
         if not self.complete:
             raise PlanningError(f"program stopped at step {len(self.outputs)} of {self.steps}")
         return self.outputs[-1]
@@ -145,9 +145,9 @@ class Quantity:
     verb: str  # the built-in primitive that measures it, as error messages name it
     truth: Callable[[SceneObject], Any]
     measured: Callable[[SceneObject], Any]
-    superlatives: tuple[str, str] = ()
+    superlatives: tuple[str, ...] = ()  # (the most, the least), or none
     orders: tuple[str, ...] = WEIGHT_ORDERS
-    values: tuple[str, str] = ()
+    values: tuple[str, ...] = ()  # (yes, no), or none
     reading: Callable[[Any], Any] = lambda value: value
     # The ground truth as the measuring primitive reports it, where that differs from ``truth`` (a centre of mass:
     # [x, y] mm, of which ``truth`` is the distance); None: ``truth``.
@@ -257,7 +257,7 @@ def _step_filter_relate(ctx: _Context, step: dict, prev: Any, index: int) -> lis
     if len(ids) != 1:
         raise PlanningError(f"step {index} (filter_relate) relates to one object, but the steps before it give "
                             f"{len(ids)}: {ids}; describe the reference object uniquely")
-    return related(ctx.scene, ids[0], step.get("input_value"))
+    return related(ctx.scene, ids[0], str(step.get("input_value")))  # None: an unknown relation
 
 
 def _quantity_steps(q: Quantity) -> dict[str, Callable]:
@@ -368,7 +368,7 @@ def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = 
     prev: Any = None
     for index, step in enumerate(program):
         kind = step.get("type")
-        run = STEP_TYPES.get(kind)
+        run = STEP_TYPES.get(str(kind))
         if run is None:
             raise ConfigError(unknown_name("program step type", str(kind), list(STEP_TYPES)))
         if kind == "scene" and prev is not None and index > 0 and program[index - 1]["type"] != "stack":

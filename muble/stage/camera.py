@@ -125,7 +125,8 @@ class CameraParams:
         mode = params.get("rotation_mode", "EulerXYZ")
         if mode != "EulerXYZ":
             raise ConfigError(f"camera rotation_mode '{mode}' is not supported; valid rotation_mode names: EulerXYZ")
-        extra = {k: params[k] for k in ("width", "height", "lens_mm", "sensor_width_mm") if k in params}
+        extra: dict[str, Any] = {k: params[k] for k in ("width", "height", "lens_mm", "sensor_width_mm")
+                                 if k in params}
         extra.update(image)
         return cls(np.array(params["position"], dtype=float), euler_xyz_to_matrix(params["rotation"]), **extra)
 

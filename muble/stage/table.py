@@ -106,7 +106,7 @@ STAGE_KEY = "stage"  # the scene file's key naming its stage
 def stage_named(name: str, where: str = "robot.stage") -> Stage:
     """The stage called ``name`` (given by ``where``); an unknown name raises ``ConfigError`` listing the stages."""
     if name not in STAGES:
-        raise ConfigError(f"{unknown_name('stage', str(name), STAGES)} (from {where})")
+        raise ConfigError(f"{unknown_name('stage', str(name), list(STAGES))} (from {where})")
     return STAGES[name]
 
 
@@ -124,7 +124,8 @@ def stage_of(scene) -> Stage | None:
 def parts_at(x: float, y: float, directions: Mapping[str, Sequence[float]] | None = None) -> frozenset[str]:
     """The parts a point of the table top lies in: one side of each split line, plus "centre" near the middle."""
     dx, dy = float(x) - TABLE_CENTRE[0], float(y) - TABLE_CENTRE[1]
-    left_dir, front_dir = (0.0, -1.0), (1.0, 0.0)
+    left_dir: tuple[float, ...] = (0.0, -1.0)
+    front_dir: tuple[float, ...] = (1.0, 0.0)
     if directions:
         if "left" in directions:
             left_dir = tuple(directions["left"][:2])
