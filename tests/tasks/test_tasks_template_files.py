@@ -22,10 +22,11 @@ from tests.support.plugins import clear_caches
 # drawn with default_rng([14, s])): the instructions, programs and outputs of one instruction per template, of
 # every option, and the oracle's ground-truth primitives on the first 40 scenes. A change to a template, its
 # options, the room check or the synthetic scenes shows here (pinned again when the synthetic scenes moved to
-# named streams, muble_plugins.common.synthetic.SCENE_STREAM; the old seeding gave 1430 / 6915 instructions).
-ONE_PER_TEMPLATE = (1435, "1af2322287e098772a72a32c0ff17d5d667f4ee4967164b7fb1acd905260076a")
-EVERY_OPTION = (6952, "47275814e9e304971b4a143883b142826a9f1d22fd2c948dd0d9c8a570a4e323")
-GROUND_TRUTH_40 = "2ba87b00204c370ad55124200a2c9318ccdbc3de858eb85c18d7dcf2e5e5ae5e"
+# named streams, muble_plugins.common.synthetic.SCENE_STREAM; the old seeding gave 1430 / 6915 instructions; and
+# again when they came to sample the registered object set instead of a catalogue of their own: 1435 / 6952 before).
+ONE_PER_TEMPLATE = (1459, "7155df69cc759caf0719ad8738cd2ba034eb66d28d132ca8f9981c225ffa5d16")
+EVERY_OPTION = (8764, "5ec4edb2db7f321c2613e5660d56661888258b2ecbbd89ac48fc1098c957331f")
+GROUND_TRUTH_40 = "be8ed0cf89b10d1fa1e3d7228ec01546d9b38b12e054d9ca7a9326b1ba665b24"
 
 
 def _digest(per_template: int) -> tuple[int, str]:
@@ -129,24 +130,25 @@ def test_a_bad_template_file_names_template_and_field(tmp_path, change, says):
 
 # What every template (the built-in files' and RELATED_WEIGHTS) offers on scenes 0-24 of sample_scenes(5, 25):
 # per template, how many options, a digest of them all and of the dear constraints' verdict on the first 40, and of
-# one instruction per template drawn on each scene (recorded again when the synthetic scenes moved to named streams).
+# one instruction per template drawn on each scene (recorded again when the synthetic scenes moved to named streams,
+# and when they came to sample the registered object set).
 OPTIONS_RECORDED = {
-    "measure_stiffness_single": (47, "d1914f8626af76123e75b44f6631dac3e2433d6a217e19431e03fc53eac09094"),
-    "measure_weight_beside": (83, "2bc0f9e0820c484e358abb738396537d2d404063195d0247372417d977087d99"),
-    "measure_weight_multi": (35, "4044dc33534bfd7bcd74b3f0dc7e3a459418be45ac23e17750e0257f794016bc"),
-    "measure_weight_single": (59, "b83d31203720daab26a15d46c691afc1c7f13831219457fc446b536c63e33fd1"),
-    "move_single": (118, "6d0fd71d5217f1be1fb4f0b9b187b2def46b586b5665bb0982813ed10b549838"),
-    "move_weight": (130, "0c6a166a94501502a798f51782112ef6be8339ccc407493c88e6663f4af46b5d"),
-    "pick_up_lightest": (65, "4b847eb47ea487cccde42481019b7d2303526d66a9b2730e89dcc5efac33adc0"),
-    "pick_up_stiffness": (37, "80e229b5384e9ec785c82db767e25e6df525a60c3cb30a9e65e34688e2d1bca8"),
-    "remove": (162, "81037b831fec632f3bc3ac0251006259da0b6c8403560ed0b10f91bb58ae59d5"),
-    "stack_order": (6, "a7f7ae1630850ab74725b2578796d36a14dd2424215c1cf1e6928dc8a1c72085"),
-    "stack_simple": (80, "d6ee121560fe5c29807f2e92032cbd5774530ccb89333948ab28029f00a8c671"),
-    "stack_stiffness_order": (2, "522b1d866a8de40bf84ddf10fcfdb057387c3dc9b263ab0a48d98f7e4e264e2d"),
-    "stack_three": (42, "7b17c9e330ba194330b54701c2f3759e2f3e48fb8ed06435b64fbd7768246627"),
-    "stack_weight": (93, "24f59b3a7ca1cea1b7403910c2ef71153d67eace348ea5b382dcff3ebf46ae19"),
+    "measure_stiffness_single": (60, "2811635d846507ffe3b37726b0e2ce0acd1eef921a96f625189e030ba760db69"),
+    "measure_weight_beside": (125, "7b00f3c5b2bee82288173f6b73fcca82e3610bafd84ec4dbc44e0f14772db36c"),
+    "measure_weight_multi": (55, "2d5b3464272a19c84881b3df434d1c7b92158dc41249c50c2e352d39ddf5550d"),
+    "measure_weight_single": (71, "7e51cc36308dceebaee2491dee80d2cfc46bafe5156e9732ec537aa9a2e09c83"),
+    "move_single": (142, "aaa014732d399b9e1736ef8e92c84429531ac38fef8da114a56401481ee46c89"),
+    "move_weight": (218, "04fd8121ae1d4ba64e38b0c4a793ced6266375080de6d2372887b6770044debc"),
+    "pick_up_lightest": (109, "4e68e28d8c4800648d78163bf5cc0ee2084773ae823f5d0568b79e8bc05c956e"),
+    "pick_up_stiffness": (60, "e4a73beb86c791d14905f849eae8edd7b5c8dd8fd819bad1ea22852186ecc49e"),
+    "remove": (242, "e8658ef13a5f5bf320effd0aed79dd53afe28493e50d6c8758ece01e9f9c2c17"),
+    "stack_order": (3, "fad3bcdc70145bb8d73abb7ca8e69e1998a996803e6636336fe89dccb651f4cc"),
+    "stack_simple": (74, "ced17ba83f258a9052ade64e2eba27b9b9daa43232970e43b8862a45ff6696f0"),
+    "stack_stiffness_order": (2, "5e0f9d055c4aed3b91b1a7858fa6d7aed16a90a78c1d56c81cd4c5a20214c04d"),
+    "stack_three": (18, "e758d7af1e9ae19ecbcde2f59935f96c95da1daca1e70c76918fdff60d55df99"),
+    "stack_weight": (95, "8c1b5ccfe443eb669aa20b0d5018a1ed161abb7de68c9620cd337b653f51d109"),
 }
-INSTRUCTIONS_RECORDED = "5e648736a75d1fc49f70e5dfd86b4ffcd4dabe62a3d5ab2846f303c89180ce7e"
+INSTRUCTIONS_RECORDED = "f2cb1d00d4672183ae1967f63bfc9a54c3adde22a514ff30c5461ac4183d2185"
 
 
 def _template_records(tmp_path) -> tuple[dict[str, tuple[int, str]], str]:
