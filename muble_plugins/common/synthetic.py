@@ -24,7 +24,7 @@ import numpy as np
 from muble.core import physical_properties, streams
 from muble.core.errors import ConfigError
 
-from muble import ObjectSet, SceneGraph, SceneObject
+from muble import ObjectSet, SceneGraph, SceneObject, get_registry
 from muble.stage.layout import BoxShape, TableLayout
 from muble.stage.table import STAGES, UNNAMED_STAGE
 
@@ -46,8 +46,6 @@ def object_set(protocol: dict | None = None, name: str = DEFAULT_OBJECT_SET) -> 
     pool (the protocol's common object options and its ``train`` split's), so that no held-out model, finish or
     property range of an evaluation split is drawn. One instance per set and options in a process (its geometry
     cache is what keeps the scenes cheap)."""
-    from muble.plugins.registry import get_registry
-
     params: dict[str, Any] = {}
     if protocol and name != DEFAULT_OBJECT_SET:
         raise ConfigError(f"object set {name!r} with a protocol: a protocol's pools are SHOP-VRB2 objects; "
