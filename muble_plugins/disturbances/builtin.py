@@ -12,7 +12,7 @@ import numpy as np
 from muble import ActionCall, ActionResult, Disturbance, DisturbanceEvent, bounded, get_registry
 from muble.stage.rest import at_rest
 from muble.stage.free_place import free_mask, free_places
-from muble.stage.table import part_box
+from muble.stage.table import part_box, parts_at
 from muble_plugins.primitives.placement import footprint, obstacles
 
 logger = logging.getLogger(__name__)
@@ -177,12 +177,14 @@ class Bump(AfterPutDown):
         return _on_table(env, obj)
 
     def act(self, env, obj: int, action: ActionCall, step: int) -> DisturbanceEvent | None:
-        goal = self._goal(env, obj)
+        part = action.params.get("target")
+        put_in = {part} if isinstance(part, str) else None  # the table part the agent just put it on
+        goal = self._goal(env, obj, put_in)
         if goal is None:
             # The object just put down has no free place to go (a tray takes most of the table): the nearest
             # other object standing alone on the table is knocked instead, so that the bump planned acts.
             for other in self._neighbours(env, obj):
-                goal = self._goal(env, other)
+                goal = self._goal(env, other)  # out of the parts it stands in, as first
                 if goal is not None:
                     logger.info("bump: no free place for object %d; object %d is knocked instead", obj, other)
                     obj = other
@@ -214,19 +216,22 @@ class Bump(AfterPutDown):
             alone.append(other)
         return sorted(alone, key=lambda o: float(np.linalg.norm(env.object_pose(o).pos[:2] - here)))
 
-    def _goal(self, env, obj: int) -> np.ndarray | None:
+    def _goal(self, env, obj: int, put_in: set[str] | None = None) -> np.ndarray | None:
         """A free place for the object: its footprint there keeps ``clearance`` from every other's, and on the way
         there it comes no nearer to one than ``PATH_GAP`` (``clearance`` where it starts that clear). Places out of
-        the table parts it stands in come first (a knock that matters to where it was put), each group in order
-        of the distance's closeness to the drawn one, then of the turn from the drawn direction (15 degree steps)."""
+        ``put_in``, the table part the agent just put it on (default: every part it stands in), come first: a knock
+        that undoes the put-down, which an agent that does not look again misses. Each group in order of the
+        distance's closeness to the drawn one, then of the turn from the drawn direction (15 degree steps)."""
         body = env.model.body(env.names.objects[obj]).id
         here = env.object_pose(obj).pos[:2]
         outline = footprint(env, body) - here
         others = obstacles(env, obj)
         lo, hi = _table_region(env)
-        parts = _parts(env, here)
+        parts = put_in or _parts(env, here)
         start_free = bool(free_mask(here[None], outline, others, self.config.clearance)[0])
-        reach = np.arange(self.config.min_distance, FARTHEST_BUMP + 1e-9, 0.01)
+        # Out of the part it was put on may be further than the drawn distance: as far as FARTHEST_FALLBACK_BUMP.
+        farthest = FARTHEST_FALLBACK_BUMP if put_in else FARTHEST_BUMP
+        reach = np.arange(self.config.min_distance, farthest + 1e-9, 0.01)
         distances = [self.distance, *reach[np.argsort(np.abs(reach - self.distance), kind="stable")]]
         candidates = [here + d * np.array([np.cos(self.angle + t), np.sin(self.angle + t)])
                       for d, t in itertools.product(distances, np.radians(np.arange(0, 360, 15)))]
@@ -265,9 +270,12 @@ TABLE_PARTS = ("left", "right", "front", "back")
 
 
 def _parts(env, xy: np.ndarray) -> set[str]:
-    """The named table parts (``TABLE_PARTS``) whose region holds the point ``xy``."""
-    boxes = env.cache.setdefault("disturbances.part_boxes", {p: part_box(env, p) for p in TABLE_PARTS})
-    return {p for p, (lo, hi) in boxes.items() if np.all(xy >= lo) and np.all(xy <= hi)}
+    """The named table parts (``TABLE_PARTS``) the point ``xy`` lies in, as the success check reads them
+    (``muble.stage.table.parts_at``, by the split lines: not the narrower boxes a put-down aims for, which keep a
+    margin from those lines)."""
+    if "disturbances.directions" not in env.cache:
+        env.cache["disturbances.directions"] = env.sync_scene_graph().directions
+    return set(parts_at(float(xy[0]), float(xy[1]), env.cache["disturbances.directions"])) & set(TABLE_PARTS)
 
 
 FARTHEST_BUMP = 0.2  # m an object is knocked at most, where no place at the drawn distance is free

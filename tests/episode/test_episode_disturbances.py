@@ -233,13 +233,9 @@ def test_no_observation_mode_shows_a_disturbance():
         renderer.close()
 
 
-@pytest.mark.parametrize("index, kind", [(193, "bump"), (183, "topple"), (194, "topple")])
-def test_a_planned_disturbance_acts_on_a_crowded_table(index, kind, tmp_path):
-    """Frozen closed_loop episodes where the first choice of place finds no room: in 193 a tray takes most of the
-    table, so the plate just put down cannot be knocked anywhere and a neighbour standing alone is knocked
-    instead; in 183 no place keeps the topple's 5 cm from every object; in 194 the stack stands outside the
-    parts' box, by the table's edge, where no ray from it meets a free place. The disturbance planned acts all
-    the same, the knocked object ends at rest standing, and the oracle recovers."""
+def _frozen_closed_loop_episode(index: int, tmp_path, *overrides: str) -> dict:
+    """The record of episode ``index`` of the frozen closed_loop split, run as ``muble eval`` runs it (the oracle;
+    ``overrides``: more of the command line)."""
     from omegaconf import OmegaConf
 
     from muble.app.config import compose
@@ -248,8 +244,33 @@ def test_a_planned_disturbance_acts_on_a_crowded_table(index, kind, tmp_path):
 
     root = shipped_root(load_protocol("shopvrb2_v2"), "closed_loop")
     cfg = compose("eval", ["protocol=shopvrb2_v2", "benchmark.split=closed_loop", f"dataset.root={root}",
-                           f"output.dir={tmp_path}", "dataset.splits=[closed_loop]"])
-    record = evaluate_index(EvalJob(OmegaConf.to_container(cfg, resolve=True), "closed_loop", index))
+                           f"output.dir={tmp_path}", "dataset.splits=[closed_loop]", *overrides])
+    return evaluate_index(EvalJob(OmegaConf.to_container(cfg, resolve=True), "closed_loop", index))
+
+
+def test_a_bump_undoes_the_put_down_so_only_an_agent_that_looks_again_succeeds(tmp_path):
+    """Frozen closed_loop episode 24, "Move the metal object to the right part of the table": the bump after the
+    put-down knocks the object out of the right part (further than its drawn distance, since no place out of the
+    part is nearer). The closed-loop oracle sees it and moves it back; the open-loop control ends with it out."""
+    from muble.stage.table import parts_at
+
+    closed = _frozen_closed_loop_episode(24, tmp_path / "closed")
+    (bump,) = [e for e in closed["disturbances"] if e["kind"] == "bump"]
+    assert "right" in parts_at(*bump["detail"]["from"]) and "right" not in parts_at(*bump["detail"]["ended"][:2])
+    assert closed["outcome"] == "success", (closed["outcome"], closed["error"])
+    opened = _frozen_closed_loop_episode(24, tmp_path / "open", "agent.closed_loop=false")
+    assert [e["kind"] for e in opened["disturbances"]] == ["bump"]
+    assert opened["outcome"] == "scene_inconsistency", (opened["outcome"], opened["error"])
+
+
+@pytest.mark.parametrize("index, kind", [(193, "bump"), (183, "topple"), (194, "topple")])
+def test_a_planned_disturbance_acts_on_a_crowded_table(index, kind, tmp_path):
+    """Frozen closed_loop episodes where the first choice of place finds no room: in 193 a tray takes most of the
+    table, so the plate just put down cannot be knocked anywhere and a neighbour standing alone is knocked
+    instead; in 183 no place keeps the topple's 5 cm from every object; in 194 the stack stands outside the
+    parts' box, by the table's edge, where no ray from it meets a free place. The disturbance planned acts all
+    the same, the knocked object ends at rest standing, and the oracle recovers."""
+    record = _frozen_closed_loop_episode(index, tmp_path)
     events = record["disturbances"]
     assert len(events) == record["disturbances_planned"], (events, record["disturbances_planned"])
     knocked = [e for e in events if e["kind"] == kind]
