@@ -36,6 +36,10 @@ SCENE_STREAM = streams.declare("synthetic.scene", "a synthetic symbolic scene's 
 PROPERTIES_STREAM = streams.declare("synthetic.properties", "a synthetic scene's hidden physical properties (the "
                                     "caller's scene key)")
 PLACE_TRIES = 20  # poses tried per object before another object is drawn in its stead
+# Objects drawn in a row that find no room before the scene starts over (the scene generator too draws a whole new
+# scene when a layout fails): a table that big boards and trays have filled may have room for nothing more.
+REDRAWS = 100
+RESTARTS = 20
 DEFAULT_OBJECT_SET = "shopvrb2"
 
 _OBJECT_SETS: dict[str, ObjectSet] = {}
@@ -60,23 +64,26 @@ def object_set(protocol: dict | None = None, name: str = DEFAULT_OBJECT_SET) -> 
     return _OBJECT_SETS[key]
 
 
-def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6),
-                 properties_rng: np.random.Generator | None = None,
-                 objects: ObjectSet | None = None) -> SceneGraph:
-    """A scene of ``n_objects`` (inclusive range) objects of ``objects`` (default: ``object_set()``) placed on the
-    unnamed stage's table as the scene generator places them (``muble.stage.layout.TableLayout``); the hidden
-    physical properties from ``properties_rng`` (none without it). An object that finds no room is drawn again."""
-    objects = objects if objects is not None else object_set()
+def _placed_objects(rng: np.random.Generator, n_objects: tuple[int, int], objects: ObjectSet):
+    """(specs, models, scene objects) of a drawn count of objects placed on the table, or ``None`` when
+    ``REDRAWS`` objects in a row found no room."""
     n = int(rng.integers(n_objects[0], n_objects[1] + 1))
     layout = TableLayout.on_stage(STAGES[UNNAMED_STAGE])
-    specs, models, scene_objects = [], [], []
+    specs: list = []
+    models: list = []
+    scene_objects: list[SceneObject] = []
+    failed = 0
     while len(scene_objects) < n:
         spec = objects.sample(rng)
         model = objects.build(spec)
         ex, ey, ez = (float(e) for e in model.extents)
         placement = layout.try_place(BoxShape(ex, ey), rng, PLACE_TRIES)
         if placement is None:
+            failed += 1
+            if failed >= REDRAWS:
+                return None
             continue  # no room for this one: draw another
+        failed = 0
         specs.append(spec)
         models.append(model)
         scene_objects.append(SceneObject(
@@ -87,6 +94,25 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
             movability="portable" if model.pickupable else "stationary", scale_factor=float(spec.scale),
             rotation=math.degrees(placement.yaw), bbox={"x": ex, "y": ey, "z": ez},
         ))
+    return specs, models, scene_objects
+
+
+def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int, int] = (3, 6),
+                 properties_rng: np.random.Generator | None = None,
+                 objects: ObjectSet | None = None) -> SceneGraph:
+    """A scene of ``n_objects`` (inclusive range) objects of ``objects`` (default: ``object_set()``) placed on the
+    unnamed stage's table as the scene generator places them (``muble.stage.layout.TableLayout``); the hidden
+    physical properties from ``properties_rng`` (none without it). An object that finds no room is drawn again;
+    after ``REDRAWS`` in a row the scene starts over, and after ``RESTARTS`` such starts it is a ``ConfigError``."""
+    objects = objects if objects is not None else object_set()
+    for _ in range(RESTARTS):
+        placed = _placed_objects(rng, n_objects, objects)
+        if placed is not None:
+            break
+    else:
+        raise ConfigError(f"synthetic scene {index}: {n_objects[0]} to {n_objects[1]} objects of the object set did "
+                          f"not fit on the table in {RESTARTS} layouts; ask for fewer objects")
+    specs, models, scene_objects = placed
     if properties_rng is not None:
         # As the scene generator draws them: property by property, each for the objects in scene order that the
         # object set says carry it (ObjectSet.physical_properties).
