@@ -187,7 +187,7 @@ class ArmKinematics:
         pos_part, rot_part = (err_w[:3] if rows == 6 else err), err[3:]
         rot_w, jac_pos, jac_rot = err_w[3:], jac_w[:3], jac_w[3:]
         with _solve_errors():
-            for _ in range(1, max_iterations + 1):
+            for it in range(1, max_iterations + 1):  # noqa: B007 (the result reports the iterations it ran)
                 qpos[qpos_index] = q
                 mujoco.mj_kinematics(m, d)
                 np.subtract(target_pos, site_pos, out=pos_part)

@@ -138,7 +138,7 @@ def _reference_solve(kin, target_pos, target_quat, seed, position_tolerance=1e-3
     pos_err = rot_err = np.inf
     it = 0
     with _solve_errors():
-        for _ in range(1, max_iterations + 1):
+        for it in range(1, max_iterations + 1):  # noqa: B007 (returned: the iterations it ran)
             d.qpos[kin.qpos_adr] = q
             mujoco.mj_kinematics(m, d)
             np.subtract(target_pos, d.site_xpos[site], out=err[:3])
