@@ -487,9 +487,6 @@ class Topple(AfterPutDown):
             logger.info("topple: no free place beside object %d for object %d", base, obj)
             return None
         goal, over = found
-        if _hand_in_the_way(env, obj, over):
-            logger.info("topple: the hand leaves object %d no room to rise out of object %d", obj, base)
-            return None
         start = env.object_pose(obj).pos.copy()
         push = knock_off(env, obj, over, goal, self.config.speed)
         end = env.object_pose(obj).pos
@@ -550,21 +547,6 @@ class Topple(AfterPutDown):
 # m of clearance a topple settles for, in turn, where its configured clearance leaves no free place
 FALLBACK_CLEARANCES = (0.04, 0.03, 0.02)
 KNOCK_LIFT = 0.06  # m above the base's top a knocked-off object is carried at most, while a lower way is free
-
-
-def _hand_in_the_way(env, obj: int, over: float) -> bool:
-    """Whether the open hand hangs over the middle of ``obj`` (its grip site within half the object's reach of its
-    centre) lower above its top than the rise to ``over`` (world z, its bottom's), with ``KNOCK_CLEARANCE``: a can
-    deep in a bowl with the fingers just above it. A knock would press it against the fingers, so the topple
-    waits for the next stacking. (A hand beside the middle leaves room: the first leg moves the object across
-    as it rises, out from under the fingers.)"""
-    hand = env.ee_pose().pos
-    here = env.object_pose(obj).pos[:2]
-    body = env.model.body(env.names.objects[obj]).id
-    reach = float(np.max(np.linalg.norm(footprint(env, body) - here, axis=1)))
-    top = env.object_top(obj)
-    rise = max(0.0, over - (top - env.world_bbox(obj)["z"]))
-    return float(np.linalg.norm(hand[:2] - here)) < 0.5 * reach and hand[2] - top < rise + KNOCK_CLEARANCE
 
 
 def _near_way(outline: np.ndarray, start: np.ndarray, goal: np.ndarray, reach: float) -> bool:
