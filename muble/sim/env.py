@@ -11,7 +11,7 @@ from typing import Any, Callable, Iterator
 import mujoco
 import numpy as np
 
-from muble.core.errors import ConfigError, PhysicsError, unknown_name
+from muble.core.errors import ConfigError, MubleDeprecationWarning, PhysicsError, unknown_name
 from muble.core.environment import GRAVITY, TableTop
 from muble.core.interfaces import MotionPlanner, Sensor
 from muble.core.object_physics import CONTENTS_COLLISION_CLASS
@@ -396,7 +396,7 @@ class TabletopEnv:
         """Deprecated name of ``world_bbox``: the world-axis-aligned box, not the object-frame extents a scene
         object's ``bbox`` holds. Warns; goes with the next minor release."""
         warnings.warn("Environment.object_bbox() is deprecated: call Environment.world_bbox() (the same world-axis-"
-                      "aligned box)", DeprecationWarning, stacklevel=2)
+                      "aligned box)", MubleDeprecationWarning, stacklevel=2)
         return self.world_bbox(obj_id)
 
     def touches_support(self, obj_id: int, tolerance: float = 0.001) -> bool:
@@ -581,7 +581,7 @@ class TabletopEnv:
     def __getattr__(self, name: str) -> Any:
         """Deprecated: ``env.<primitive>(...)`` for a registered primitive that declares its ``reading`` (the
         built-in ``weigh``, ``squeeze``, ``push``, ``balance``, ``shake``) calls that reading on this environment,
-        with a ``DeprecationWarning`` that names it. The environment named these readings before they moved into
+        with a ``MubleDeprecationWarning`` that names it. The environment named these readings before they moved into
         the primitives; the forward goes with the next minor release."""
         if name.startswith("_"):
             raise AttributeError(name)
@@ -594,7 +594,7 @@ class TabletopEnv:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         where = f"{reading.__module__}.{reading.__qualname__}"
         warnings.warn(f"Environment.{name}() is deprecated: the reading moved to the '{name}' primitive; call "
-                      f"{where}(env, ...) instead", DeprecationWarning, stacklevel=2)
+                      f"{where}(env, ...) instead", MubleDeprecationWarning, stacklevel=2)
 
         def forward(*args: Any, **kwargs: Any) -> Any:
             return reading(self, *args, **kwargs)
