@@ -30,6 +30,7 @@ from muble.core.interfaces import (
     Task,
     Trainer,
 )
+from muble.core.physical_properties import Property
 from muble.core.training import TrainingRun
 from muble.core.params import Param
 from muble.core.ranges import bounded
@@ -64,6 +65,6 @@ __all__ = [
     "SEG_BACKGROUND", "SEG_ROBOT", "SEG_TABLE", "ActionCall", "ActionResult", "Agent", "Answer", "CollisionWorld",
     "ConfigError", "Disturbance", "DisturbanceEvent", "Environment", "EnvironmentNames", "Frame", "Instruction", "JointGoal", "MotionPlanner", "MubleError", "ObjectSet", "Observation",
     "ObservationMode", "Outcome", "Param", "PhysicsError", "PlanningError", "PluginError", "PluginRecord", "Pose", "PoseGoal",
-    "PrimitiveAction", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
+    "PrimitiveAction", "Property", "RLE", "RenderError", "Renderer", "SceneGraph", "SceneObject", "SceneValidationError",
     "Sensor", "TableTop", "Task", "Track", "Trainer", "TrainingRun", "Trajectory", "__version__", "bounded", "get_registry", "hookimpl", "InitialStateError",
 ]

@@ -128,16 +128,16 @@ def primitives_section() -> list[str]:
 
 def queries_section() -> list[str]:
     from muble.programs.program import QUANTITIES, QUERY_STEPS
-    from muble_plugins.common import success
 
     registry = _registry()
-    judged = {
-        "weight": f"within {success.WEIGHT_TOLERANCE_G:g} g or {success.WEIGHT_TOLERANCE_REL:.0%}, the larger",
-        "stiffness": f"within {success.STIFFNESS_TOLERANCE_REL:.0%}",
-        "friction": f"within {success.FRICTION_TOLERANCE_REL:.0%}",
-        "com_offset": f"within {success.COM_TOLERANCE_MM:g} mm",
-        "rattles": "exactly",
-    }
+
+    def judged(q) -> str:
+        if q.answer_check is not None:
+            return "exactly" if q.values else "by the property's own check"
+        tol = " or ".join(t for t in (f"{q.tolerance:g} {q.unit}".strip() if q.tolerance else "",
+                                      f"{q.tolerance_rel:.0%}" if q.tolerance_rel else "") if t)
+        return f"within {tol}" + (", the larger" if q.tolerance and q.tolerance_rel else "") if tol else "exactly"
+
     lines = ["## Queries: what an answer holds", "",
              "A query instruction's program ends in `query_<property>`: the agent measures each queried object",
              "and answers `Answer(value)`: for one object its value, for several a list in the program's object",
@@ -151,7 +151,7 @@ def queries_section() -> list[str]:
         if q.verb in registry.names("primitive"):
             unit = getattr(registry.get("primitive", q.verb).record.factory, "measure_unit", "")
         lines.append(f"| `{step}` | `{q.verb}` | {unit or '–'} | {_cell(q.reading_form)} | {_cell(q.answer_form)} | "
-                     f"{judged.get(name, 'by the task')} |")
+                     f"{judged(q)} |")
     return lines + [""]
 
 

@@ -27,6 +27,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from muble.core.interfaces import Instruction
+from muble.core.physical_properties import Derived
 from muble.core.scene import SceneGraph, SceneObject
 
 # Keys of ``SceneObject.extra`` an agent may see: the gripper's flags and the physical contact state.
@@ -36,8 +37,10 @@ TOUCHING_TABLE = "table"  # what ``extra["touching"]`` names the table (beside o
 GROUND_TRUTH_FIELDS = ("weight_gt", "stiffness")
 # Measured properties besides the weight (``SceneObject.weight``): the name a primitive reports it under
 # (``PrimitiveAction.measures``) -> the ``extra`` key an agent's view carries it under once measured.
-MEASURED_EXTRA = {name: f"{name}_measured" for name in ("stiffness", "friction", "com_offset", "rattles")}
-MEASURED_STIFFNESS = MEASURED_EXTRA["stiffness"]
+# Read from the registered properties (``muble.core.physical_properties``): every one measured into ``extra``.
+MEASURED_EXTRA: Mapping[str, str] = Derived(lambda props: {name: p.measured_key for name, p in props.items()
+                                                           if p.measured_key is not None})
+MEASURED_STIFFNESS = "stiffness_measured"
 # Scene-level fields an agent may see (everything else of the scene file, ``extra`` included, stays hidden).
 _SCENE_VISIBLE = ("split", "image_index", "image_filename", "directions", "camera_params", "lamp_params", "table",
                   "robot", "relationships")

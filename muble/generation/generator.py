@@ -40,8 +40,17 @@ WEIGHT_RESAMPLES = 30
 # Raised whenever the same settings make other files (2: named random streams, fixed-order sums, 9-decimal floats);
 # a dataset folder records it, so one made by another version is not resumed into a mix of both.
 GENERATOR_VERSION = 2
-# The stream each hidden physical property (``muble.core.physical_properties.PROPERTIES``) is drawn from.
+# The stream each hidden physical property (``muble.core.physical_properties.PROPERTIES``) is drawn from: MuBlE's
+# own three declared in ``muble.core.streams``, a package's as ``scene.<sampled_as>`` (``Property.stream``).
 PROPERTY_STREAMS = streams.PROPERTY_STREAMS
+
+
+def _property_stream(name: str) -> str:
+    prop = physical_properties.SAMPLED[name]
+    if name in PROPERTY_STREAMS:
+        return PROPERTY_STREAMS[name]
+    assert prop.stream is not None
+    return streams.declare(prop.stream, f"a scene sample's {prop.name} values of its objects (index, sample)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,15 +198,14 @@ class SceneGenerator:
                              rngs: dict[str, np.random.Generator]) -> tuple[list[ObjectModel], list[dict[str, Any]]]:
         """The models with the hidden physical properties drawn for them, and each object's scene keys and values
         (``muble.core.physical_properties.sampled``, rounded as the file keeps them): per property of ``rngs``, per
-        object in scene order, for the objects the object set says carry it (``ObjectSet.physical_properties``)."""
+        object in scene order, for the objects that carry it (``muble.core.physical_properties.carried``)."""
         values: list[dict[str, Any]] = [{} for _ in specs]
         if not rngs:
             return models, values
-        carried = getattr(self.object_set, "physical_properties", lambda spec: ())
         for name, rng in rngs.items():
             key = physical_properties.SCENE_KEYS[name]
             for value, spec, model in zip(values, specs, models):
-                if name in carried(spec):
+                if physical_properties.carried(name, self.object_set, spec, model):
                     value[key] = physical_properties.sampled(name, rng, model, spec.weight_g)
         # The model gets what the file says, as an environment built from the file does (muble.sim.build).
         models = [dataclasses.replace(m, **physical_properties.model_fields(v, s.weight_g)) if v else m
@@ -233,7 +241,7 @@ class SceneGenerator:
         objects_rng = streams.stream(streams.SCENE_OBJECTS, self.seed, int(index), int(sample))
         layout_rng = streams.stream(streams.SCENE_LAYOUT, self.seed, int(index), int(sample))
         # In PROPERTIES order, which is the order of their keys in the file; none asked for: no stream is made.
-        property_rngs = {name: streams.stream(PROPERTY_STREAMS[name], self.seed, int(index), int(sample))
+        property_rngs = {name: streams.stream(_property_stream(name), self.seed, int(index), int(sample))
                          for name in physical_properties.PROPERTIES if name in cfg.physical_properties}
         staging = self.staging(index)
         reasons: collections.Counter[str] = collections.Counter()

@@ -66,6 +66,14 @@ def muble_register_disturbances() -> list[PluginRecord]:
 
 
 @hookspec
+def muble_register_properties() -> list:
+    """Hidden physical properties (``muble.Property`` records, returned as they are), e.g.
+    ``Property("temperature", "feel", truth=..., superlatives=("warmest", "coldest"), ...)``: what the measuring
+    primitive reports, the program steps and words that ask for it, its answer tolerance and comparison margin, its
+    sampler (docs/plugins.md, "Adding a hidden property")."""
+
+
+@hookspec
 def muble_config_searchpath() -> list[str]:
     """Hydra search path entries holding the plugin's config yaml, e.g. ``["pkg://my_plugin.conf"]``.
 

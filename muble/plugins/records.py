@@ -15,6 +15,7 @@ KINDS: dict[str, str] = {
     "agent": "muble_register_agents",
     "trainer": "muble_register_trainers",
     "disturbance": "muble_register_disturbances",
+    "property": "muble_register_properties",
 }
 
 

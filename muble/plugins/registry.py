@@ -7,8 +7,9 @@ from typing import Any, cast
 from omegaconf import DictConfig, OmegaConf
 
 from muble.core.errors import PluginError, unknown_name
+from muble.core.physical_properties import Property, use_loader
 from muble.core.ranges import checked_node, configured
-from muble.plugins.manager import BrokenPlugin, MublePluginManager, builtin_failed, get_plugin_manager
+from muble.plugins.manager import BUILTIN_DISTRIBUTION, BrokenPlugin, MublePluginManager, builtin_failed, get_plugin_manager
 from muble.plugins.records import KINDS, PluginRecord, Provided
 
 
@@ -20,24 +21,57 @@ class Registry:
     plugins failing so is a ``PluginError``.
     """
 
-    def __init__(self, pm: MublePluginManager):
+    def __init__(self, pm: MublePluginManager, kinds: tuple[str, ...] | None = None):
+        """``kinds`` limits what is gathered (``("property",)``: the hidden properties alone, which templates need
+        while they compile, before the registry of everything is there); None: every kind."""
         self.pm = pm
         self._by_kind: dict[str, dict[str, Provided]] = {}
         gathered: list[Provided] = []
-        for kind, hook_name in KINDS.items():
-            for impl in getattr(pm.hook, hook_name).get_hookimpls():
-                try:
-                    records = list(impl.function() or [])
-                    for record in records:
-                        if not isinstance(record, PluginRecord):
-                            raise PluginError(
-                                f"plugin '{impl.plugin_name}' returned {type(record).__name__} from {hook_name}; "
-                                "registration hooks must return a list of muble.PluginRecord")
-                except Exception as e:  # noqa: BLE001 - whatever a plugin's hook raises, the plugin is named
-                    self._failed(impl.plugin_name, hook_name, e)
-                    continue
-                gathered += [Provided(kind, r, impl.plugin_name, pm.distribution_of(impl.plugin_name))
-                             for r in records]
+        # The hidden properties first: other plugins read them while they register (a template file compiles its
+        # property words and steps), through ``muble.core.physical_properties.registered``.
+        self.properties: dict[str, Property] = {}
+        global _building
+        outer, _building = _building, self
+        try:
+            for kind in ("property", *(k for k in KINDS if k != "property" and (kinds is None or k in kinds))):
+                gathered += self._gather(kind)
+                if kind == "property":
+                    self.properties = self._properties(gathered)
+        finally:
+            _building = outer
+        self._index(gathered)
+
+    def _gather(self, kind: str) -> list[Provided]:
+        """Every record the plugins register as ``kind`` (a broken plugin's left out and reported)."""
+        pm, hook_name, gathered = self.pm, KINDS[kind], []
+        for impl in getattr(pm.hook, hook_name).get_hookimpls():
+            try:
+                records = [_property_record(r) if kind == "property" else r for r in impl.function() or []]
+                for record in records:
+                    if not isinstance(record, PluginRecord):
+                        raise PluginError(
+                            f"plugin '{impl.plugin_name}' returned {type(record).__name__} from {hook_name}; "
+                            "registration hooks must return a list of muble.PluginRecord")
+            except Exception as e:  # noqa: BLE001 - whatever a plugin's hook raises, the plugin is named
+                self._failed(impl.plugin_name, hook_name, e)
+                continue
+            gathered += [Provided(kind, r, impl.plugin_name, pm.distribution_of(impl.plugin_name))
+                         for r in records]
+        return gathered
+
+    def _properties(self, gathered: list[Provided]) -> dict[str, Property]:
+        """The registered properties by name: MuBlE's own first in their order, then each other package's in its
+        order. Two of one name are an error naming both providers."""
+        left_out = {b.name for b in self.pm.broken}
+        props = [p for p in gathered if p.kind == "property" and p.plugin not in left_out]
+        own = [p for p in props if self.pm.distributions.get(p.plugin) == BUILTIN_DISTRIBUTION]
+        out: dict[str, Property] = {}
+        for p in [*own, *(p for p in props if p not in own)]:
+            out.setdefault(p.record.name, p.record.factory())
+        return out
+
+    def _index(self, gathered: list[Provided]) -> None:
+        pm = self.pm
         # The config folders, from the plugins still registered (a broken one's are not wanted), in the order a
         # hook call gives them (the last registered first).
         self.searchpath: list[str] = []
@@ -60,6 +94,7 @@ class Registry:
                 ]
                 raise PluginError("duplicate plugin names: " + "; ".join(lines) + ". Rename one or uninstall it.")
             self._by_kind[kind] = {n: ps[0] for n, ps in providers.items()}
+
 
     @property
     def broken(self) -> list[BrokenPlugin]:
@@ -108,6 +143,18 @@ class Registry:
         return record.factory(**validate_params(kind, record, params or {}))
 
 
+def _property_record(record: Any) -> Any:
+    """A ``Property`` a plugin returns as the ``PluginRecord`` the registry keeps (its factory gives it back)."""
+    if not isinstance(record, Property):
+        raise PluginError(f"muble_register_properties returned {type(record).__name__}; it returns a list of "
+                          "muble.Property records")
+    return PluginRecord(record.name, functools.partial(_same, record), record.description)
+
+
+def _same(record: Property) -> Property:
+    return record
+
+
 def _options(params: dict[str, Any] | DictConfig) -> dict[str, Any]:
     if isinstance(params, DictConfig):
         params = cast("dict[str, Any]", OmegaConf.to_container(params, resolve=True))
@@ -135,3 +182,28 @@ def validate_params(kind: str, record: PluginRecord, params: dict[str, Any] | Di
 def get_registry() -> Registry:
     """The process-wide registry over ``get_plugin_manager()``; ``get_registry.cache_clear()`` resets it."""
     return Registry(get_plugin_manager())
+
+
+# The registry being gathered: while plugins register, what they read of the properties comes from it.
+_building: Registry | None = None
+
+
+# The hidden properties gathered alone, for the plugin manager they came from: what is read of them before the
+# registry of everything is gathered (a module compiling its templates on import).
+_properties_alone: tuple[MublePluginManager, dict[str, Property]] | None = None
+
+
+def _registered_properties() -> dict[str, Property]:
+    global _properties_alone
+    if _building is not None:
+        return _building.properties
+    if get_registry.cache_info().currsize:
+        return get_registry().properties
+    pm = get_plugin_manager()
+    if _properties_alone is None or _properties_alone[0] is not pm:
+        _properties_alone = (pm, Registry(pm, kinds=("property",)).properties)
+    return _properties_alone[1]
+
+
+# What the core reads the registered properties through (``muble.core.physical_properties.registered``).
+use_loader(_registered_properties)

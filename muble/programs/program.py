@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 from muble.core import physical_properties as physical
 from muble.core.errors import ConfigError, PlanningError, unknown_name
-from muble.core.observation import MEASURED_EXTRA
 from muble.core.scene import SceneGraph, SceneObject
 from muble.core.types import TABLE_PARTS
 from muble.stage.table import parts_at
@@ -127,63 +126,16 @@ class _NeedMeasurement(Exception):
 Recheck = Callable[[str, list[tuple[int, int]]], "tuple[int, ...] | list[int]"]
 
 
-@dataclass(frozen=True)
-class Quantity:
-    """A hidden property a program compares or asks for, known to an agent only once it measured it.
-
-    Its program steps are ``filter_<name>``, ``order_<name>`` and ``query_<name>``. ``truth`` reads the ground
-    truth of an object (None: the scene gives none) as the value a query answers and filters and orders compare,
-    ``measured`` what the agent measured of it as the primitive reported it (None: not yet), and ``reading`` turns
-    such a report into that value (a centre of mass's [x, y] mm into its distance from the centre);
-    ``reading_truth`` is the ground truth in the report's own form (the [x, y] mm).
-    ``superlatives`` are the words of ``filter_<name>``, the first picking the largest value; a quantity without
-    them is a yes/no property whose ``filter_<name>`` keeps the objects that have it (``values``: the words for yes
-    and no), and has no order.
-    """
-
-    name: str  # the property, as primitives report it (``PrimitiveAction.measures``)
-    verb: str  # the built-in primitive that measures it, as error messages name it
-    truth: Callable[[SceneObject], Any]
-    measured: Callable[[SceneObject], Any]
-    superlatives: tuple[str, ...] = ()  # (the most, the least), or none
-    orders: tuple[str, ...] = WEIGHT_ORDERS
-    values: tuple[str, ...] = ()  # (yes, no), or none
-    reading: Callable[[Any], Any] = lambda value: value
-    # The ground truth as the measuring primitive reports it, where that differs from ``truth`` (a centre of mass:
-    # [x, y] mm, of which ``truth`` is the distance); None: ``truth``.
-    true_reading: Callable[[SceneObject], Any] | None = None
-    # In words, for agent writers (docs/agent_api.md): the form of the primitive's reading and of a query's answer
-    # for one object.
-    reading_form: str = "a number"
-    answer_form: str = "a number"
-
-    def reading_truth(self, obj: SceneObject) -> Any:
-        """What a perfect measurement of ``obj`` would report (unit and shape of the primitive's reading)."""
-        return (self.true_reading or self.truth)(obj)
-
-
-def _measured_extra(name: str) -> Callable[[SceneObject], Any]:
-    key = MEASURED_EXTRA[name]
-    return lambda o: o.extra.get(key)
-
-
-def _offset_mm(value: Any) -> float | None:
-    """The distance (mm) of a centre-of-mass offset [x, y] (mm) from the centre, as a query answers it."""
-    return None if value is None else round(math.hypot(float(value[0]), float(value[1])), 2)
-
-
-QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
-    Quantity("weight", "weigh", lambda o: o.weight_gt, lambda o: o.weight, WEIGHT_SUPERLATIVES),
-    Quantity("stiffness", "squeeze", lambda o: o.stiffness, _measured_extra("stiffness"), STIFFNESS_SUPERLATIVES),
-    Quantity("friction", "push", physical.friction_of, _measured_extra("friction"), FRICTION_SUPERLATIVES),
-    Quantity("com_offset", "balance", lambda o: _offset_mm(physical.com_offset_mm(o)), _measured_extra("com_offset"),
-             COM_SUPERLATIVES, reading=_offset_mm, true_reading=physical.com_offset_mm,
-             reading_form="[x, y]: the offset in the object's frame",
-             answer_form="a number: the offset's distance from the centre, sqrt(x² + y²) of the reading"),
-    Quantity("rattles", "shake", lambda o: None if o.extra.get(physical.CONTENTS) is None else physical.rattles(o),
-             _measured_extra("rattles"), values=RATTLE_VALUES, orders=(), reading_form="true or false",
-             answer_form='true or false (or the words "yes" and "no")'),
-)}
+# A hidden property a program compares or asks for, known to an agent only once it measured it: the registered
+# ``muble.core.physical_properties.Property`` records. Its program steps are ``filter_<name>``, ``order_<name>``
+# and ``query_<name>``. ``truth`` reads the ground truth of an object (None: the scene gives none) as the value a
+# query answers and filters and orders compare, ``measured`` what the agent measured of it as the primitive
+# reported it (None: not yet), and ``reading`` turns such a report into that value (a centre of mass's [x, y] mm
+# into its distance from the centre). ``superlatives`` are the words of ``filter_<name>``, the first picking the
+# largest value; a property without them is a yes/no property whose ``filter_<name>`` keeps the objects that have
+# it (``values``: the words for yes and no), and has no order.
+Quantity = physical.Property
+QUANTITIES: Mapping[str, physical.Property] = physical.Derived(dict)
 
 
 class _Context:
@@ -300,8 +252,10 @@ def _quantity_steps(q: Quantity) -> dict[str, Callable]:
     return steps
 
 
-QUANTITY_STEPS: dict[str, dict[str, Callable]] = {name: _quantity_steps(q) for name, q in QUANTITIES.items()}
-QUERY_STEPS: dict[str, str] = {f"query_{name}": name for name in QUANTITIES}  # step -> the property it asks for
+QUANTITY_STEPS: Mapping[str, dict[str, Callable]] = physical.Derived(
+    lambda props: {name: _quantity_steps(q) for name, q in props.items()})
+QUERY_STEPS: Mapping[str, str] = physical.Derived(  # step -> the property it asks for
+    lambda props: {f"query_{name}": name for name in props})
 
 
 def _step_pass_targets(ctx: _Context, step: dict, prev: Any, index: int) -> list[int]:
@@ -334,7 +288,7 @@ def stacked_pairs(program: list[dict[str, Any]]) -> list[tuple[int, int]]:
     return stack_pairs(program[-1]["output"])
 
 
-STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
+STEP_TYPES: Mapping[str, Callable[[_Context, dict, Any, int], Any]] = physical.Derived(lambda props: {
     "scene": _step_scene,
     **{name: _attribute_filter(attr) for name, attr in ATTRIBUTE_FILTERS.items()},
     "filter_table_part": _step_filter_table_part,
@@ -343,8 +297,8 @@ STEP_TYPES: dict[str, Callable[[_Context, dict, Any, int], Any]] = {
     "pick_up": _step_pass_targets,
     "move_to": _step_pass_targets,
     "stack": _step_stack,
-}
-STIFFNESS_STEPS = frozenset(QUANTITY_STEPS["stiffness"])
+})
+STIFFNESS_STEPS = frozenset(("filter_stiffness", "query_stiffness", "order_stiffness"))
 
 
 def execute(program: list[dict[str, Any]], scene: SceneGraph, *, weights: str = "measured",

@@ -7,21 +7,15 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from typing import Any, Callable, Mapping
 
 from muble import Answer, ConfigError, Instruction, Outcome, PlanningError, SceneGraph
+from muble.core.physical_properties import Derived, named
 from muble.programs.program import QUERY_STEPS, execute, stack_pairs
 
 from muble_plugins.common.geometry import broken, on_table_part, rests_on
 
 log = logging.getLogger(__name__)
-
-WEIGHT_TOLERANCE_G = 2.0  # absolute slack on an answered weight …
-WEIGHT_TOLERANCE_REL = 0.02  # … or this fraction of it, whichever is larger
-STIFFNESS_TOLERANCE_REL = 0.05  # an answered stiffness within this fraction of the true one
-FRICTION_TOLERANCE_REL = 0.10  # an answered friction coefficient within this fraction of the true one
-COM_TOLERANCE_MM = 5.0  # an answered centre-of-mass offset (mm from the centre) within this of the true one
-
 
 def recorded_final(instruction: Instruction, scene: SceneGraph) -> Any:
     """The final step's target: its recorded output, or the program run on ``scene`` with true weights."""
@@ -41,26 +35,23 @@ def _number(value: Any) -> float | None:
     return number if math.isfinite(number) else None
 
 
-def weights_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
-    """The answer gives each queried object its weight: a list in the program's object order, or a mapping of
-    object id to grams (``ids`` are the queried objects). A weight set against the wrong object fails."""
-    return _values_match(answer, expected, ids,
-                         lambda e: max(WEIGHT_TOLERANCE_G, WEIGHT_TOLERANCE_REL * e))
+def tolerance_check(name: str):
+    """The answer check of the registered property ``name`` that has no check of its own
+    (``Property.answer_check``): the answer gives each queried object its value, a list in the program's object
+    order or a mapping of object id to value (``ids`` are the queried objects), each within the property's
+    tolerance (``Property.answer_tolerance``). A value set against the wrong object fails."""
+
+    def match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
+        return _values_match(answer, expected, ids, named(name).answer_tolerance)
+
+    match.__name__ = f"{name}_match"
+    return match
 
 
-def stiffness_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
-    """As ``weights_match``, for stiffnesses (N/m): each within ``STIFFNESS_TOLERANCE_REL`` of the true one."""
-    return _values_match(answer, expected, ids, lambda e: STIFFNESS_TOLERANCE_REL * abs(e))
-
-
-def friction_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
-    """As ``weights_match``, for friction coefficients: each within ``FRICTION_TOLERANCE_REL`` of the true one."""
-    return _values_match(answer, expected, ids, lambda e: FRICTION_TOLERANCE_REL * abs(e))
-
-
-def com_offset_match(answer: Any, expected: list[float], ids: list[int] | None = None) -> bool:
-    """As ``weights_match``, for centre-of-mass offsets (mm from the centre): each within ``COM_TOLERANCE_MM``."""
-    return _values_match(answer, expected, ids, lambda e: COM_TOLERANCE_MM)
+weights_match = tolerance_check("weight")  # within 2 g or 2 %, the larger (the weight's record)
+stiffness_match = tolerance_check("stiffness")
+friction_match = tolerance_check("friction")
+com_offset_match = tolerance_check("com_offset")
 
 
 def rattles_match(answer: Any, expected: list[bool], ids: list[int] | None = None) -> bool:
@@ -83,9 +74,10 @@ def rattles_match(answer: Any, expected: list[bool], ids: list[int] | None = Non
     return _values_match(values, [float(e) for e in expected], ids, lambda e: 0.0)
 
 
-# The answer check of each query step (``muble.programs.program.QUERY_STEPS``), by the property it asks for.
-ANSWER_CHECKS = {"weight": weights_match, "stiffness": stiffness_match, "friction": friction_match,
-                 "com_offset": com_offset_match, "rattles": rattles_match}
+# The answer check of each query step (``muble.programs.program.QUERY_STEPS``), by the property it asks for: the
+# registered record's own, or its tolerance.
+ANSWER_CHECKS: Mapping[str, Callable[..., bool]] = Derived(
+    lambda props: {n: p.answer_check or tolerance_check(n) for n, p in props.items()})
 
 
 def _values_match(answer: Any, expected: list[float], ids: list[int] | None, tolerance) -> bool:

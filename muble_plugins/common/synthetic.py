@@ -119,7 +119,7 @@ def sample_scene(rng: np.random.Generator, index: int = 0, n_objects: tuple[int,
         for name in physical_properties.PROPERTIES:
             key = physical_properties.SCENE_KEYS[name]
             for o, spec, model in zip(scene_objects, specs, models):
-                if name in objects.physical_properties(spec):
+                if physical_properties.carried(name, objects, spec, model):
                     o.extra[key] = physical_properties.sampled(name, properties_rng, model, o.weight_gt)
     return SceneGraph(objects=scene_objects, split="synthetic", image_index=index,
                       image_filename=f"SHOP_VRB2_synthetic_{index:06d}.png")

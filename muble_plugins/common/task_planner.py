@@ -15,15 +15,16 @@ certain object again (``measure_again``), with a reading independent of the ones
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Mapping
 
 from muble import ActionCall, Answer, PlanningError, SceneGraph
+from muble.core.physical_properties import Derived, Property
 from muble.core.symbolic import ArmState, over
 from muble.programs.program import QUERY_STEPS, execute, stack_pairs, table_parts_of
 
 from muble_plugins.common.books import CERTAINTY, Certainty
 from muble_plugins.common.geometry import on_table_part, rests_on, upright
-from muble_plugins.common.symbolic import (APPROACH, BALANCE, GRASP, LIFT, LOWER, MOVE, PUSH, RELEASE, SHAKE,
-                                           SQUEEZE, WEIGH)
+from muble_plugins.common.symbolic import APPROACH, GRASP, LIFT, LOWER, MOVE, RELEASE
 
 
 @dataclass
@@ -101,23 +102,22 @@ def place_on(scene: SceneGraph, obj_id: int, base_id: int, arm: ArmState) -> lis
     return _deliver(scene, obj_id, _carried_to(scene, obj_id, arm, base_id), base_id, arm)
 
 
-def _push(obj_id: int, arm: ArmState) -> list[ActionCall]:
-    """Measure the friction of ``obj_id``: grasped standing on the table (one held up is set down first, which
-    lets it go), pushed."""
-    if arm.held == obj_id and arm.raised:
-        return [ActionCall(LOWER)]
-    return grasp(obj_id, arm) + [ActionCall(PUSH)]
+def _measuring(prop: Property):
+    """The primitives that measure ``prop`` of an object from the arm's state: the hand brought to what the
+    property needs (``Property.needs``), then its primitive."""
+    measure = ActionCall(prop.primitive)
+    if prop.needs == "held":
+        return lambda obj_id, arm: hold_up(obj_id, arm) + [measure]
+    if prop.needs == "standing":
+        return lambda obj_id, arm: [ActionCall(LOWER)] if arm.held == obj_id and arm.raised else \
+            grasp(obj_id, arm) + [measure]
+    return lambda obj_id, arm: grasp(obj_id, arm) + [measure]
 
 
-# How each hidden property is measured (``PrimitiveAction.measures`` of the built-in primitives): the primitives
-# that measure it of an object, from the arm's state.
-MEASURE = {
-    "weight": lambda obj_id, arm: hold_up(obj_id, arm) + [ActionCall(WEIGH)],
-    "stiffness": lambda obj_id, arm: grasp(obj_id, arm) + [ActionCall(SQUEEZE)],
-    "friction": _push,
-    "com_offset": lambda obj_id, arm: hold_up(obj_id, arm) + [ActionCall(BALANCE)],
-    "rattles": lambda obj_id, arm: hold_up(obj_id, arm) + [ActionCall(SHAKE)],
-}
+# How each hidden property is measured (the registered records: ``Property.primitive`` and ``needs``): the
+# primitives that measure it of an object, from the arm's state.
+MEASURE: Mapping[str, Callable[[int, ArmState], list[ActionCall]]] = Derived(
+    lambda props: {name: _measuring(p) for name, p in props.items()})
 
 
 def measure_again(prop: str, obj_id: int, arm: ArmState, certainty: Certainty) -> list[ActionCall]:

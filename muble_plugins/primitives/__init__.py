@@ -30,3 +30,10 @@ def muble_register_primitives() -> list[PluginRecord]:
         PluginRecord("shake", Shake, "shake the held object: whether loose contents rattle inside"),
         PluginRecord("move_vel", MoveVel, "move the hand at a constant velocity (m/s) for a duration (s)"),
     ]
+
+
+@hookimpl
+def muble_register_properties() -> list:
+    from muble_plugins.primitives.properties import BUILTIN
+
+    return list(BUILTIN)

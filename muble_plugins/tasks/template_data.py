@@ -43,24 +43,26 @@ import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Mapping
 
 from muble import ConfigError
 from muble.core.errors import unknown_name
 from muble.io.instructions_io import program_step
 from muble.programs.descriptions import ATTRIBUTE_STEP, describe
-from muble.programs.program import (COM_SUPERLATIVES, FRICTION_SUPERLATIVES, QUANTITIES, RELATIONS,
-                                    STIFFNESS_SUPERLATIVES, WEIGHT_SUPERLATIVES, related)
+from muble.core.physical_properties import Derived
+from muble.programs.program import QUANTITIES, RELATIONS, related
 from muble.stage.table import OPPOSITE_PART
 
 # Templates name the four sides of the table, never "centre".
-WORD_DOMAINS = {"table_part": tuple(OPPOSITE_PART), "weight_superlative": WEIGHT_SUPERLATIVES,
-                "stiffness_superlative": STIFFNESS_SUPERLATIVES, "friction_superlative": FRICTION_SUPERLATIVES,
-                "com_superlative": COM_SUPERLATIVES, "relation": tuple(RELATIONS)}
+# Each registered property's superlatives are a domain (``Property.domain``: ``weight_superlative``,
+# ``com_superlative`` …).
+WORD_DOMAINS: Mapping[str, tuple[str, ...]] = Derived(lambda props: {
+    "table_part": tuple(OPPOSITE_PART), **{p.domain: p.superlatives for p in props.values() if p.domain},
+    "relation": tuple(RELATIONS)})
 # Measured quantities (besides the weight) that templates compare: <q>_extreme references and constraints,
 # <q>_order and <q>_stack_order constraints, each with the quantity's margin (``templates.MARGINS``).
-COMPARED = ("stiffness", "friction", "com_offset")
-PARAMETER_TYPES = ("object", "objects", *WORD_DOMAINS)
+COMPARED: Mapping[str, Any] = Derived(lambda props: {n: p for n, p in props.items() if p.compared})
+PARAMETER_TYPES: Mapping[str, Any] = Derived(lambda props: dict.fromkeys(("object", "objects", *WORD_DOMAINS)))
 _TOKEN = re.compile(r"<([A-Za-z0-9_]+)>")
 _OPTIONAL = re.compile(r"\[([^\]]+)\] ?")
 
@@ -266,7 +268,7 @@ def _room(k, refs, kinds):
     return lambda b, c: c.room(_members(movers(b, c)), part(b, c))
 
 
-CONSTRAINTS: dict[str, tuple[int, Callable[[dict, list, dict], Check]]] = {
+CONSTRAINTS: Mapping[str, tuple[int, Callable[[dict, list, dict], Check]]] = Derived(lambda props: {
     "is": (1, _is),
     "max_count": (1, _count(lambda n, v: n <= v)),
     "min_count": (1, _count(lambda n, v: n >= v)),
@@ -283,7 +285,7 @@ CONSTRAINTS: dict[str, tuple[int, Callable[[dict, list, dict], Check]]] = {
     "mixed": (1, _mixed),
     "related": (3, _related),
     "among": (1, _among),
-}
+})
 # Dear constraints are checked only for the options the generator samples (``DataTemplate.feasible``).
 DEAR_CONSTRAINTS: dict[str, tuple[int, Callable[[dict, list, dict], Check]]] = {"room": (2, _room)}
 

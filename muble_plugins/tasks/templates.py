@@ -7,15 +7,16 @@ enumerates its *options* for a scene: the object-level choices (which objects, w
 superlative) that satisfy its constraints. Options are cheap tuples; the generator samples some and only then
 picks descriptions and a phrasing. Weight-dependent constraints use the ground-truth weights, with a margin so
 that a measured weight cannot swap the order; the other measured quantities likewise, each with its margin
-(``MARGINS``: twice the accuracy its primitive is held to, and more).
+(``Property.margin``: at least twice the accuracy its primitive is held to).
 """
 from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterator, Mapping
 
+from muble.core.physical_properties import Derived
 from muble.programs.descriptions import SceneIndex
 from muble.programs.program import QUANTITIES, table_parts_of
 from muble.stage.footprint import Outlines
@@ -25,13 +26,12 @@ from muble_plugins.tasks.template_data import DataTemplate, read_template_file
 
 MAX_STACK = 4  # objects in one "stack all" tower (the built-in templates' max_count)
 MAX_COMPARED = 5  # objects weighed to find a heaviest/lightest one (keeps plans within 46 primitives)
-STIFFNESS_MARGIN = 0.25  # stiffnesses a template compares differ by at least this fraction of the smaller
-FRICTION_MARGIN = 0.25  # friction coefficients likewise (push reads them within 10 %)
-COM_MARGIN_MM = 10.0  # centre-of-mass offsets (mm from the centre) differ by at least this (balance: within 5 mm)
-# The margin of each compared quantity but the weight (whose margin is the generator's ``weight_margin``):
-# (relative: a fraction of the smaller value | absolute: in the quantity's unit, margin).
-MARGINS = {"stiffness": (True, STIFFNESS_MARGIN), "friction": (True, FRICTION_MARGIN),
-           "com_offset": (False, COM_MARGIN_MM)}
+# The margin of each compared quantity but the weight (whose margin is the generator's ``weight_margin``), from its
+# registered record (``Property.margin``/``margin_rel``): (relative: a fraction of the smaller | absolute: in the
+# quantity's unit, margin).
+MARGINS: Mapping[str, tuple[bool, float]] = Derived(lambda props: {
+    n: (p.margin_rel is not None, p.margin_rel if p.margin_rel is not None else p.margin)
+    for n, p in props.items() if p.compared})
 
 
 @dataclass(frozen=True)
@@ -107,8 +107,7 @@ class OptionContext:
         return QUANTITIES[quantity].truth(self.obj(i))
 
     def _apart(self, quantity: str, high: float, low: float) -> bool:
-        relative, margin = MARGINS[quantity]
-        return high >= low * (1 + margin) if relative else high - low >= margin
+        return QUANTITIES[quantity].apart(high, low)
 
     @_memo
     def _largest_first(self, quantity: str, group: tuple[int, ...]) -> tuple[list[int], dict] | None:

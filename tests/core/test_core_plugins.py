@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from muble import ConfigError, PluginError
+from muble import ConfigError, PluginError, Property
 from muble.plugins.hookspecs import hookimpl
 from muble.plugins.manager import REPORTED_ENV, make_plugin_manager
 from muble.plugins.records import KINDS
@@ -170,14 +170,40 @@ def test_every_registration_hook_registers_its_kind(kind):
     class One:
         pass
 
+    # A hidden property registers as its record (``muble.Property``), which the registry keeps as a factory of it.
+    prop = Property("test_property", "weigh", lambda o: None) if kind == "property" else None
+
     def impl(self):
         from muble import PluginRecord
 
-        return [PluginRecord(f"test-{kind}", dict, "a record for the hook test")]
+        return [prop] if prop is not None else [PluginRecord(f"test-{kind}", dict, "a record for the hook test")]
 
     setattr(One, hook_name, hookimpl(impl))
     registry = Registry(make_plugin_manager(extra_plugins=(One(),)))
-    assert registry.get(kind, f"test-{kind}").record.factory is dict
+    if prop is not None:
+        assert registry.get(kind, "test_property").record.factory() is prop
+        assert list(registry.properties)[-1] == "test_property"  # after MuBlE's own five
+        assert list(registry.properties)[:5] == ["weight", "stiffness", "friction", "com_offset", "rattles"]
+    else:
+        assert registry.get(kind, f"test-{kind}").record.factory is dict
+
+
+def test_a_property_hook_that_returns_something_else_is_named():
+    class Bad:
+        @hookimpl
+        def muble_register_properties(self):
+            from muble import PluginRecord
+
+            return [PluginRecord("heat", dict)]
+
+    with pytest.raises(PluginError, match="returns a list of muble.Property records"):
+        Registry(make_plugin_manager(extra_plugins=(Bad(),)))
+
+
+def test_a_property_whose_margin_a_reading_within_tolerance_can_cross_is_refused():
+    with pytest.raises(ValueError, match="margin 1.5 °C must be at least 2 × the tolerance 1.0"):
+        Property("heat", "feel", lambda o: None, unit="°C", superlatives=("hottest", "coldest"), tolerance=1.0,
+                 margin=1.5)
 
 
 def test_muble_config_searchpath_hook():
