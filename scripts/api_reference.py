@@ -14,14 +14,15 @@ import argparse
 import sys
 from pathlib import Path
 
-# The modules of docs/plugins.md's public API, then those of the action loop.
+# The modules of docs/plugins.md's public API, then those of the action loop, then the built-in plugins' public
+# functions.
 API_MODULES = ("muble", "muble.plugins", "muble.core.interfaces", "muble.core.environment", "muble.core.types",
                "muble.core.errors", "muble.core.scene", "muble.core.objects", "muble.core.params", "muble.core.ranges",
                "muble.core.symbolic", "muble.core.observation", "muble.core.object_physics",
                "muble.core.physical_properties", "muble.core.streams", "muble.core.training", "muble.programs.program",
                "muble.programs.descriptions", "muble.stage.table", "muble.stage.rest", "muble.stage.footprint",
                "muble.io.scene_io", "muble.io.instructions_io", "muble.episode", "muble.episode.loop",
-               "muble.episode.modes")
+               "muble.episode.modes", "muble_plugins.tasks")
 
 
 def undocumented(modules: tuple[str, ...] = API_MODULES) -> list[str]:

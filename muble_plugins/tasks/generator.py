@@ -52,7 +52,10 @@ def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.
     options = list(template.options(context))
     if not options:
         return []
-    build = template.build
+    build, fill = template.build, template.fill
+    if build is None or fill is None:
+        raise ConfigError(f"template {template.template_id!r} has no build or fill function: it cannot generate "
+                          "instructions")
     out: list[Instruction] = []
     for k in rng.permutation(len(options)):
         option = options[int(k)]
@@ -62,7 +65,7 @@ def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.
                  for x in _described(option)]
         slots, program = build(option, descs)
         for phrasing in rng.permutation(len(template.texts)):
-            text = template.fill(template.texts[int(phrasing)], slots)
+            text = fill(template.texts[int(phrasing)], slots)
             if MIN_WORDS <= len(text.split()) <= MAX_WORDS:
                 break
         else:

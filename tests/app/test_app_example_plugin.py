@@ -63,7 +63,39 @@ def test_example_is_invisible_without_installation(tmp_path):
 def test_example_primitive_and_task_are_registered(example_site):
     rows = json.loads(run(["plugins", "--json"], example_site).stdout)
     found = {(r["kind"], r["name"]) for r in rows if r["distribution"] == "muble-example-plugin"}
-    assert {("primitive", "tap"), ("task", "touch"), ("agent", "greedy"), ("disturbance", "nudge")} <= found
+    assert {("primitive", "tap"), ("task", "touch"), ("agent", "greedy"), ("disturbance", "nudge"),
+            ("property", "temperature"), ("primitive", "feel"), ("task", "measure_temperature_single"),
+            ("task", "pick_up_temperature")} <= found
+
+
+@pytest.mark.slow
+def test_example_property_is_generated_and_solved_by_the_oracle_from_the_command_line(example_site, tmp_path):
+    """A hidden property from a package outside MuBlE, installed with pip: ``muble generate`` draws it for the
+    scenes (``generator.physical_properties=[temperature]``) and makes episodes of its two templates, whose
+    ground-truth sequences the oracle runs with physics; ``muble eval`` then solves every one, answering within
+    the property's tolerance, and the agent's records hold what it felt, never the scene's key."""
+    root, templates = tmp_path / "ds", "measure_temperature_single,pick_up_temperature"
+    result = run(["generate", "dataset.splits=[val]", "dataset.sizes=[4]", "dataset.executor=serial", "seed=5",
+                  f"dataset.templates=[{templates}]", "generator.physical_properties=[temperature]",
+                  f"dataset.root={root}", f"hydra.run.dir={tmp_path / 'gen'}"], example_site, MUJOCO_GL="egl")
+    assert result.returncode == 0, result.stderr[-3000:]
+    scenes = [json.loads(p.read_text()) for p in sorted((root / "val" / "scenes").glob("*.json"))]
+    assert len(scenes) == 4 and all(any("temperature_c" in o for o in s["objects"]) for s in scenes)
+    out = tmp_path / "eval"
+    result = run(["eval", "agent=oracle", f"dataset.root={root}", "dataset.executor=serial", "dataset.workers=1",
+                  f"hydra.run.dir={out}"], example_site, MUJOCO_GL="egl")
+    assert result.returncode == 0, result.stderr[-3000:]
+    records = [json.loads(line) for line in (out / "episodes_val.jsonl").read_text().splitlines()]
+    assert [r["outcome"] for r in records] == ["success"] * 4, [(r["outcome"], r["error"]) for r in records]
+    assert all("feel()" in r["primitives"] for r in records)
+    for record in records:
+        instruction = json.loads((root / "val" / "instructions" / f"SHOP_VRB2_val_{record['index']:06d}.json")
+                                 .read_text())
+        if record["template"] == "measure_temperature_single":
+            truth = instruction["program"][-1]["output"]  # the queried object's true temperature
+            assert abs(record["answer"][0] - truth[0]) <= 1.0, (record["answer"], truth)
+        assert "temperature_c" not in json.dumps(record)
+    assert {r["template"] for r in records} == set(templates.split(","))
 
 
 @pytest.mark.slow

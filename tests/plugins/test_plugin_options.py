@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import shutil
 from pathlib import Path
 
 import pytest
@@ -40,11 +41,13 @@ def test_no_registered_factory_redeclares_a_default_of_its_config(muble_registry
 
 def test_the_example_package_declares_each_default_once(fake_distribution):
     modules = {f"muble_example_plugin.{m.stem}": m.read_text() for m in EXAMPLE.glob("*.py")}
-    fake_distribution("muble-example-plugin", {"example_contacts": "muble_example_plugin"}, modules)
+    root = fake_distribution("muble-example-plugin", {"example_contacts": "muble_example_plugin"}, modules)
+    shutil.copy(EXAMPLE / "temperature_templates.yaml", root / "muble_example_plugin")  # its template tasks
     registry = Registry(make_plugin_manager())
     example = [p for p in registry.all() if p.distribution == "muble-example-plugin"]
     assert {(p.kind, p.record.name) for p in example if p.record.config} == {
-        ("sensor", "contact_count"), ("task", "touch"), ("agent", "greedy"), ("disturbance", "nudge")}
+        ("sensor", "contact_count"), ("task", "touch"), ("agent", "greedy"), ("disturbance", "nudge"),
+        ("task", "measure_temperature_single"), ("task", "pick_up_temperature")}
     assert offenders(example) == {}
     sensor = registry.create("sensor", "contact_count", {"include_table": False})
     assert sensor.include_table is False

@@ -57,21 +57,26 @@ def moved() -> dict[str, str]:
     return {old.strip("`"): new.strip("`") for old, new in _rows(section)}
 
 
+MUBLE_PACKAGES = ("muble", "muble_plugins")  # what MuBlE installs: the core and its own plugins
+
+
 def muble_imports(source: str) -> list[tuple[int, str, str | None]]:
-    """(line, module, name) of every use of MuBlE in ``source``: ``from muble.x import y`` is ("muble.x", "y");
-    ``import muble.x`` followed by ``muble.x.y.z`` is the chain "muble.x.y.z" (name None), resolved by
-    ``unlisted``."""
+    """(line, module, name) of every use of MuBlE (``MUBLE_PACKAGES``) in ``source``: ``from muble.x import y`` is
+    ("muble.x", "y"); ``import muble.x`` followed by ``muble.x.y.z`` is the chain "muble.x.y.z" (name None),
+    resolved by ``unlisted``."""
     tree = ast.parse(source)
     aliases: dict[str, str] = {}  # a local name bound to a MuBlE module
     found = []
     for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").split(".")[0] == "muble":
+        if isinstance(node, ast.ImportFrom) and node.level == 0 \
+                and (node.module or "").split(".")[0] in MUBLE_PACKAGES:
             found += [(node.lineno, node.module, a.name) for a in node.names]
         elif isinstance(node, ast.Import):
             for a in node.names:
-                if a.name.split(".")[0] == "muble":
-                    aliases[a.asname or "muble"] = a.name if a.asname else "muble"
-                    if a.asname or a.name != "muble":
+                top = a.name.split(".")[0]
+                if top in MUBLE_PACKAGES:
+                    aliases[a.asname or top] = a.name if a.asname else top
+                    if a.asname or a.name != top:
                         found.append((node.lineno, a.name, None))
     parents = {child: parent for parent in ast.walk(tree) for child in ast.iter_child_nodes(parent)}
     for node in ast.walk(tree):
@@ -163,6 +168,14 @@ def test_the_check_finds_what_the_list_does_not_hold():
         "line 3: muble.TabletopEnv", "line 4: muble.sim.env.TabletopEnv",
         "line 5: muble.core.observation.MEASURED_EXTRA", "line 8: muble.core.observation.MEASURED_EXTRA",
         "line 10: muble.core.streams.PROPERTY_STREAMS"]
+
+
+def test_the_check_reads_muble_s_own_plugins_too():
+    source = ("from muble_plugins.tasks import template_tasks\n"
+              "from muble_plugins.tasks.tasks import template_file_tasks\nimport muble_plugins.common.success\n"
+              "import muble_plugins.tasks\nx = muble_plugins.tasks.template_tasks\n")
+    assert unlisted(muble_imports(source), public_api()) == [
+        "line 2: muble_plugins.tasks.tasks.template_file_tasks", "line 3: muble_plugins.common.success"]
 
 
 # --- the names that moved -------------------------------------------------------------------------------------

@@ -5,13 +5,20 @@ It registers a sensor, ``contact_count`` (how many contacts MuJoCo reports at th
 primitive, ``tap``, with a task, ``touch``, that the built-in oracle solves (``muble task=touch``; see touch.py); and
 an agent, ``greedy``, a rule-based reasoner for the single-object templates (``muble eval agent=greedy``, with
 ``conf/agent/greedy.yaml``; see agent.py); and a disturbance, ``nudge``, a short push on a resting object
-(``muble eval +disturbances.enabled.nudge={}``; see nudge.py).
+(``muble eval +disturbances.enabled.nudge={}``; see nudge.py); and a hidden property, ``temperature`` (°C), with
+its sampler, the primitive that measures it, ``feel`` (a thermal probe in a fingertip), and two templates, a query
+(``measure_temperature_single``: "How warm is the red mug?") and a superlative (``pick_up_temperature``: "Pick up
+the warmest of the mugs."), which the built-in oracle solves in scenes generated with
+``generator.physical_properties=[temperature]`` (see temperature.py and temperature_templates.yaml).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import muble
+
+TEMPLATES = Path(__file__).with_name("temperature_templates.yaml")
 
 
 @dataclass
@@ -49,17 +56,28 @@ def muble_config_searchpath():
 
 @muble.hookimpl
 def muble_register_primitives():
+    from muble_example_plugin.temperature import Feel
     from muble_example_plugin.touch import Tap
 
-    return [muble.PluginRecord("tap", Tap, "touch an object with the open hand and rise again")]
+    return [muble.PluginRecord("tap", Tap, "touch an object with the open hand and rise again"),
+            muble.PluginRecord("feel", Feel, "hold the grasped object: how warm it is (°C), from a fingertip probe")]
+
+
+@muble.hookimpl
+def muble_register_properties():
+    from muble_example_plugin.temperature import TEMPERATURE
+
+    return [TEMPERATURE]
 
 
 @muble.hookimpl
 def muble_register_tasks():
     from muble_example_plugin.touch import Touch, TouchConfig
+    from muble_plugins.tasks import template_tasks
 
     return [muble.PluginRecord("touch", Touch, "touch the object the instruction names", TouchConfig,
-                               takes_config=True)]
+                               takes_config=True),
+            *template_tasks(TEMPLATES)]  # measure_temperature_single, pick_up_temperature
 
 
 @muble.hookimpl
