@@ -148,7 +148,7 @@ class Property:
         """What an agent's view of ``obj`` holds as measured (None: not measured)."""
         if self.measured_field is not None:
             return getattr(obj, self.measured_field)
-        return obj.extra.get(self.measured_key)
+        return obj.extra.get(f"{self.name}_measured")
 
     def reading_truth(self, obj: SceneObject) -> Any:
         """What a perfect measurement of ``obj`` would report (unit and shape of the primitive's reading)."""

@@ -19,7 +19,6 @@ measure again before the comparison counts; the trace then reports them as pendi
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
