@@ -78,7 +78,8 @@ class LlmAgent(Agent):
             raise ConfigError("agent.examples needs agent.examples_root: a dataset folder written by `muble "
                               "generate` with ground-truth sequences (its agent.examples_split split)")
         self.examples = cfg.examples
-        self.example_pool = load_examples(Path(cfg.examples_root), cfg.examples_split) if cfg.examples else []
+        self.example_pool = (load_examples(Path(cfg.examples_root), cfg.examples_split)
+                             if cfg.examples and cfg.examples_root else [])
         self.log_dir = Path(cfg.log_dir) if cfg.log_dir else None
         self.output_dir: Path | None = None  # set by muble eval: the logs then go beside its records
         self.record = ExchangeLog()
@@ -140,7 +141,10 @@ class LlmAgent(Agent):
 
     # One step ------------------------------------------------------------------------------------------------
 
-    def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | UnusableReply | None:
+    # An UnusableReply is deliberately none of the decisions Agent.act declares: the action loop ends the episode
+    # as invalid_action for any other value, and records its text.
+    def act(  # type: ignore[override]
+            self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | UnusableReply | None:
         if self.turns and self.turns[-1].result is None and isinstance(self.turns[-1].decision, ActionCall):
             self.turns[-1].result = observation.last_result
         if self.answered:

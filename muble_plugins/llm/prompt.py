@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
-from muble import (ActionCall, ActionResult, Answer, ConfigError, Instruction, Observation, ObservationMode, Track,
-                   get_registry)
+from muble import (ActionCall, ActionResult, Answer, ConfigError, Instruction, Observation, ObservationMode,
+                   PluginError, PrimitiveAction, Track, get_registry)
 from muble.core.observation import MEASURED_EXTRA
 from muble.core.params import Param, specs
 from muble.core.types import TABLE_PARTS
@@ -104,7 +104,7 @@ def image_parts(observation: Observation) -> list[dict[str, Any]]:
     """The observation's RGB images as chat content parts with PNG data URLs (for vision models)."""
     from muble.episode.runner import png_bytes
 
-    parts = []
+    parts: list[dict[str, Any]] = []
     for name, frame in observation.images.items():
         data = base64.b64encode(png_bytes(frame.rgb)).decode("ascii")
         parts += [{"type": "text", "text": f"Camera {name}:"},
@@ -135,7 +135,11 @@ def _kind_text(p: Param, view: ObservationMode) -> str:
 
 def primitive_params(name: str) -> tuple[Param, ...]:
     """The registered primitive's typed parameters."""
-    return specs(get_registry().get("primitive", name).record.factory.params)
+    factory = get_registry().get("primitive", name).record.factory
+    if not (isinstance(factory, type) and issubclass(factory, PrimitiveAction)):
+        raise PluginError(f"primitive {name!r} is registered with {factory!r}, not a PrimitiveAction class: it "
+                          "declares no parameters")
+    return specs(factory.params)
 
 
 def primitives_text(view: ObservationMode) -> str:
