@@ -39,6 +39,15 @@ def load_network(path: str | Path):
     if not isinstance(model, dict):
         raise ConfigError(f"'{path}' holds no planner network description; train it again with "
                           "`muble train trainer=planner`")
+    from muble_plugins.learned.planner_features import layout
+
+    trained, here = payload.get("extra", {}).get("layout"), layout()
+    if trained is not None and trained != here:  # checkpoints before the layout was recorded have the built-in one
+        extra = sorted(set(trained["properties"]) ^ set(here["properties"]))
+        raise ConfigError(f"'{path}' was trained with the hidden properties {trained['properties']}, and "
+                          f"{here['properties']} are registered here (differing: {extra}); train it again with "
+                          "`muble train trainer=planner` under the installed packages, or install the ones it was "
+                          "trained with")
     net = PlannerNet(**model)
     try:
         net.load_state_dict(payload["state"]["model"])

@@ -52,7 +52,7 @@ from muble.core.ranges import configured
 
 from muble_plugins.learned.config import TEMPLATES, PlannerTrainerConfig
 from muble_plugins.learned.planner_features import (CLASSES, FEATURE_DIM, Memory, encode, features, known_view,
-                                                    random_call)
+                                                    layout, random_call)
 
 log = logging.getLogger(__name__)
 
@@ -294,7 +294,8 @@ class PlannerTrainer(Trainer):
                      entry["loss"], entry["train_accuracy"], entry["validation_accuracy"])
             ck.save(path, "planner", run, ident, epoch + 1,
                     {"model": net.state_dict(), "optimiser": optimiser.state_dict(), "rng": ck.rng_states()},
-                    {"model": model, "history": history, "train_s": train_s, "train_cpu_s": train_cpu_s})
+                    {"model": model, "layout": layout(), "history": history, "train_s": train_s,
+                     "train_cpu_s": train_cpu_s})
 
         net.eval()
         from muble_plugins.learned.agent import LearnedPlannerAgent

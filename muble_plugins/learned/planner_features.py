@@ -34,7 +34,13 @@ from muble_plugins.common.symbolic import (APPROACH, BALANCE, GRASP, LIFT, LOWER
                                            SQUEEZE, WEIGH)
 
 STOP = "stop"  # answer (query programs) and stop
-CLASSES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE, PUSH, BALANCE, SHAKE, STOP)
+# The primitives the planner chooses from: the motions and the measuring primitive of every hidden property
+# registered when this module is imported (``muble.core.physical_properties.registered``: MuBlE's own five give the
+# built-in classes; a package's property adds its primitive before ``stop``), then stop. A checkpoint records the
+# classes and properties it was trained with (``layout``) and is refused under others.
+_BUILTIN_CLASSES = (MOVE, APPROACH, GRASP, LIFT, WEIGH, LOWER, RELEASE, SQUEEZE, PUSH, BALANCE, SHAKE)
+CLASSES = (*_BUILTIN_CLASSES, *dict.fromkeys(q.primitive for q in QUANTITIES.values()
+                                             if q.primitive not in _BUILTIN_CLASSES), STOP)
 # Which tokens each class may point at: objects, table parts, the none token; classes absent take no target.
 TARGET_KINDS: dict[str, tuple[str, ...]] = {
     MOVE: ("object", "part"),
@@ -281,6 +287,11 @@ def observe_features(memory: Memory, program: list[dict], observation: Observati
     scene = known_view(observation, memory.known, memory.last)
     x, goal = features(program, scene, memory.known, failed)
     return x, goal, scene
+
+
+def layout() -> dict[str, list[str]]:
+    """What a trained network's inputs and outputs mean: its classes and the hidden properties its features name."""
+    return {"classes": list(CLASSES), "properties": [q for q in QUANTITIES]}
 
 
 __all__ = ["CLASSES", "FEATURE_DIM", "IGNORE", "Memory", "STOP", "SubGoal", "decode", "encode", "features",

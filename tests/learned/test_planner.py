@@ -105,6 +105,22 @@ def test_a_checkpoint_of_other_settings_is_refused_and_a_missing_one_named(tmp_p
         LearnedPlannerAgent(checkpoint=str(tmp_path / "junk.pt"))
 
 
+def test_a_checkpoint_trained_under_other_hidden_properties_is_refused_naming_them(tmp_path):
+    """The checkpoint records its classes and the properties its features name; a planner trained where a package
+    added a property cannot be played without it (its outputs would mean other primitives)."""
+    PlannerTrainer(scenes=2, epochs=1, validation_scenes=0).train(_run(tmp_path / "run"))
+    path = tmp_path / "run" / "planner.pt"
+    payload = torch.load(path, map_location="cpu", weights_only=False)
+    assert payload["extra"]["layout"]["properties"] == ["weight", "stiffness", "friction", "com_offset", "rattles"]
+    assert payload["extra"]["layout"]["classes"][-1] == "stop"
+    LearnedPlannerAgent(checkpoint=str(path))  # as trained: accepted
+    payload["extra"]["layout"]["properties"].append("temperature")
+    payload["extra"]["layout"]["classes"].insert(-1, "feel")
+    torch.save(payload, path)
+    with pytest.raises(ConfigError, match=r"trained with the hidden properties .*differing: \['temperature'\]"):
+        LearnedPlannerAgent(checkpoint=str(path))
+
+
 def test_a_small_trained_planner_solves_unseen_symbolic_episodes(tmp_path):
     """24 training scenes, 6 epochs: the planner solves most instructions of seed-disjoint scenes, across
     templates (untrained, or after one epoch, it solves few)."""
