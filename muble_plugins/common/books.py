@@ -12,18 +12,20 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Mapping
 
-from muble import ActionCall, ActionResult, SceneGraph, get_registry
+from muble import ActionCall, ActionResult, PluginError, PrimitiveAction, SceneGraph, get_registry
 from muble.core.observation import MEASURED_EXTRA, plain_measurement
 from muble.core.symbolic import ArmState
 
 from muble_plugins.common.symbolic import APPROACH, MOVE
 
 
-Known = dict[str, dict[int, object]]  # property (``PrimitiveAction.measures``) -> object id -> measured value
-Readings = dict[str, dict[int, list]]  # property -> object id -> every reading made of it, in order
+Reading = bool | float | list[float]  # one measurement as plain Python (``plain_measurement``)
+Known = dict[str, dict[int, Reading]]  # property (``PrimitiveAction.measures``) -> object id -> measured value
+# property -> object id -> every reading made of it, in order (all of one kind: yes/no, numbers or lists)
+Readings = dict[str, dict[int, list]]
 
 
-def mean_reading(readings: list) -> object:
+def mean_reading(readings: list) -> Reading:
     """The value an agent uses of several readings of one property: their mean (of each coordinate, for a list
     such as [x, y] mm), the most frequent of yes/no readings (the latest on a tie); one reading as it is."""
     if len(readings) == 1:
@@ -71,7 +73,10 @@ def fill_known(scene: SceneGraph, known: Known, last: ActionCall | None, result:
 
     for o in scene.objects:
         if o.id in weights and (o.weight is None or several("weight", o.id)):
-            o.weight = weights[o.id]
+            weight = weights[o.id]
+            if isinstance(weight, (bool, list)):
+                raise TypeError(f"the weight reading of object {o.id} is {weight!r}, not a number of grams")
+            o.weight = weight
         for name, key in MEASURED_EXTRA.items():
             if o.id in known.get(name, {}) and (key not in o.extra or several(name, o.id)):
                 o.extra[key] = known[name][o.id]
@@ -97,7 +102,11 @@ def primitive_params(name: str) -> set[str]:
     registry = get_registry()
     if name not in registry.names("primitive"):
         return set()
-    return {p.name for p in specs(registry.get("primitive", name).record.factory.params)}
+    factory = registry.get("primitive", name).record.factory
+    if not (isinstance(factory, type) and issubclass(factory, PrimitiveAction)):
+        raise PluginError(f"primitive {name!r} is registered with {factory!r}, not a PrimitiveAction class: it "
+                          "declares no parameters")
+    return {p.name for p in specs(factory.params)}
 
 
 # Key of ``SceneGraph.extra`` under which an agent's own copy of the observed scene carries its ``Certainty`` for the

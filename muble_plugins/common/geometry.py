@@ -11,7 +11,7 @@ from muble.core.observation import TOUCHING_TABLE
 from muble.programs.program import table_parts_of
 from muble.stage import rest
 from muble.stage.footprint import Outlines, footprint_radius
-from muble.stage.free_place import first_free_place, has_free_place
+from muble.stage.free_place import Shape, first_free_place, has_free_place
 from muble.stage.geometry import tilt_deg
 from muble.stage.table import BELOW_TABLE, scene_part_region
 
@@ -43,7 +43,7 @@ def room_on_part(scene: SceneGraph, movers: list[SceneObject], part: str, gap: f
     (x0, x1), (y0, y1) = scene_part_region(scene, part)
     footprints = outlines if outlines is not None else Outlines()
     moving = {o.id for o in movers}
-    obstacles = [footprints(o) for o in scene.objects if o.id not in moving]
+    obstacles: list[Shape] = [footprints(o) for o in scene.objects if o.id not in moving]
     for n, obj in enumerate(movers):
         # outline - position, point by point (subtracting is adding the negation, to the bit)
         held = footprints(obj).shifted(-np.asarray(obj.position[:2], dtype=float))

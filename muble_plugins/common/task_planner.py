@@ -151,11 +151,17 @@ def plan_next(program: list[dict], scene: SceneGraph, known_weights: dict[int, f
     trace = execute(program, scene, weights="measured", known_weights=known_weights,
                     known_stiffness=known_stiffness,
                     recheck=certainty.measure_again if certainty is not None else None)
-    if trace.again:
-        return Plan(measure_again(trace.pending_property, _closest(trace.pending, arm), arm, certainty))
-    if trace.pending:
+    if trace.again or trace.pending:
+        prop = trace.pending_property
+        if prop is None:
+            raise RuntimeError(f"the program's trace lists objects {list(trace.pending)} to measure, but no "
+                               "property")
+        if trace.again:
+            if certainty is None:
+                raise RuntimeError("the program's trace asks to measure again, but the scene has no Certainty")
+            return Plan(measure_again(prop, _closest(trace.pending, arm), arm, certainty))
         target = arm.held if arm.held in trace.pending else trace.pending[0]
-        return Plan(MEASURE[trace.pending_property](target, arm))
+        return Plan(MEASURE[prop](target, arm))
     final_step = program[-1]
     kind, result = final_step["type"], trace.final
     if kind in QUERY_STEPS:
