@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from muble.core import streams
+from muble.core.errors import SceneValidationError
 from muble.core.scene import SceneGraph, SceneObject
 from muble.stage.geometry import yaw_quat
 
@@ -38,7 +39,8 @@ ROBOT_BASE = (-0.56, 0.0, 0.0)
 
 def random_scene(rng: np.random.Generator, n_objects: int = 4, image_index: int = 0) -> SceneGraph:
     """Objects spread over the table without overlap, with random shape, colour and material."""
-    objects, placed = [], []
+    objects: list[SceneObject] = []
+    placed: list[np.ndarray] = []
     while len(objects) < n_objects:
         xy = rng.uniform([-0.2, -0.3], [0.25, 0.3])
         if any(np.linalg.norm(xy - p) < 0.12 for p in placed):
@@ -75,6 +77,9 @@ def build_world(scene: SceneGraph, arm_seed: int | None = None) -> tuple["mujoco
     arena = TableArena(table_full_size=(0.8, 0.8, 0.05), table_offset=(0, 0, TABLE_TOP_Z))
     bodies = []
     for obj in scene.objects:
+        if not isinstance(obj.bbox, dict):
+            raise SceneValidationError(f"a renderer world builds objects from their extents {{x, y, z}}, not "
+                                       f"{obj.bbox!r}", obj=obj.id, field="bbox")
         half = [obj.bbox["x"] / 2, obj.bbox["y"] / 2, obj.bbox["z"] / 2]
         rgba = [*COLOURS.get(obj.colour, (0.5, 0.5, 0.5)), 1.0]
         name = f"obj{obj.id}"
