@@ -328,8 +328,8 @@ class MaterialLibrary:
         self._cache.clear()
 
 
-def _srgb_to_linear(rgb: np.ndarray) -> tuple[float, float, float]:
-    """MuJoCo colours are display (sRGB) values; Blender shades in linear light."""
+def _srgb_to_linear(rgb: np.ndarray) -> tuple[float, ...]:
+    """MuJoCo colours are display (sRGB) values; Blender shades in linear light (one value per channel)."""
     rgb = np.clip(rgb, 0.0, 1.0)
     lin = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
     return tuple(float(c) for c in lin)

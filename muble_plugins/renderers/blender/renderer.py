@@ -75,11 +75,11 @@ class BlenderRenderer(Renderer):
     def __init__(self, config: BlenderRendererConfig | None = None, **options: Any) -> None:
         self.config = configured(BlenderRendererConfig, config, options, owner="renderer 'blender'")
         check_config(self.config)
-        self._bscene = None
+        self._bscene: Any | None = None  # the Blender scene (bpy ships no types); None until the first setup
         self._geoms: np.ndarray = np.empty(0, dtype=int)
         self._objects: list[Any] = []  # Blender objects, parallel to self._geoms
         self._table_geoms: np.ndarray = np.empty(0, dtype=bool)  # which of self._geoms are the table's
-        self._model = None
+        self._model: "mujoco.MjModel | None" = None
         self._set_up_with: tuple | None = None  # (scene graph, model) of the last setup
         self._pass_dir: Path | None = None
         self._materials = MaterialLibrary()
@@ -126,7 +126,8 @@ class BlenderRenderer(Renderer):
                 cls = "painted"
             obj = bpy.data.objects.new(f"muble_geom_{geom}", meshes[key])
             obj.material_slots[0].link = "OBJECT"  # meshes are shared, colours are per geom
-            rgba, details = geom_rgba(model, int(geom)), {}
+            rgba: np.ndarray | tuple[float, ...] = geom_rgba(model, int(geom))
+            details: dict[str, float] = {}
             if label == SEG_TABLE:
                 if cfg.table_rgb is not None:
                     rgba = (*cfg.table_rgb, 1.0)
@@ -141,8 +142,9 @@ class BlenderRenderer(Renderer):
             collection.objects.link(obj)
             self._objects.append(obj)
         centre, radius = self._stage_extent(model, labels)
-        if getattr(scene, "lamp_params", None):
-            build_scene_lamps(collection, scene.lamp_params, centre, cfg, scene.extra.get("lamp_energy"))
+        lamps = getattr(scene, "lamp_params", None)
+        if lamps:
+            build_scene_lamps(collection, lamps, centre, cfg, scene.extra.get("lamp_energy"))
         else:
             build_lights(collection, centre, radius, cfg, streams.legacy_stream(LIGHT_RIG_STREAM, cfg.seed,
                                                                                 int(scene.image_index)))
@@ -216,6 +218,8 @@ class BlenderRenderer(Renderer):
         import mujoco
 
         model = self._model
+        if model is None:
+            raise RenderError("render() called before setup(); call setup(scene, model) once per scene")
         cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
         if cam < 0:
             names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, i) for i in range(model.ncam)]
@@ -226,7 +230,8 @@ class BlenderRenderer(Renderer):
         """Move every geom and the camera to the state in ``data`` (MuJoCo world frame = Blender world frame)."""
         from mathutils import Matrix
 
-        if self._model is None:
+        model = self._model
+        if model is None or self._bscene is None:
             raise RenderError("render() called before setup(); call setup(scene, model) once per scene")
         cam = self._camera_id(camera)
         xpos = np.asarray(data.geom_xpos)
@@ -243,13 +248,15 @@ class BlenderRenderer(Renderer):
         pose[:3, 3] = data.cam_xpos[cam]
         camera_obj = self._bscene.camera
         camera_obj.matrix_world = Matrix(pose.tolist())  # both look along -z with +y up
-        camera_obj.data.angle_y = float(np.radians(self._model.cam_fovy[cam]))
+        camera_obj.data.angle_y = float(np.radians(model.cam_fovy[cam]))
 
     def render(self, data: "mujoco.MjData", camera: str) -> Frame:
         import bpy
 
         start = time.perf_counter()
         self.sync(data, camera)
+        if self._pass_dir is None or self._bscene is None:  # set in setup, which sync has checked
+            raise RenderError("render() called before setup(); call setup(scene, model) once per scene")
         path = self._pass_dir / "passes.exr"
         self._bscene.render.filepath = str(path)
         with blender_console_silenced():
