@@ -22,13 +22,14 @@ GROUP_OF_KIND = {
 }
 
 
-def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) -> dict[str, object]:
-    """Instantiate every configured plugin through the registry (a typo in any option fails here, early).
+def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) -> dict[str, Any]:
+    """Instantiate every configured plugin through the registry (a typo in any option fails here, early); each is
+    what its registered factory built (``Registry.create``), so the components are typed as it types them.
 
     ``renderer=False`` leaves the renderer out (None); ``task=False`` the task (when each instruction names its own).
     """
     registry = get_registry()
-    components: dict[str, object] = {}
+    components: dict[str, Any] = {}
     for kind, group in GROUP_OF_KIND.items():
         if (kind == "renderer" and not renderer) or (kind == "task" and not task):
             components[kind] = None
@@ -43,7 +44,7 @@ def build_components(cfg: DictConfig, renderer: bool = True, task: bool = True) 
     return components
 
 
-def episode_runner(cfg: DictConfig, components: dict[str, object]):
+def episode_runner(cfg: DictConfig, components: dict[str, Any]):
     from muble.episode.runner import EpisodeRunner
 
     robot = OmegaConf.to_container(cfg.robot, resolve=True)
@@ -124,7 +125,7 @@ def split_episode(cfg: Any, split: str, index: int, object_set: Any, timings: di
     return suited
 
 
-def generated_env(cfg: DictConfig, components: dict[str, object], index: int):
+def generated_env(cfg: DictConfig, components: dict[str, Any], index: int):
     """The environment (no sensors) of scene ``index`` as ``cfg``'s generator, object set and robot make it;
     the caller closes it."""
     from muble.sim.build import object_models

@@ -118,9 +118,11 @@ class ShopVRB2Env(gym.Env):
             "last_result": text_space(self.max_text),
             "step": spaces.Box(0, np.iinfo(np.int32).max, shape=(), dtype=np.int64),
         }
+        self._image_spaces: dict[str, spaces.Box] = {}  # the observation space's images, by camera
         if render:
             width, height = image_size(self.cfg)
-            entries["images"] = spaces.Dict({c: image_space(height, width) for c in self.cameras})
+            self._image_spaces = {c: image_space(height, width) for c in self.cameras}
+            entries["images"] = spaces.Dict(dict(self._image_spaces))
         self.observation_space = spaces.Dict(entries)
         self.action_space = text_space(MAX_ACTION)
         self.render_images = render
@@ -134,6 +136,8 @@ class ShopVRB2Env(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         self._end_episode()
+        spec: EpisodeSpec | None
+        step: Step | None
         if options:
             spec = self._chosen(options)
             step = self._start(spec)
@@ -156,6 +160,8 @@ class ShopVRB2Env(gym.Env):
                 log.info("scene %d does not start (%s); drawing another", index, step.output.result.error)
             else:
                 raise ConfigError(f"no episode of templates {self.templates} starts in {SCENE_TRIES} drawn scenes")
+            if step is None or spec is None:  # the loop above breaks only with an episode started
+                raise RuntimeError("no episode was started, yet none of the drawn scenes was rejected")
         self.spec_now = spec
         track, mode = benchmark_settings(self.cfg)
         told = track_instruction(spec.instruction, track)
@@ -247,6 +253,8 @@ class ShopVRB2Env(gym.Env):
         self._last = step
         observation = step.observation
         data = observation_to_plain(observation)
+        if self.episode is None:
+            raise EpisodeStateError("the episode has ended (or none has started); call reset()")
         obs: dict[str, Any] = {
             "instruction": as_text(self.episode.instruction.instruction, MAX_INSTRUCTION, "the instruction"),
             "scene": json_text(data["scene"], self.max_text, "the scene"),
@@ -255,10 +263,9 @@ class ShopVRB2Env(gym.Env):
             "step": np.array(data["step"], dtype=np.int64),
         }
         if self.render_images:
-            space = self.observation_space["images"]
             obs["images"] = {}
             for camera in self.cameras:
                 frame = observation.images.get(camera)
                 obs["images"][camera] = (frame.rgb.copy() if frame is not None
-                                         else np.zeros(space[camera].shape, dtype=np.uint8))
+                                         else np.zeros(self._image_spaces[camera].shape, dtype=np.uint8))
         return obs

@@ -11,7 +11,7 @@ after 400 steps.
 from __future__ import annotations
 
 import logging
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -21,6 +21,9 @@ from muble.core.errors import ConfigError, InitialStateError, SceneGenerationErr
 from muble.gym.config import environment_config, generation_size
 from muble.gym.spaces import image_space
 from muble.sim.spaces import control_space, proprioception, proprioception_space
+
+if TYPE_CHECKING:  # pragma: no cover
+    from muble.sim.env import TabletopEnv
 
 log = logging.getLogger(__name__)
 
@@ -78,7 +81,10 @@ class TabletopGymEnv(gym.Env):
         self.split_size = generation_size(config, overrides) if self.cfg.get("split") is not None else None
         self.render_mode = render_mode
         self.camera = camera
-        self.robot = OmegaConf.to_container(self.cfg.robot, resolve=True)
+        robot = OmegaConf.to_container(self.cfg.robot, resolve=True)
+        if not isinstance(robot, dict):
+            raise ConfigError(f"the robot config is a mapping of settings, not {robot!r}")
+        self.robot = robot
         self.render_images = bool(render)
         self.components = build_components(self.cfg, renderer=self.render_images, task=False)
         self.registry = get_registry()
@@ -88,7 +94,7 @@ class TabletopGymEnv(gym.Env):
         image = {"image": image_space(height, width)} if self.render_images else {}
         self.observation_space = spaces.Dict({**image, **proprioception_space(arm_dof(self.robot["name"])).spaces})
         self.action_space = control_space()
-        self.env = None
+        self.env: TabletopEnv | None = None
         self._image: np.ndarray | None = None
         self._scenes: dict[int, Any] = {}
 
@@ -118,13 +124,12 @@ class TabletopGymEnv(gym.Env):
                     log.info("scene %d cannot be used (%s); drawing another", index, e)
             else:
                 raise ConfigError(f"none of {SCENE_TRIES} drawn scenes starts at rest")
-        return self._observation(), {"scene_index": index, "objects": len(self.env.scene.objects)}
+        return self._observation(), {"scene_index": index, "objects": len(self._live_env().scene.objects)}
 
     def step(self, action):
-        if self.env is None:
-            raise ConfigError("call reset() before step()")
+        env = self._live_env()
         action = np.asarray(action, dtype=np.float64).reshape(-1)
-        _, _, terminated, truncated, info = self.env.step(action)
+        _, _, terminated, truncated, info = env.step(action)
         info = {"outcome": None if info.get("outcome") is None else info["outcome"].value,
                 **({"error": info["error"]} if "error" in info else {})}
         return self._observation(), 0.0, bool(terminated), bool(truncated), info
@@ -144,6 +149,11 @@ class TabletopGymEnv(gym.Env):
             self.generator = None
 
     # -------------------------------------------------------------------------------------------- internals
+    def _live_env(self) -> TabletopEnv:
+        if self.env is None:
+            raise ConfigError("call reset() before step()")
+        return self.env
+
     def _scene(self, index: int):
         import copy
 
@@ -179,7 +189,7 @@ class TabletopGymEnv(gym.Env):
             self.components["renderer"].setup(env.sync_scene_graph(), env.model)
 
     def _observation(self) -> dict[str, Any]:
-        env = self.env
+        env = self._live_env()
         if not self.render_images:
             return proprioception(env)
         camera = env.names.cameras.get(self.camera, self.camera)
