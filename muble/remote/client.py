@@ -13,7 +13,7 @@ import io
 import json
 import logging
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from muble.core.types import Frame, Observation, ObservationMode, Outcome, Track
 from muble.episode.plain import decision_to_plain, observation_from_plain
 from muble.io.instructions_io import instruction_from_dict
 from muble.remote.wire import DEFAULT_HOST, DEFAULT_PORT, PROTOCOL
+
+if TYPE_CHECKING:  # pragma: no cover
+    import zmq
 
 log = logging.getLogger(__name__)
 
@@ -78,20 +81,22 @@ class RemoteClient:
         self.address = address
         self.timeout_ms = int(timeout * 1000)
         self.context = zmq.Context()
-        self.socket = None
+        self.socket: zmq.Socket[bytes] = self._new_socket()
         self.session: str | None = None
-        self._connect()
         self._next_id = 0
 
-    def _connect(self) -> None:
+    def _new_socket(self) -> zmq.Socket[bytes]:
         import zmq
 
-        if self.socket is not None:
-            self.socket.close(0)
-        self.socket = self.context.socket(zmq.REQ)
-        self.socket.setsockopt(zmq.LINGER, 0)
-        self.socket.setsockopt(zmq.RCVTIMEO, self.timeout_ms)
-        self.socket.connect(self.address)
+        socket = self.context.socket(zmq.REQ)
+        socket.setsockopt(zmq.LINGER, 0)
+        socket.setsockopt(zmq.RCVTIMEO, self.timeout_ms)
+        socket.connect(self.address)
+        return socket
+
+    def _connect(self) -> None:
+        self.socket.close(0)
+        self.socket = self._new_socket()
 
     def request(self, kind: str, **fields: Any) -> tuple[dict[str, Any], list[bytes]]:
         """Send one request; returns the reply header and its frames, or raises ``RemoteError``."""

@@ -142,7 +142,8 @@ class EpisodeServer:
                     if e.errno == errno.EADDRINUSE else
                     "--host must be an address of this machine (127.0.0.1: this machine only; 0.0.0.0: every "
                     "interface) and --port one you may open")
-            raise ListenError(f"cannot listen on {address}: {os.strerror(e.errno)}; {hint}") from None
+            why = os.strerror(e.errno) if e.errno is not None else str(e)
+            raise ListenError(f"cannot listen on {address}: {why}; {hint}") from None
         self.endpoint = self.socket.getsockopt_string(zmq.LAST_ENDPOINT)
         setup = SimulationSetup(build_factory, step_timeout, max_objects,
                                 None if self.dataset_root is None else str(self.dataset_root))
@@ -306,7 +307,7 @@ class EpisodeServer:
         if self.simulation.alive() and not overran:
             return
         reason = (f"ran over its time limit ({self.step_timeout:g} s)" if overran else
-                  f"stopped (exit code {self.simulation.process.exitcode})")
+                  f"stopped (exit code {self.simulation.exitcode})")
         if self.running or self.pending or self.sessions:
             log.error("the simulation process %s; %d session(s) lost", reason, len(self.sessions))
             for job in [*self.running.values(), *self.pending]:
@@ -377,7 +378,10 @@ class EpisodeServer:
 
     def _observe(self, header: dict[str, Any], envelope: Any, rid: Any) -> tuple[dict[str, Any], list[bytes]]:
         _only(header, {"session"})
-        return self._session(header).reply
+        reply = self._session(header).reply
+        if reply is None:  # set by the reset's result, before which the session is busy
+            raise ProtocolError("busy", "the session has no observation yet; wait for its reset reply")
+        return reply
 
     def _act(self, header: dict[str, Any], envelope: list[bytes], rid: Any) -> None:
         _only(header, {"session", "action"})

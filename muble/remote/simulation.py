@@ -25,11 +25,14 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from muble.core.errors import MubleError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import zmq
 
 log = logging.getLogger(__name__)
 
@@ -142,9 +145,9 @@ def run_job(job: dict[str, Any], factory: Any, sessions: dict[str, tuple[Any, st
                 raise
             header, binary = observation_reply(token, images, step, root)
         else:  # close
-            episode, _ = sessions.pop(token, (None, None))
-            if episode is not None:
-                episode.close()
+            closing, _ = sessions.pop(token, (None, None))
+            if closing is not None:
+                closing.close()
             header = {}
         result["header"] = header
         return result, binary
@@ -199,7 +202,7 @@ class SimulationProcess:
         self.setup = setup
         self.folder = tempfile.mkdtemp(prefix="muble-serve-")  # mode 0700: no other user reaches the socket
         self.generation = 0
-        self.socket = None
+        self.socket: zmq.Socket[bytes] | None = None  # None while stopped
         self.process: multiprocessing.process.BaseProcess | None = None
         self.ready = False
         self.start()
@@ -209,28 +212,41 @@ class SimulationProcess:
 
         self.generation += 1
         address = f"ipc://{self.folder}/simulation-{self.generation}"
-        self.socket = self.context.socket(zmq.PAIR)
-        self.socket.setsockopt(zmq.LINGER, 0)
-        self.socket.bind(address)
+        socket = self.context.socket(zmq.PAIR)
+        socket.setsockopt(zmq.LINGER, 0)
+        socket.bind(address)
+        self.socket = socket
         spawn = multiprocessing.get_context("spawn")  # a fresh interpreter: no threads or GL state inherited
-        self.process = spawn.Process(target=simulation_main, args=(address, self.setup, os.getpid()),
-                                     name="muble-simulation")
-        self.process.start()
+        process = spawn.Process(target=simulation_main, args=(address, self.setup, os.getpid()),
+                                name="muble-simulation")
+        self.process = process
+        process.start()
         self.started = time.monotonic()
         self.ready = False
 
+    def _live(self) -> tuple[zmq.Socket[bytes], multiprocessing.process.BaseProcess]:
+        """The socket and process of the running simulation; ``MubleError`` once it is stopped."""
+        if self.socket is None or self.process is None:
+            raise MubleError("the simulation process is stopped: restart() it first")
+        return self.socket, self.process
+
     @property
     def sentinel(self) -> int:
-        return self.process.sentinel
+        return self._live()[1].sentinel
 
     def alive(self) -> bool:
         return self.process is not None and self.process.is_alive()
+
+    @property
+    def exitcode(self) -> int | None:
+        """The process's exit code; None while it runs (or before it started)."""
+        return None if self.process is None else self.process.exitcode
 
     def send(self, job: dict[str, Any]) -> bool:
         """Queue a job; False when the process cannot take it yet (not connected): send it again later."""
         import zmq
 
-        if not self.ready:
+        if not self.ready or self.socket is None:  # stop() clears both
             return False
         try:
             self.socket.send(pickle.dumps(job), flags=zmq.NOBLOCK)
@@ -242,8 +258,9 @@ class SimulationProcess:
         """A message of the process (``ready``, ``failed`` or a job's result) and its frames, or None."""
         import zmq
 
+        socket, _ = self._live()
         try:
-            frames = self.socket.recv_multipart(zmq.NOBLOCK)
+            frames = socket.recv_multipart(zmq.NOBLOCK)
         except zmq.Again:
             return None
         message = pickle.loads(frames[0])
@@ -256,9 +273,10 @@ class SimulationProcess:
         not."""
         import zmq
 
+        socket, process = self._live()
         poller = zmq.Poller()
-        poller.register(self.socket, zmq.POLLIN)
-        poller.register(self.sentinel, zmq.POLLIN)
+        poller.register(socket, zmq.POLLIN)
+        poller.register(process.sentinel, zmq.POLLIN)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             poller.poll(timeout=1000)
@@ -270,7 +288,7 @@ class SimulationProcess:
                 if message["kind"] == "failed":
                     raise MubleError(message["message"])
             if not self.alive():
-                raise MubleError(f"the simulation process stopped while starting (exit code {self.process.exitcode})")
+                raise MubleError(f"the simulation process stopped while starting (exit code {process.exitcode})")
         raise MubleError(f"the simulation process did not start within {timeout:.0f} s")
 
     def restart(self) -> None:
@@ -284,7 +302,8 @@ class SimulationProcess:
 
         if self.process is not None and self.process.is_alive():
             try:
-                self.socket.send(pickle.dumps({"kind": "stop"}), flags=zmq.NOBLOCK)
+                if self.socket is not None:
+                    self.socket.send(pickle.dumps({"kind": "stop"}), flags=zmq.NOBLOCK)
             except zmq.ZMQError:
                 pass
             self.process.join(STOP_TIMEOUT_S)
