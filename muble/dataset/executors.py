@@ -187,7 +187,8 @@ class _PrivateRay:
 def _refresh_ray_token_state() -> None:
     """Make Ray re-read the authentication settings and token of the environment (it caches both per process)."""
     try:
-        from ray._raylet import AuthenticationTokenLoader, Config
+        # ray's _raylet.pyi stub lists neither compiled name; a Ray without them raises the ImportError below
+        from ray._raylet import AuthenticationTokenLoader, Config  # type: ignore[attr-defined]
     except ImportError:  # a Ray without token authentication: nothing cached
         return
     Config.initialize("")

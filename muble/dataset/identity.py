@@ -44,7 +44,7 @@ ABSENT = object()  # what ``setting_differences`` gives for a key that one side 
 # Settings that one side may lack, with the value that does what the side without them does: a folder or run that
 # lacks the key matches one with that value (``robot.stage`` null: each scene on its own stage, as every run builds
 # it; ``generator.stage`` null: robosuite's, see ``_renamed``; ``generator.physical_properties`` empty: none drawn).
-ADDED_LATER = {"robot.stage": None, "generator.stage": None, "generator.physical_properties": []}
+ADDED_LATER: dict[str, Any] = {"robot.stage": None, "generator.stage": None, "generator.physical_properties": []}
 # Settings a folder may store under a key the config does not have, with the key that decides the same thing:
 # the image size and the physics step have one setting each (renderer.width/height, robot.timestep), so a folder
 # that stores the generator's own matches a run whose setting has the stored value.

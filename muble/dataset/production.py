@@ -11,13 +11,12 @@ restart, so a restarted run ends byte-identical to an uninterrupted one.
 """
 from __future__ import annotations
 
-import collections
 import json
 import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, MutableMapping
 
 from muble.core.streams import split_seed  # noqa: F401 - a split's seed, read here by generate and eval
 from muble.episode.components import split_episode
@@ -98,13 +97,17 @@ def cached_components(config: dict[str, Any], renderer: bool = True, task: bool 
     return _components_cache[key]
 
 
-def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> tuple[int, dict[str, str]]:
+def produce_index(job: IndexJob, timings: MutableMapping[str, float] | None = None) -> tuple[int, dict[str, str]]:
     """Generate and write everything of one scene index; returns (index, {relative path: sha256}).
 
     ``timings``, when given, gets the seconds of each stage added (``scene.<generator stage>``, ``scene.other``:
     choosing the template's instruction and its symbolic ground truth, masks, set-up; ``episode.physics``,
     ``episode.planning``, ``episode.keyframes``; ``image`` without sequences; ``writing``: encoding and files)."""
-    stage = timings if timings is not None else collections.Counter()
+    stage: MutableMapping[str, float] = timings if timings is not None else {}
+
+    def add(key: str, seconds: float) -> None:
+        stage[key] = stage.get(key, 0.0) + seconds
+
     began = time.perf_counter()
     from muble.episode.runner import KeyframeStateRecorder, png_bytes, write_episode
     from muble.io.instructions_io import instruction_to_dict
@@ -122,8 +125,8 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
         suited = split_episode(cfg, job.split, job.index, components["object_set"], generated)
     finally:
         for name, seconds in generated.items():
-            stage[f"scene.{name}"] += seconds
-        stage["scene.other"] += time.perf_counter() - began - sum(generated.values())
+            add(f"scene.{name}", seconds)
+        add("scene.other", time.perf_counter() - began - sum(generated.values()))
     scene, task, instruction = suited.scene, suited.task, suited.instruction
     written: dict[str, str] = {}
 
@@ -136,9 +139,9 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
         recorder = KeyframeStateRecorder(components["renderer"], len(cameras)) if components["renderer"] else None
         runner = episode_runner(OmegaConf.create(cfg), {**components, "renderer": recorder})
         output = runner.execute(scene, instruction, task)
-        stage["episode.physics"] += output.timing.physics
-        stage["episode.planning"] += output.timing.planning
-        stage["episode.keyframes"] += output.timing.rendering
+        add("episode.physics", output.timing.physics)
+        add("episode.planning", output.timing.planning)
+        add("episode.keyframes", output.timing.rendering)
         began = time.perf_counter()
         states = None if recorder is None else recorder.keyframe_states(
             output, cfg["robot"]["name"], cfg["objects"]["name"], cameras[0])
@@ -149,7 +152,7 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
     else:
         began = time.perf_counter()
         image = _render_initial(episode_runner(OmegaConf.create(cfg), components), scene)
-        stage["image"] += time.perf_counter() - began
+        add("image", time.perf_counter() - began)
         began = time.perf_counter()
         written[layout.scene(job.index)] = write_bytes_atomic(
             out / layout.scene(job.index), json.dumps(scene_to_dict(scene)).encode())
@@ -161,7 +164,7 @@ def produce_index(job: IndexJob, timings: collections.Counter | None = None) -> 
     record["scene_samples"] = suited.samples
     written[layout.instruction(job.index)] = write_bytes_atomic(
         out / layout.instruction(job.index), json.dumps(record).encode())
-    stage["writing"] += time.perf_counter() - began
+    add("writing", time.perf_counter() - began)
     return job.index, written
 
 

@@ -28,7 +28,9 @@ def check_plays_alone(cfg: Any, split: str, where: str) -> None:
     while they run (``EPISODE_GROUPS``: the closed_loop split's disturbances, drawn per episode), which only
     ``muble eval`` applies; ``where`` names the caller (``muble serve``, ``the Gymnasium environment``)."""
     protocol = protocol_of(cfg)
-    spec = (protocol or {}).get("splits", {}).get(split) if isinstance(split, str) else None
+    if protocol is None or not isinstance(split, str):
+        return  # no protocol split: nothing acts but what the caller applies
+    spec = protocol.get("splits", {}).get(split)
     acting = [group for group in EPISODE_GROUPS if (spec or {}).get(group)]
     if acting:
         raise ConfigError(f"split '{split}' of protocol '{protocol['name']}' sets {' and '.join(acting)} that act "
