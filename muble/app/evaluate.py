@@ -28,11 +28,11 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from muble.app.hydra_app import run_hydra_job
+from muble.app.plan import resolve
 from muble.core.errors import ConfigError
 from muble.dataset.executors import run_all
 from muble.dataset.production import cached_components
-from muble.dataset.protocol import check_data, select_split
-from muble.dataset.shipped import episodes_root
+from muble.dataset.protocol import check_data
 from muble.evaluation.episodes import EvalJob, evaluate_index
 from muble.evaluation.files import check_files, uses_files
 from muble.evaluation.plot import success_bar_chart
@@ -122,24 +122,10 @@ def evaluate_split(cfg: DictConfig, config: dict[str, Any], found: SplitIndices,
     return records
 
 
-def use_shipped(cfg: DictConfig, split: str | None) -> None:
-    """With a protocol and no generated copy of its split in ``dataset.root``: point ``dataset.root`` at the
-    shipped files (unpacked into the cache once, hash-checked on every run), so no generation is needed."""
-    if split is None or uses_files(cfg.dataset):
-        return
-    root = episodes_root(cfg, split)
-    if root is None or root == Path(cfg.dataset.root):
-        return  # a generated copy, or a split that does not ship: check_config says how to generate it
-    from omegaconf import open_dict
-
-    log.info("protocol %s split %s: the shipped files (%s)", cfg.benchmark.protocol, split, root)
-    with open_dict(cfg):
-        cfg.dataset.root = str(root)
-
-
 def job(cfg: DictConfig) -> dict[str, Any]:
-    protocol_split = select_split(cfg)  # protocol=NAME: evaluate the split benchmark.split names
-    use_shipped(cfg, protocol_split)
+    # protocol=NAME: the split benchmark.split names, from a generated copy in dataset.root or the shipped files
+    plan = resolve(cfg, files="read")
+    cfg, protocol_split = plan.config, plan.split
     root = check_config(cfg)
     out_dir = Path(cfg.output.dir)
     config = OmegaConf.to_container(cfg, resolve=True)

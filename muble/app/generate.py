@@ -19,7 +19,8 @@ from muble.dataset.executors import run_all
 from muble.dataset.identity import check_or_store_identity
 from muble.dataset.lock import RunLock
 from muble.dataset.production import IndexJob, produce_index, split_seed
-from muble.dataset.protocol import PROTOCOL_FILE, check_data, check_regenerates, protocol_of, select_split
+from muble.app.plan import resolve
+from muble.dataset.protocol import PROTOCOL_FILE, check_data, check_regenerates, protocol_of
 from muble.io.atomic import TMP_PREFIX, remove_stale_temporaries, write_bytes_atomic
 from muble.io.layout import DatasetLayout
 from muble.io.manifest import make_manifest, sha256_file
@@ -130,7 +131,8 @@ def _job(cfg: DictConfig, root: Path) -> dict:
 
     import muble
 
-    protocol_split = select_split(cfg)  # protocol=NAME: the split benchmark.split names, at its frozen size
+    plan = resolve(cfg, files="write")  # protocol=NAME: the split benchmark.split names, at its frozen size
+    cfg, protocol_split = plan.config, plan.split
     if protocol_split is not None:
         check_regenerates(protocol_of(cfg))
     sizes = split_sizes(cfg)

@@ -113,34 +113,6 @@ def episode_factory(overrides: tuple[str, ...], render: bool, verbose: bool) -> 
     return EpisodeFactory(with_split(compose("run", list(overrides))), render=render)
 
 
-def serve_protocol_split(cfg: Any) -> str | None:
-    """With a protocol (``protocol=NAME``): point ``dataset.root`` at its split ``benchmark.split`` (the shipped
-    files unless ``dataset.root`` holds the split), so its stored episodes are served as ``muble eval`` plays them;
-    returns the split, None without a protocol. A split the protocol does not name, or one that neither ships nor
-    is in ``dataset.root``, is a ``ConfigError`` saying what to do."""
-    from omegaconf import open_dict
-
-    from muble.core.errors import ConfigError
-    from muble.dataset.protocol import protocol_of, split_spec
-    from muble.dataset.shipped import check_plays_alone, episodes_root
-
-    protocol = protocol_of(cfg)
-    if protocol is None:
-        return None
-    split = str(cfg.benchmark.split)
-    split_spec(protocol, split)  # an unknown split: the valid ones listed, the closest suggested
-    check_plays_alone(cfg, split, "muble serve")
-    root = episodes_root(cfg, split)
-    if root is None or not (root / split).is_dir():
-        raise ConfigError(f"split '{split}' of protocol '{protocol['name']}' does not ship with MuBlE and "
-                          "dataset.root holds no copy of it: generate it (`muble generate "
-                          f"protocol={protocol['name']} benchmark.split={split} dataset.root=DIR`) and serve it "
-                          "with dataset.root=DIR, or serve a split that ships (benchmark.split=mini)")
-    with open_dict(cfg):
-        cfg.dataset.root = str(root)
-    return split
-
-
 def main(argv: list[str]) -> int:
     from muble.app.config import compose
     from muble.app.usage import USAGE_EXIT_CODE, explain_config_error, report
@@ -155,7 +127,10 @@ def main(argv: list[str]) -> int:
             raise
         report("muble serve", message)
         return USAGE_EXIT_CODE
-    split = serve_protocol_split(cfg)
+    from muble.app.plan import resolve
+
+    plan = resolve(cfg, files="serve")  # protocol=NAME: its split's stored episodes, from dataset.root or shipped
+    cfg, split = plan.config, plan.split
     verbose = logging.getLogger().isEnabledFor(logging.DEBUG)
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT)
     if split is not None:

@@ -110,22 +110,6 @@ def episode_config(config: dict[str, Any], split: str) -> dict[str, Any]:
     return split_config(config, split, EPISODE_GROUPS)
 
 
-def select_split(cfg: Any) -> str | None:
-    """With a protocol: point ``dataset.splits`` and ``dataset.sizes`` at the split ``benchmark.split`` names
-    (in place) and return its name; None without a protocol."""
-    from omegaconf import open_dict
-
-    protocol = protocol_of(cfg)
-    if protocol is None:
-        return None
-    split = str(cfg.benchmark.split)
-    spec = split_spec(protocol, split)
-    with open_dict(cfg):
-        cfg.dataset.splits = [split]
-        cfg.dataset.sizes = [int(spec["size"])]
-    return split
-
-
 def data_manifest(root: str | Path, split: str) -> dict[str, str]:
     """``{relative path: sha256}`` of the split's scene and instruction files, in path order."""
     layout = DatasetLayout(Path(root), split)
