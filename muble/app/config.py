@@ -14,6 +14,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
+from muble.core.environment import ROBOT_DEFAULTS
 from muble.core.ranges import bounded
 from muble.core.types import ObservationMode, Track
 from muble.episode.components import GROUP_OF_KIND
@@ -31,11 +32,13 @@ class RobotConfig:
     """A robosuite single-arm robot and its gripper and controller."""
 
     name: str = MISSING  # robosuite robot name: Panda, Sawyer, UR5e, Kinova3, IIWA
-    gripper: str | None = None  # robosuite gripper name; None = the robot's default
-    controller: str = "IK_JOINT_SERVO"  # end-effector deltas by IK to joint servos; "OSC_POSE": its old name
-    control_freq: float = bounded(20.0, gt=0)  # Hz
-    timestep: float = bounded(0.002, gt=0)  # s, MuJoCo physics step
-    grasp: str = "weld"  # "weld" (attach on contact of all pads) or "friction"
+    # The defaults are ``muble.core.environment.ROBOT_DEFAULTS``, which an environment built with no robot config uses.
+    gripper: str | None = ROBOT_DEFAULTS["gripper"]  # robosuite gripper name; None = the robot's default
+    # End-effector deltas by IK to joint servos; "OSC_POSE": its old name.
+    controller: str = ROBOT_DEFAULTS["controller"]
+    control_freq: float = bounded(ROBOT_DEFAULTS["control_freq"], gt=0)  # Hz
+    timestep: float = bounded(ROBOT_DEFAULTS["timestep"], gt=0)  # s, MuJoCo physics step
+    grasp: str = ROBOT_DEFAULTS["grasp"]  # "weld" (attach on contact of all pads) or "friction"
 
 
 @dataclass

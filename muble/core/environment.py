@@ -29,6 +29,12 @@ if TYPE_CHECKING:  # pragma: no cover
 # m/s², what the readings turn forces into weights with (and weights into forces), and the robot's model of its
 # hand's weight too (``Environment.load_wrench``).
 GRAVITY = 9.81
+# The robot settings used where none are given, in one place: the defaults of the ``robot`` config schema
+# (``muble.app.config.RobotConfig``, whose ``name`` the ``robot`` config group sets: Panda) and of an environment
+# built with no robot config (``muble.sim.env``: the Gymnasium environments, tests); ``stage``: None builds each
+# scene on the stage its file names (the generator's ``stage``), a name on that stage.
+ROBOT_DEFAULTS: dict[str, Any] = {"name": "Panda", "gripper": None, "controller": "IK_JOINT_SERVO",
+                                  "control_freq": 20.0, "timestep": 0.002, "grasp": "weld", "stage": None}
 
 
 class EnvironmentNames(Protocol):

@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 
 from muble.core.errors import ConfigError, MubleDeprecationWarning, PhysicsError, unknown_name
-from muble.core.environment import GRAVITY, TableTop
+from muble.core.environment import GRAVITY, ROBOT_DEFAULTS, TableTop
 from muble.core.interfaces import MotionPlanner, Sensor
 from muble.core.object_physics import CONTENTS_COLLISION_CLASS
 from muble.core.objects import ObjectModel
@@ -602,10 +602,6 @@ class TabletopEnv:
         return forward
 
 
-# The robot settings used where none are given: the defaults of the ``robot`` config schema (muble.app.config), and
-# ``stage``: None builds each scene on the stage its file names (the generator's ``stage``), a name on that stage.
-ROBOT_DEFAULTS: dict[str, Any] = {"name": "Panda", "gripper": None, "controller": "IK_JOINT_SERVO",
-                                  "control_freq": 20.0, "timestep": 0.002, "grasp": "weld", "stage": None}
 
 
 def _robot_settings(robot: Any, overrides: dict[str, Any]) -> dict[str, Any]:

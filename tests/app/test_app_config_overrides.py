@@ -155,9 +155,10 @@ def test_values_are_compared_as_settings(value, default, same):
 
 
 def test_the_robot_defaults_of_the_environment_are_the_schemas():
-    """``muble.sim.env.ROBOT_DEFAULTS`` (an environment built with no robot config: the Gymnasium environments,
-    the generator's checks, tests) writes the ``robot`` schema's defaults again, because ``muble.sim`` may not
-    import the app layer; this keeps the two equal until one imports the other."""
+    """The robot defaults are written once (``muble.core.environment.ROBOT_DEFAULTS``): the ``robot`` schema takes
+    its defaults from them, an environment built with no robot config (the Gymnasium environments, the generator's
+    checks, tests) uses them, and the run config's robot group names their robot. A literal written into the
+    schema instead, or another robot chosen by run.yaml, fails here."""
     import dataclasses
 
     from muble.sim.env import ROBOT_DEFAULTS
