@@ -28,7 +28,8 @@ import shutil
 import tarfile
 import tempfile
 from pathlib import Path
-from typing import Any
+from importlib.resources.abc import Traversable
+from typing import Any, cast
 
 from muble.core.errors import ConfigError, unknown_name
 from muble.io.atomic import check_output_folder, staged_folder
@@ -60,7 +61,8 @@ def protocol_of(config: Any) -> dict[str, Any] | None:
     if hasattr(node, "_get_node"):  # a DictConfig: a plain dict from here on
         from omegaconf import OmegaConf
 
-        node = OmegaConf.to_container(node, resolve=True)
+        # a protocol is a mapping (a config of the protocol group): a plain dict of it
+        return cast(dict[str, Any], OmegaConf.to_container(node, resolve=True))
     return node
 
 
@@ -177,6 +179,9 @@ def check_data(cfg: Any, root: str | Path, split: str) -> dict[str, Any]:
     (protocol, version, split, data hash); raises ``ConfigError`` when a recorded hash differs, since results on
     other data must not carry the protocol's name."""
     protocol = protocol_of(cfg)
+    if protocol is None:
+        raise ConfigError(f"the data of split '{split}' in {root} is checked against a protocol's recorded hash, "
+                          "and the config follows no protocol (choose one with protocol=NAME)")
     spec = split_spec(protocol, split)
     files = data_manifest(root, split)
     found = manifest_hash(files)
@@ -205,16 +210,18 @@ def load_protocol(name: str) -> dict[str, Any]:
     """The ``protocol`` section of the protocol config ``name``; an unknown name is a ``ConfigError``."""
     from importlib import resources
 
-    from omegaconf import OmegaConf
+    from omegaconf import DictConfig, OmegaConf
 
     names = protocol_names()
     if name not in names:
         raise ConfigError(unknown_name("protocol", name, names) + "; choose it with protocol=")
     text = (resources.files("muble_conf") / "protocol" / f"{name}.yaml").read_text()
-    return OmegaConf.to_container(OmegaConf.create(text)["protocol"], resolve=True)
+    # a protocol's file is a mapping whose protocol section is one too
+    config = cast(DictConfig, OmegaConf.create(text))
+    return cast(dict[str, Any], OmegaConf.to_container(config["protocol"], resolve=True))
 
 
-def shipped_archive(protocol: dict[str, Any], split: str):
+def shipped_archive(protocol: dict[str, Any], split: str) -> Traversable | None:
     """The shipped archive of ``split`` (an importlib resource), None when the split does not ship (``train``)."""
     from importlib import resources
 
@@ -241,7 +248,10 @@ def shipped_files(protocol: dict[str, Any], split: str) -> dict[str, bytes]:
             parts = Path(member.name).parts
             if len(parts) != 3 or parts[0] != split or parts[1] not in DATA_FOLDERS or ".." in parts:
                 raise ConfigError(f"{archive}: unexpected member {member.name!r}; reinstall MuBlE")
-            files[member.name] = tar.extractfile(member).read()
+            data = tar.extractfile(member)
+            if data is None:  # a regular file (isfile above) always has contents to read
+                raise ConfigError(f"{archive}: member {member.name!r} has no contents; reinstall MuBlE")
+            files[member.name] = data.read()
     found = {path: hashlib.sha256(data).hexdigest() for path, data in sorted(files.items())}
     recorded = spec.get("sha256")
     if recorded is None or manifest_hash(found) != recorded:
