@@ -17,6 +17,9 @@ def models_from_scene(object_set, scene: SceneGraph) -> list[ObjectModel]:
     """Rebuild each object's model from the scene file's attributes (mass from ``weight_gt``)."""
     models = []
     for o in scene.objects:
+        if o.weight_gt is None:  # an agent's view of a scene (muble.core.observation) hides the weights
+            raise ValueError(f"object {o.id} ({o.name}) of scene {scene.image_index} has no weight_gt: its model "
+                             "is rebuilt from a generated scene file, which records every object's weight")
         spec = ObjectSpec(object_set=scene.extra.get("generator", {}).get("object_set", ""), category=o.name,
                           model=o.model, colour=o.colour, material=o.material, size=o.size, shape=o.shape,
                           scale=float(o.scale_factor or 1.0), weight_g=o.weight_gt, stiffness=o.stiffness or 1e4)
@@ -42,8 +45,8 @@ def write_contact_sheet(path: str | Path, scenes: list[SceneGraph], object_set, 
     if not scenes:
         raise ValueError("no scenes to draw")
     camera = CameraParams.from_scene_params(scenes[0].camera_params).scaled(scale)
-    renderer = get_registry().create("renderer", renderer, {**(renderer_options or {}), "width": camera.width,
-                                                           "height": camera.height})
+    drawer = get_registry().create("renderer", renderer, {**(renderer_options or {}), "width": camera.width,
+                                                         "height": camera.height})
     rows = math.ceil(len(scenes) / columns)
     sheet = Image.new("RGB", (columns * camera.width, rows * camera.height), (255, 255, 255))
     try:
@@ -51,13 +54,13 @@ def write_contact_sheet(path: str | Path, scenes: list[SceneGraph], object_set, 
             cam = CameraParams.from_scene_params(scene.camera_params).scaled(scale)
             view, data = checks.view_model(models_from_scene(object_set, scene), placements_from_scene(scene), cam,
                                            table_x, table_y)
-            renderer.setup(scene, view)
-            tile = Image.fromarray(np.asarray(renderer.render(data, checks.CAMERA_NAME).rgb))
+            drawer.setup(scene, view)
+            tile = Image.fromarray(np.asarray(drawer.render(data, checks.CAMERA_NAME).rgb))
             x, y = (k % columns) * camera.width, (k // columns) * camera.height
             sheet.paste(tile, (x, y))
             ImageDraw.Draw(sheet).text((x + 4, y + 4), f"#{scene.image_index}", fill=(255, 255, 255))
     finally:
-        renderer.close()
+        drawer.close()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     sheet.save(path)

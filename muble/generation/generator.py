@@ -96,7 +96,7 @@ class SceneGenerator:
             object_set = get_registry().create("object_set", _named(cfg.object_set, "object_set"),
                                                cfg.object_set_options)
         self.object_set = object_set
-        self.camera = CameraParams(np.array(cfg.camera_position, float), euler_xyz_to_matrix(cfg.camera_rotation),
+        self.camera = CameraParams(np.array(cfg.camera_position, float), euler_xyz_to_matrix(np.asarray(cfg.camera_rotation, float)),
                                    int(image_size[0]), int(image_size[1]), cfg.lens_mm)
         self.check_camera = self.camera.scaled(cfg.occlusion_scale) if cfg.occlusion_scale != 1.0 else self.camera
         self._renderer = renderer
@@ -113,7 +113,8 @@ class SceneGenerator:
         # (scene, models) -> None, or why the robot cannot grasp and put down some object: the last check.
         self.reach_check = reach_check
         self.failures: collections.Counter[str] = collections.Counter()  # why layouts were rejected, all scenes
-        self.timings: collections.Counter[str] = collections.Counter()  # seconds spent per stage, all scenes
+        # seconds spent per stage, all scenes
+        self.timings: collections.defaultdict[str, float] = collections.defaultdict(float)
 
     @staticmethod
     def _check_config(cfg: GeneratorConfig) -> None:
@@ -129,7 +130,7 @@ class SceneGenerator:
         for name in cfg.physical_properties:
             if name not in physical_properties.PROPERTIES:
                 raise ConfigError(unknown_name("generator.physical_properties property", name,
-                                               physical_properties.PROPERTIES))
+                                               list(physical_properties.PROPERTIES)))
 
     # --- renderers --------------------------------------------------------------------------------------------
     def _renderer_for(self, camera: CameraParams):
@@ -142,8 +143,8 @@ class SceneGenerator:
         """Segmentation of a layout seen by the scene's camera (``staging``; none: the configured camera): the
         shared view model is re-posed (and re-aimed for a jittered camera); a renderer's setup returns at once for
         the view model it already has (the ``Renderer`` contract)."""
-        jittered = staging is not None and staging.jittered
-        view, data = self._view.pose(models, placements, staging.camera if jittered else None)
+        camera = staging.camera if staging is not None and staging.jittered else None
+        view, data = self._view.pose(models, placements, camera)
         renderer.setup(None, view)
         return renderer.render(data, checks.CAMERA_NAME)
 

@@ -55,7 +55,7 @@ def _too_near(env, scene: SceneGraph, when: str) -> str | None:
     near = robot_clearance(env, REST_CLEARANCE)
     if not near:
         return None
-    obj = scene.object(min(near, key=near.get))
+    obj = scene.object(min(near, key=near.__getitem__))
     x, y = (round(float(v), 3) for v in obj.position[:2])
     return (f"object {obj.id} ({obj.name}) at ({x}, {y}): {near[obj.id] * 1000:.0f} mm from the robot at rest, "
             f"{when} (less than {REST_CLEARANCE * 1000:.0f} mm)")

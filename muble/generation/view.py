@@ -14,6 +14,7 @@ same model with its camera moved there; the next layout without one puts the com
 from __future__ import annotations
 
 import threading
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +23,9 @@ from muble.generation.checks import CAMERA_NAME, _table_geom_args
 from muble.generation.mesh_keys import mesh_key
 from muble.stage.camera import CameraParams
 from muble.stage.layout import Placement
+
+if TYPE_CHECKING:
+    import mujoco
 
 OBJECT_GROUP = 2  # drawn by the mujoco renderer (groups 1 and 2)
 HIDDEN_GROUP = 5  # never drawn
@@ -38,8 +42,8 @@ class ViewScene:
         self.max_meshes = max_meshes
         self._index: dict[bytes, int] = {}
         self._meshes: list[tuple[np.ndarray, np.ndarray]] = []
-        self.model = None
-        self.data = None
+        self.model: mujoco.MjModel | None = None  # compiled at the first pose()
+        self.data: mujoco.MjData | None = None
         self.version = 0  # bumped on every recompile: a renderer must be set up again
         self._extent = self._table_extent()
 
@@ -104,9 +108,15 @@ class ViewScene:
             self._compile()
         return [self._index[k] for k in keys]
 
+    def _compiled(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
+        """The compiled (model, data); ``_mesh_ids`` compiles them before any layout is loaded."""
+        if self.model is None or self.data is None:
+            raise RuntimeError("the view has no compiled model: pose() compiles it before loading a layout")
+        return self.model, self.data
+
     def _aim(self, camera: CameraParams | None) -> None:
         """Point the model's camera where ``camera`` stands, or (``None``) where it was compiled."""
-        m, cam = self.model, self._camera_id
+        (m, _), cam = self._compiled(), self._camera_id
         if camera is None:
             m.cam_pos[cam], m.cam_quat[cam] = self._compiled_camera
             return
@@ -126,7 +136,7 @@ class ViewScene:
             raise ValueError(f"{len(models)} objects but the view has {self.slots} slots")
         ids = self._mesh_ids(models)
         self._aim(camera)
-        m, d = self.model, self.data
+        m, d = self._compiled()
         n = len(models)
         slot_geom, store_geom = self._slot_geom, self._store_geom[ids]
         m.geom_dataid[slot_geom[:n]] = m.geom_dataid[store_geom]
