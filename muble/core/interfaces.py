@@ -6,7 +6,6 @@ The environment they receive is ``muble.core.environment.Environment``, the one 
 """
 from __future__ import annotations
 
-import contextlib
 import functools
 import inspect
 import warnings
@@ -16,16 +15,16 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+# The planner and the collision world it plans in are defined beside the environment that hands them to primitives
+# (``Environment.planner``, ``Environment.collision_world``), which imports nothing from here; they are interfaces of
+# this module all the same (``INTERFACES``, ``muble.core.interfaces.CollisionWorld``).
+from muble.core.environment import CollisionWorld, Environment, MotionPlanner  # noqa: F401 - re-exported
 from muble.core.errors import MubleDeprecationWarning
-from muble.core.types import (ActionCall, ActionResult, Answer, Frame, JointGoal, Observation, ObservationMode, Outcome,
-                              Pose, PoseGoal, Track, Trajectory)
+from muble.core.types import ActionCall, ActionResult, Answer, Frame, Observation, ObservationMode, Outcome, Track
 
 if TYPE_CHECKING:  # pragma: no cover
-    from collections.abc import Iterable, Sequence
-
     import mujoco
 
-    from muble.core.environment import Environment
     from muble.core.objects import ObjectModel, ObjectSpec
     from muble.core.params import Param
     from muble.core.scene import SceneGraph
@@ -49,83 +48,6 @@ class Renderer(ABC):
 
     def close(self) -> None:
         """Release GPU/GL resources and scene data. Optional; default does nothing."""
-
-
-class CollisionWorld(ABC):
-    """What a motion planner needs to know about the world: limits, validity, IK.
-
-    The abstract methods are what every planner needs; the optional ones have defaults that planners can rely on
-    (``last_contacts`` for messages, ``joint_names`` for trajectories, ``ee_pose`` and
-    ``local_inverse_kinematics`` for Cartesian planners). ``hold``, ``allow_contact`` and ``contacts`` are what
-    primitives use on the environment's collision world (``Environment.collision_world``).
-    """
-
-    # Body-name pairs in contact found by the last check that failed (for error messages); empty when unknown.
-    last_contacts: "Sequence[tuple[str, str]]" = ()
-
-    @property
-    def joint_names(self) -> tuple[str, ...]:
-        """Names of the planned joints, in the order of a configuration ``q``. Optional; default: none given."""
-        return ()
-
-    @property
-    @abstractmethod
-    def joint_limits(self) -> np.ndarray:
-        """(dof, 2) array of lower and upper joint limits."""
-
-    @abstractmethod
-    def is_valid(self, q: np.ndarray) -> bool:
-        """True when the arm at ``q`` (and anything it holds) collides with nothing."""
-
-    @abstractmethod
-    def inverse_kinematics(self, goal: PoseGoal, seeds: np.ndarray | None = None) -> np.ndarray:
-        """A valid joint configuration reaching ``goal``; raises ``PlanningError`` if none exists."""
-
-    def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
-        """End-effector position (3,) at ``q``. Optional (Cartesian planners use it)."""
-        raise NotImplementedError(f"{type(self).__name__} does not provide forward kinematics")
-
-    def ee_pose(self, q: np.ndarray) -> Pose:
-        """End-effector pose at ``q``. Optional (Cartesian planners need it)."""
-        raise NotImplementedError(f"{type(self).__name__} does not provide the end-effector pose")
-
-    def local_inverse_kinematics(self, goal: PoseGoal, seed: np.ndarray) -> np.ndarray:
-        """A valid configuration reaching ``goal`` on the branch of ``seed`` (small steps along a path). Optional;
-        the default is ``inverse_kinematics`` seeded with ``seed`` alone."""
-        return self.inverse_kinematics(goal, seeds=np.asarray(seed, dtype=float)[None])
-
-    def contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
-        """Body-name pairs in contact at ``q``. Optional; the default reports none."""
-        return []
-
-    def hold(self, body: "str | int | None") -> None:
-        """Carry ``body`` with the hand from now on (None: nothing). Optional for worlds nothing is grasped in."""
-        raise NotImplementedError(f"{type(self).__name__} cannot carry an object with the hand")
-
-    def allow_contact(self, bodies: "Iterable[str | int]", held_only: bool = False) -> None:
-        """Contacts with ``bodies`` no longer make a configuration invalid (empty: none excused); with
-        ``held_only``, only the held object's contacts with them are excused and the gripper's still count (an
-        object set down into a bowl may touch it, the fingers round it may not). Optional."""
-        raise NotImplementedError(f"{type(self).__name__} cannot excuse contacts")
-
-    def resting_at(self, q: np.ndarray) -> "contextlib.AbstractContextManager[bool]":
-        """A context manager for planning from ``q``: within it, contacts present at ``q`` between what the arm
-        holds and objects it rests against (not the arm itself) count only where they get deeper, so such a
-        start is valid and a path may leave the contact but not push into it; it yields whether ``q`` is valid
-        then. Optional; the default tolerates nothing and yields ``is_valid(q)``."""
-        return contextlib.nullcontext(self.is_valid(q))
-
-
-class MotionPlanner(ABC):
-    """Plans a collision-free joint-space trajectory; raises ``PlanningError`` with the reason when impossible."""
-
-    @abstractmethod
-    def plan(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> Trajectory: ...
-
-    def check(self, start_q: np.ndarray, goal: JointGoal | PoseGoal, world: CollisionWorld) -> None:
-        """Raise ``PlanningError`` exactly where ``plan`` would, for callers that ask only whether the move exists
-        (feasibility checks); a planner may skip what only shapes the trajectory. Default: ``plan``."""
-        self.plan(start_q, goal, world)
 
 
 class PrimitiveAction(ABC):

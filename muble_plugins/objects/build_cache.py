@@ -15,18 +15,25 @@ import collections
 import json
 import threading
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from muble.core.objects import ObjectSpec
 
+from muble_plugins.objects.category import Geometry
 from muble_plugins.objects.geometry import GEOMETRY_VERSION, mass_properties, planar_uv
 
-if TYPE_CHECKING:
-    from muble_plugins.objects.catalogue import CatalogueObjectSet, Geometry
-
 DEFAULT_MAX_ENTRIES = 512  # SHOP-VRB2 has ~100 (model, scale) pairs; a few MB each at most
+
+
+class GeometrySource(Protocol):
+    """What the cache needs of an object set (``muble_plugins.objects.catalogue.CatalogueObjectSet`` is one): its
+    name, part of every key, and the geometry of a spec, made or loaded on a miss."""
+
+    set_name: str
+
+    def geometry(self, spec: ObjectSpec) -> Geometry: ...
 
 
 @dataclass(frozen=True)
@@ -67,12 +74,12 @@ class BuildCache:
         self.hits = self.misses = 0
 
     @staticmethod
-    def key(object_set: CatalogueObjectSet, spec: ObjectSpec) -> str:
+    def key(object_set: GeometrySource, spec: ObjectSpec) -> str:
         # The category is part of the key so a hit also means the (category, model) pair was validated.
         return json.dumps([object_set.set_name, spec.category, spec.model, round(float(spec.scale), 6), spec.params,
                            GEOMETRY_VERSION], sort_keys=True, default=str)
 
-    def get(self, object_set: CatalogueObjectSet, spec: ObjectSpec) -> BuiltGeometry:
+    def get(self, object_set: GeometrySource, spec: ObjectSpec) -> BuiltGeometry:
         key = self.key(object_set, spec)
         with self._lock:
             built = self._entries.get(key)
@@ -93,7 +100,7 @@ class BuildCache:
             self._entries.clear()
 
 
-def built_geometry(object_set: CatalogueObjectSet, spec: ObjectSpec) -> BuiltGeometry:
+def built_geometry(object_set: GeometrySource, spec: ObjectSpec) -> BuiltGeometry:
     """``spec``'s geometry and unit-mass properties from ``object_set``'s in-memory cache (made on first use)."""
     cache = object_set.__dict__.get("build_cache")
     if cache is None:

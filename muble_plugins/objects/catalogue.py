@@ -1,6 +1,6 @@
 """The machinery every object catalogue shares: categories, sampling, the mesh cache and model assembly.
 
-A catalogue is a table of ``Category`` entries. Each category lists its shape variants (a geometry function of
+A catalogue is a table of ``Category`` entries (``muble_plugins.objects.category``, re-exported here). Each category lists its shape variants (a geometry function of
 the scale factor), the materials it comes in (each with a weight range and the colours that material takes),
 its flags and grasp type. ``CatalogueObjectSet`` samples specs from the table and builds ``ObjectModel``s,
 caching generated meshes on disk keyed by object set, model, scale and geometry version.
@@ -27,6 +27,7 @@ from muble.core.ranges import bounded, configured
 
 from muble_plugins.common.materials import STIFFNESS_RANGE  # ground-truth stiffness by material (N/m)
 from muble_plugins.objects.build_cache import built_geometry
+from muble_plugins.objects.category import Category, Finish, Geometry  # noqa: F401 - Finish re-exported for callers
 from muble_plugins.objects.geometry import GEOMETRY_VERSION
 from muble_plugins.objects.geometry import mass_properties, planar_uv  # noqa: F401 - re-exported for callers
 from muble_plugins.objects.heldout import check_property_range, sample_range_part, sampled_categories
@@ -60,48 +61,6 @@ def default_stiffness(material: str) -> float | None:
 
 # Coulomb friction against the table (typical dry sliding coefficients of the surface materials).
 FRICTION = {"rubber": 1.1, "plastic": 0.6, "metal": 0.5, "wooden": 0.6, "glass": 0.6, "ceramic": 0.6}
-
-
-@dataclass
-class Geometry:
-    """What a shape function produces, in metres, for one scale."""
-
-    visual: MeshPart
-    collision_parts: list[MeshPart]
-    grasp_frames: list[GraspFrame]
-    uv: np.ndarray | None = None
-
-
-@dataclass(frozen=True)
-class Finish:
-    """A material a category comes in, its medium-size weight range (g) and the colours it takes."""
-
-    material: str
-    weight_g: tuple[float, float]
-    colours: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class Category:
-    name: str
-    variants: dict[str, tuple[str, Callable[[float], Geometry]]]  # model -> (shape word, geometry(scale))
-    finishes: tuple[Finish, ...]
-    grasp_type: str
-    pickupable: bool
-    stackable: bool
-    stack_base: bool
-    sizes: tuple[str, ...] = ("small", "medium-sized", "large")
-    mass_exponent: float = 2.0  # mass ∝ scale^e: 2 for thin-walled shells, 3 for solid or filled items
-    closed: bool = False  # a closed container (a can, a flask, a food box): it can hold loose contents
-    # The hidden physical properties its objects carry (``ObjectSet.physical_properties``): none by default.
-    physical_properties: tuple[str, ...] = ()
-    # Models built when a scene names them but never sampled (so that adding one changes no generated scene):
-    # the original SHOP-VRB2 models this catalogue does not sample.
-    imported_variants: dict[str, tuple[str, Callable[[float], Geometry]]] = field(default_factory=dict)
-
-    def model(self, name: str) -> tuple[str, Callable[[float], Geometry]] | None:
-        """(shape word, geometry function) of a sampled or imported model, ``None`` if unknown."""
-        return self.variants.get(name) or self.imported_variants.get(name)
 
 
 def grasp_quat(closing, approach) -> np.ndarray:

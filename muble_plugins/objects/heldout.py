@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from muble.core.errors import ConfigError, unknown_name
 
-if TYPE_CHECKING:
-    from muble_plugins.objects.catalogue import Category, Finish
+from muble_plugins.objects.category import Category, Finish
 
 # Which part of each weight and stiffness range is sampled (``property_range``): "inner" keeps the middle
 # ``inner_fraction`` of every range, "outer" the two tails beside it, so that a test split's properties lie where
