@@ -5,7 +5,7 @@ here, so every entry point turns the same config into the same objects.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -80,7 +80,7 @@ def image_size(cfg: Any) -> tuple[int, int]:
 def scene_generator(cfg: DictConfig, object_set: object):
     from muble.generation.generator import SceneGenerator
 
-    options = OmegaConf.to_container(cfg.generator, resolve=True)
+    options = cast(dict[str, Any], OmegaConf.to_container(cfg.generator, resolve=True))  # a mapping of options
     return SceneGenerator(options, seed=cfg.seed, object_set=object_set, image_size=image_size(cfg))
 
 

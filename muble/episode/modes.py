@@ -74,8 +74,12 @@ def track_instruction(instruction: Instruction, track: str) -> Instruction:
 def _masks_object(obj: SceneObject, rle: Any) -> SceneObject:
     kept = {name: copy.deepcopy(getattr(obj, name)) for name in MASKS_OBJECT_FIELDS}
     kept["mask"] = rle
-    return SceneObject(model=None, name=None, shape=None, size=None, material=None, colour=None,
-                       weight_gt=None, stackable=None, stack_base=None, pickupable=None, **kept)
+    # The withheld attribute words and affordances are None, which SceneObject's str and bool fields do not declare:
+    # the masks view is a SceneObject whose agent reads only MASKS_OBJECT_FIELDS (muble.core.scene has no type for
+    # a view with fields withheld).
+    return SceneObject(model=None, name=None, shape=None, size=None,  # type: ignore[arg-type]
+                       material=None, colour=None, weight_gt=None,  # type: ignore[arg-type]
+                       stackable=None, stack_base=None, pickupable=None, **kept)  # type: ignore[arg-type]
 
 
 def _without_ids(value: Any) -> Any:
@@ -153,8 +157,9 @@ def _object_params(declared: Iterable[Any]) -> set[str]:
     return {p.name for p in specs(declared) if p.kind in OBJECT_KINDS}
 
 
-def _pixel_of(value: Any, cameras: list[str]) -> tuple[str, int, int] | None:
-    """(camera, x, y) of a pixel argument, or None if ``value`` is not one."""
+def _pixel_of(value: Any, cameras: list[str]) -> tuple[str | None, int, int] | None:
+    """(camera, x, y) of a pixel argument, or None if ``value`` is not one; the camera is None when the
+    observation has no images and the argument names none."""
     camera = cameras[0] if cameras else None
     if isinstance(value, dict) and set(value) <= {"pixel", "camera"} and "pixel" in value:
         camera, value = value.get("camera", camera), value["pixel"]
@@ -182,7 +187,7 @@ def resolve_pixels(action: ActionCall, observation: Observation, declared: Itera
             return (f"{action.name}: in observation mode 'image', '{key}' names an object by a pixel [x, y] of the "
                     f"latest image (or {{'pixel': [x, y], 'camera': name}}), got {value!r:.60}")
         camera, x, y = pixel
-        frame = observation.images.get(camera)
+        frame = None if camera is None else observation.images.get(camera)
         if frame is None:
             return f"{action.name}: '{key}' names camera {camera!r:.40}; cameras: {', '.join(cameras)}"
         if frame.segmentation is None:

@@ -69,14 +69,18 @@ def sequence_dict(instruction: Instruction, episode: EpisodeResult, image_paths:
 
         registry = get_registry()
     check_style(action_names)
+    if episode.initial is None:
+        raise ValueError("the episode has no initial observation (it ended before the agent saw the scene): there "
+                         "is no sequence to write")
     observations, observations_gt = [], []
     weight = None
-    steps = [(None, episode.initial, episode.initial_gt)] + [(s.action, s.observation, s.scene_gt)
-                                                              for s in episode.steps]
+    steps: list[tuple[ActionCall | None, Observation, SceneGraph | None]] = [
+        (None, episode.initial, episode.initial_gt)] + [(s.action, s.observation, s.scene_gt) for s in episode.steps]
     for i, (action, observation, scene_gt) in enumerate(steps):
-        measured = episode.steps[i - 1].result.measurement if i else None
-        if measured is not None and registry.measures(action.name) == "weight":
-            weight = measured
+        if action is not None:  # step i's action, whose result is that of episode.steps[i - 1]
+            measured = episode.steps[i - 1].result.measurement
+            if measured is not None and registry.measures(action.name) == "weight":
+                weight = measured
         robot = _robot(observation, action, weight, action_names)
         # What the agent saw (its measurements only) and, apart, the ground truth at the same moment.
         observations.append({"robot": robot, "objects": _objects(observation.scene, observation, camera)})

@@ -14,7 +14,7 @@ import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Sequence, cast
 
 import numpy as np
 
@@ -91,7 +91,8 @@ class EpisodeFactory:
         self.render = render
         self.registry = get_registry()
         self.components = build_components(cfg, renderer=False, task=False)
-        self.renderer_options = OmegaConf.to_container(cfg.renderer, resolve=True)
+        # the renderer config group is a mapping of options
+        self.renderer_options = cast(dict[str, Any], OmegaConf.to_container(cfg.renderer, resolve=True))
         self._generator = None
         self._kept_renderer = None
 
@@ -156,7 +157,7 @@ class EpisodeFactory:
 
         seed = int(self.cfg.seed)
         if self.split is not None:
-            return self._split_episode(int(scene_index), templates, weights)
+            return self._split_episode(self.split, int(scene_index), templates, weights)
         if templates is None and weights is None:
             weights = list(self.cfg.dataset.template_weights)
         templates = list(templates or self.mix)
@@ -175,19 +176,19 @@ class EpisodeFactory:
             return None
         return EpisodeSpec(scene, instruction, task, {**source, "template": instruction.template_id})
 
-    def _split_episode(self, index: int, templates: Sequence[str] | None, weights: Sequence[float] | None
-                       ) -> EpisodeSpec:
+    def _split_episode(self, split: str, index: int, templates: Sequence[str] | None,
+                       weights: Sequence[float] | None) -> EpisodeSpec:
         from muble.core.streams import split_seed
         from muble.episode.components import split_episode
 
         if templates is not None or weights is not None:
-            raise ConfigError(f"with split={self.split} an index's template is the one the split's template mix "
+            raise ConfigError(f"with split={split} an index's template is the one the split's template mix "
                               "gives it (dataset.templates, dataset.template_weights): name no template, or set "
                               "split=null to choose one")
-        suited = split_episode(self.cfg, self.split, index, self.components["object_set"], size=self.split_size)
+        suited = split_episode(self.cfg, split, index, self.components["object_set"], size=self.split_size)
         return EpisodeSpec(suited.scene, suited.instruction, suited.task,
-                           {"kind": "generated", "seed": int(self.cfg.seed), "split": self.split,
-                            "split_seed": split_seed(int(self.cfg.seed), self.split), "scene_index": index,
+                           {"kind": "generated", "seed": int(self.cfg.seed), "split": split,
+                            "split_seed": split_seed(int(self.cfg.seed), split), "scene_index": index,
                             "template": suited.template})
 
     def stored(self, split: str, index: int, root: str | Path | None = None) -> EpisodeSpec:

@@ -44,7 +44,9 @@ class EpisodeStateError(MubleError):
 class Step:
     """What the agent gets back: the next observation, or the episode's end (``output`` then holds it)."""
 
-    observation: Observation
+    # None only where there is none to give: the step recorded (``last``) when the worker failed before the first
+    # observation, or an end whose result holds no observation (``EpisodeResult.initial`` unset, no steps)
+    observation: Observation | None
     done: bool = False
     output: Any = None  # muble.episode.runner.EpisodeOutput once done
 

@@ -252,6 +252,8 @@ class ShopVRB2Env(gym.Env):
     def _observation(self, step: Step) -> dict[str, Any]:
         self._last = step
         observation = step.observation
+        if observation is None:
+            raise EpisodeStateError("the episode ended without an observation to give; call reset()")
         data = observation_to_plain(observation)
         if self.episode is None:
             raise EpisodeStateError("the episode has ended (or none has started); call reset()")
