@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import logging
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -128,8 +128,9 @@ def job(cfg: DictConfig) -> dict[str, Any]:
     cfg, protocol_split = plan.config, plan.split
     root = check_config(cfg)
     out_dir = Path(cfg.output.dir)
-    config = OmegaConf.to_container(cfg, resolve=True)
+    config = cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True))  # a composed config is a mapping
     dataset_manifest = root / "manifest.json"
+    dataset_sha: str | None
     if uses_files(cfg.dataset):
         # Original-format files: one split of every instruction in the instruction file.
         split, indices, dataset_sha = check_files(cfg.dataset)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import logging
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -87,7 +87,7 @@ def check_or_store_layout(root: Path, cfg: DictConfig, sizes: dict[str, int]) ->
     indices past the new size); a split may grow (extending a dataset). Returns every split's size, the stored
     ones included, and records them."""
     path = root / SPLITS_FILE
-    stored = {"num_shards": int(cfg.dataset.num_shards), "splits": {}}
+    stored: dict[str, Any] = {"num_shards": int(cfg.dataset.num_shards), "splits": {}}
     if path.is_file():
         try:
             stored = json.loads(path.read_text())
@@ -133,26 +133,27 @@ def _job(cfg: DictConfig, root: Path) -> dict:
 
     plan = resolve(cfg, files="write")  # protocol=NAME: the split benchmark.split names, at its frozen size
     cfg, protocol_split = plan.config, plan.split
-    if protocol_split is not None:
-        check_regenerates(protocol_of(cfg))
+    protocol = protocol_of(cfg)
+    if protocol is not None:  # the plan has a protocol split exactly when the config follows a protocol
+        check_regenerates(protocol)
     sizes = split_sizes(cfg)
     root.mkdir(parents=True, exist_ok=True)
-    config = OmegaConf.to_container(cfg, resolve=True)
+    config = cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True))  # a composed config is a mapping
     with RunLock(lock_path(cfg), f"dataset.root {root} (shard {cfg.dataset.shard})"):
         check_or_store_identity(root, config)  # a resume with other settings is refused before any change
         recorded = check_or_store_layout(root, cfg, sizes)
         stale = remove_stale_temporaries(root)
         if stale:
             log.info("removed %d partial files of an interrupted run", stale)
-        plan = {}
+        work = {}  # split -> (its layout, the indices this run holds, those still to produce)
         for split, size in sizes.items():
             layout, wanted = DatasetLayout(root, split), indices(cfg, size)
             todo = [i for i in wanted if not (layout.split_dir / layout.instruction(i)).exists()]
-            plan[split] = (layout, wanted, todo)
+            work[split] = (layout, wanted, todo)
         # A previous run's manifest stays until this run writes its own (atomically), so an interruption or a full
         # disk leaves the description of what the last finished run wrote.
         produced = {}
-        for split, (layout, wanted, todo) in plan.items():
+        for split, (layout, wanted, todo) in work.items():
             log.info("%s: %d of %d indices to produce (%d already done)", split, len(todo), len(wanted),
                      len(wanted) - len(todo))
             jobs = [IndexJob(config, split, i) for i in todo]

@@ -77,7 +77,8 @@ def resolve(cfg: DictConfig, files: str = "read") -> RunPlan:
                 with open_dict(resolved):
                     resolved.dataset.root = str(root)
     try:
-        track, mode = (check(v) for check, v in zip((check_track, check_mode), benchmark_settings(resolved)))
+        track_name, mode_name = benchmark_settings(resolved)
+        track, mode = check_track(track_name), check_mode(mode_name)
     except ValueError as e:
         raise ConfigError(f"{e}; set benchmark.track and benchmark.mode to one of them") from None
     OmegaConf.set_readonly(resolved, True)

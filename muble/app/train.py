@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import logging
 from pathlib import Path
+from typing import Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -38,7 +39,7 @@ def _checks(cfg: DictConfig) -> None:
 
 def training_run(cfg: DictConfig) -> TrainingRun:
     """The ``TrainingRun`` a composed ``train`` config describes."""
-    config = OmegaConf.to_container(cfg, resolve=True)
+    config = cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True))  # a composed config is a mapping
     record = make_manifest({"seed": int(cfg.seed)}, {k: v for k, v in config.items() if k not in ("output",)})
     protocol = config.get("protocol")
     return TrainingRun(out_dir=Path(cfg.train.out_dir or cfg.output.dir), seed=int(cfg.seed), resume=bool(cfg.train.resume),
