@@ -217,6 +217,9 @@ class Derived(Mapping):
     def __len__(self) -> int:
         return len(self._now())
 
+    def __reversed__(self) -> Iterator[str]:
+        return reversed(list(self._now()))
+
     def __repr__(self) -> str:
         return f"{dict(self._now())!r}"
 
