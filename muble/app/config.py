@@ -107,6 +107,9 @@ class DatasetConfig:
     num_shards: int = bounded(1, ge=1)
     templates: list[str] = field(default_factory=lambda: list(SHOPVRB2_TEMPLATES))
     template_weights: list[float] = bounded(default_factory=list, ge=0, each=True)  # empty = uniform
+    # Options every task of the mix is generated with (its config's fields, e.g. a SHOP-VRB2 task's weight_margin_g);
+    # empty: each task's defaults
+    task_options: dict[str, Any] = field(default_factory=dict)
     sequences: bool = True  # run the oracle with physics for ground-truth sequences and keyframes
     gif: bool = False
     executor: str = "processes"  # serial | processes | ray

@@ -167,6 +167,14 @@ class Task(ABC):
         raise NotImplementedError(f"task '{type(self).__name__}' does not plan towards its goal "
                                   "(Task.next_actions); the oracle agent cannot solve it")
 
+    def admits(self, objects: list[Any]) -> bool:
+        """Whether a scene of ``objects`` (``muble.core.objects.ObjectSpec``: sampled, not yet placed) could suit
+        this task at all; the scene generator asks before it places them, and places a set only when this is true.
+        A task whose instructions need something rare of the objects (weights close together) spares the
+        placement of sets that lack it; it must never refuse a set that could suit. Optional; by default every set
+        is placed."""
+        return True
+
     def judge(self, instruction: Instruction, episode: Any) -> Outcome:
         """The outcome of a finished episode from its record (``muble.episode.EpisodeResult``: ``actions``,
         ``steps`` with each action's ``result`` and ``scene_gt``, ``answer``, ``final_scene``, ``initial_gt``; all

@@ -97,6 +97,10 @@ class Property:
     # Which objects carry it, ``(spec, model) -> bool`` (an ``ObjectSpec`` and its ``ObjectModel``); None: those the
     # object set declares (``ObjectSet.physical_properties``).
     carried_by: Callable[[Any, Any], bool] | None = None
+    # A primitive that measures it again from the state ``primitive`` leaves, with a reading independent of the last
+    # (the weight: ``reweigh`` sets the object down, zeroes the sensor and picks it up again, in one call); None: an
+    # agent that measures again brings the hand back to ``needs`` as the first time.
+    again: str | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)  # anything else a plugin keeps with it
 
     def __post_init__(self) -> None:

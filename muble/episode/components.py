@@ -112,7 +112,8 @@ def split_episode(cfg: Any, split: str, index: int, object_set: Any, timings: di
     ds = cfg["dataset"]
     generator = SceneGenerator(dict(plain(cfg["generator"]), split=split), seed=seed, object_set=object_set,
                                image_size=size or image_size(cfg))
-    tasks = {name: registry.create("task", name, {}) for name in plain(ds["templates"])}
+    options = plain(ds.get("task_options")) or {}
+    tasks = {name: registry.create("task", name, dict(options)) for name in plain(ds["templates"])}
     weights = template_weights(list(tasks), plain(ds["template_weights"]))
     try:
         suited = suited_scene(generator, tasks, weights, seed, index, lambda i: instruction_rng(seed, i))

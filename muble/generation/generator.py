@@ -228,13 +228,16 @@ class SceneGenerator:
     # --- one scene --------------------------------------------------------------------------------------------
     def generate(self, index: int, *, sample: int = 0, objects: int | None = None,
                  accept: Callable[[SceneGraph], bool] | None = None,
-                 stacks: Callable[[SceneGraph], list[tuple[int, int]]] | None = None) -> SceneGraph:
+                 stacks: Callable[[SceneGraph], list[tuple[int, int]]] | None = None,
+                 admits: Callable[[list[ObjectSpec]], bool] | None = None) -> SceneGraph:
         """The scene for ``index``; raises ``SceneGenerationError`` naming the failing checks if no layout passes.
 
         ``sample`` > 0 draws a further, independent scene for the same index (its own streams, keyed by
         ``(index, sample)``), e.g. when the scene drawn first does not suit the task wanted there. ``objects`` fixes the
         object count instead of drawing it. ``accept(scene)`` is asked about each placed layout before the
-        costlier checks (visibility, rest, reach); it sees every field but the masks. ``stacks(scene)`` names the
+        costlier checks (visibility, rest, reach); it sees every field but the masks. ``admits(specs)`` is asked
+        about each set of objects drawn before it is placed (``Task.admits``); a set it refuses is drawn again
+        without placing it. ``stacks(scene)`` names the
         (top, base) pairs, bottom pair first, that the scene's task will stack (asked after ``accept``): with
         ``stack_check`` on, a layout is kept only when each such stack stands upright in physics.
         """
@@ -250,6 +253,9 @@ class SceneGenerator:
             specs = self._sample_specs(objects_rng, objects)
             if specs is None:
                 reasons["weights"] += 1
+                continue
+            if admits is not None and not admits(specs):
+                reasons["objects"] += 1
                 continue
             t0 = time.perf_counter()
             models = [self.object_set.build(s) for s in specs]

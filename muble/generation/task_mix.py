@@ -131,7 +131,8 @@ def suited_scene(generator: Any, tasks: dict[str, Task], weights: Sequence[float
         chosen.clear()
         try:
             scene = generator.generate(index, sample=sample, objects=count + distractors, accept=accept,
-                                       stacks=lambda _: stacked_pairs(chosen["instruction"].program))
+                                       stacks=lambda _: stacked_pairs(chosen["instruction"].program),
+                                       admits=getattr(task, "admits", None))
         except SceneGenerationError as e:
             for k, v in e.reasons.items():
                 reasons[k] = reasons.get(k, 0) + v

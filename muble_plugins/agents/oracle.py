@@ -30,12 +30,10 @@ class OracleConfig:
     reading_noise_g: float = bounded(0.0, ge=0)
     # A comparison is decided when the means differ by more than this many standard errors of their difference.
     decide_sigmas: float = bounded(2.5, gt=0)
-    # Weighings of one object at most; then the means decide. The action loop takes the same primitive from the same
-    # observed state a fourth time for a loop (muble.episode.loop.EpisodeMonitor), and an object set down where it
-    # stood and weighed again looks as it did (its weight known either way): after each weighing it is set down from
-    # the same state, so a fourth weighing makes a loop (in 101 of 800 noisy symbolic roll-outs of mini's weight
-    # episodes; none with three).
-    max_readings: int = bounded(3, ge=1)
+    # Readings of one object at most; then the means decide. Each further reading of the object in the hand is one
+    # ``reweigh`` (``Property.again``); the action loop tells these apart by the weight each read
+    # (muble.episode.loop.EpisodeMonitor), so no number of them is a loop.
+    max_readings: int = bounded(12, ge=1)
 
 
 class OracleAgent(Agent):
@@ -61,7 +59,9 @@ class OracleAgent(Agent):
     With ``reading_noise_g`` above 0 (a noisy wrist sensor, ``noise=wrist_ft``) it keeps every weighing and uses
     their mean; a comparison of weights whose means are closer than the readings' scatter allows is not decided
     yet, and the less certain object is weighed again (set down and grasped again, so that a new tare makes the
-    reading independent), up to ``max_readings`` each (``books.Certainty``). ``stats()`` then counts the readings.
+    reading independent: ``reweigh`` does that in one primitive), up to ``max_readings`` each (``books.Certainty``);
+    the object in the hand is read again first, as often as the comparison's gap asks. ``stats()`` then counts the
+    readings.
     The open-loop control never weighs again: it decides on its first reading.
     """
 

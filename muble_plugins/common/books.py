@@ -136,11 +136,18 @@ class Certainty:
     def measure_again(self, prop: str, pairs: list[tuple[int, int]]) -> tuple[int, ...]:
         """The objects to measure again before the order of ``pairs`` (object ids) by ``prop`` counts: those of the
         first undecided pair with the fewest readings (both on a tie) that may still be read again; empty when every
-        pair is decided (a ``muble.programs.program.Recheck``)."""
+        pair is decided (a ``muble.programs.program.Recheck``).
+
+        The object just measured (``read_since_approach``, still in the hand) is measured again first, while it has
+        fewer readings than one of its undecided pairs needs (``readings_needed``) or than the other object of
+        that pair: measuring it again costs one primitive where the property has one for that
+        (``Property.again``), fetching another object several."""
         sd = float(self.noise.get(prop, 0.0) or 0.0)
         if not sd > 0:
             return ()
         books = self.readings.get(prop, {})
+        undecided: list[dict[int, int]] = []  # per undecided pair, its objects that may be read again -> readings
+        held = self.read_since_approach
         for a, b in pairs:
             first, second = books.get(a, ()), books.get(b, ())
             if not (first and second and _numbers(first) and _numbers(second)):
@@ -149,10 +156,23 @@ class Certainty:
             if gap > self.sigmas * sd * math.sqrt(1.0 / len(first) + 1.0 / len(second)):
                 continue
             open_ = {obj_id: len(kept) for obj_id, kept in ((a, first), (b, second)) if len(kept) < self.max_readings}
+            if held in open_:
+                other = len(second) if held == a else len(first)
+                if open_[held] < max(other, self.readings_needed(sd, gap)):
+                    return (held,)  # in the hand: one primitive more, where fetching the other takes several
             if open_:
-                fewest = min(open_.values())
-                return tuple(obj_id for obj_id, n in open_.items() if n == fewest)
+                undecided.append(open_)
+        if undecided:
+            fewest = min(undecided[0].values())
+            return tuple(obj_id for obj_id, n in undecided[0].items() if n == fewest)
         return ()
+
+    def readings_needed(self, sd: float, gap: float) -> int:
+        """Readings of each of two objects whose means ``gap`` apart would stand ``sigmas`` standard errors of their
+        difference apart, for readings that err by ``sd``: 2·(sigmas·sd/gap)², at most ``max_readings``."""
+        if gap <= 0.0:
+            return self.max_readings
+        return min(self.max_readings, max(1, math.ceil(2.0 * (self.sigmas * sd / gap) ** 2)))
 
 
 def _numbers(values) -> bool:

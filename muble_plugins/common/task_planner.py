@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Callable, Mapping
 
 from muble import ActionCall, Answer, PlanningError, SceneGraph
+from muble.core import physical_properties
 from muble.core.physical_properties import Derived, Property
 from muble.core.symbolic import ArmState, over
 from muble.programs.program import QUERY_STEPS, execute, stack_pairs, table_parts_of
@@ -124,8 +125,13 @@ def measure_again(prop: str, obj_id: int, arm: ArmState, certainty: Certainty) -
     """Measure ``obj_id``'s ``prop`` again, independently of the readings before. Weighing subtracts the tare that
     approaching takes with the empty hand, and the sensor's drift since that tare is what made the last reading err:
     an object in the hand that was measured since the hand last approached (``Certainty.read_since_approach``) is
-    first set down where it is, then measured as the first time (approached, grasped, ...)."""
+    measured again by the property's own primitive for that (``Property.again``: ``reweigh``), where it has one and
+    the hand is as its measuring primitive left it; else it is first set down where it is, then measured as the
+    first time (approached, grasped, ...)."""
     if arm.held == obj_id and certainty.read_since_approach == obj_id:
+        record = physical_properties.named(prop)
+        if record.again is not None and (arm.raised or record.needs != "held"):
+            return [ActionCall(record.again)]
         return put_down(arm) + MEASURE[prop](obj_id, ArmState(None, False, None, obj_id))
     return MEASURE[prop](obj_id, arm)
 

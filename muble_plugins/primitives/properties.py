@@ -66,7 +66,7 @@ def _rattles_truth(obj: SceneObject) -> bool | None:
 
 WEIGHT = Property(
     "weight", "weigh", lambda o: o.weight_gt, "the object's weight", unit="g", needs="held",
-    superlatives=WEIGHT_SUPERLATIVES, measured_field="weight",
+    superlatives=WEIGHT_SUPERLATIVES, measured_field="weight", again="reweigh",
     tolerance=WEIGHT_TOLERANCE_G, tolerance_rel=WEIGHT_TOLERANCE_REL)
 STIFFNESS = Property(
     "stiffness", "squeeze", lambda o: o.stiffness, "how hard the object is to squeeze (contact stiffness)",

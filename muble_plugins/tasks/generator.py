@@ -44,11 +44,14 @@ def _fill_io(program: list[dict[str, Any]], scene: SceneGraph) -> None:
 
 def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.Generator, *, count: int = 1,
                           index: SceneIndex | None = None, weight_margin: float = 2.0,
-                          outlines: Outlines | None = None) -> list[Instruction]:
+                          outlines: Outlines | None = None, weight_gap_max: float | None = None,
+                          weight_close_pairs: int = 1) -> list[Instruction]:
     """Up to ``count`` instructions of ``template`` for ``scene`` (``count < 0``: one per valid option);
-    ``outlines``: the scene's outline memo, where the caller lists other templates for the same scene."""
+    ``outlines``: the scene's outline memo, where the caller lists other templates for the same scene;
+    ``weight_gap_max`` and ``weight_close_pairs``: how close the weights it compares are (``OptionContext``)."""
     index = index or SceneIndex(scene)
-    context = OptionContext(index, weight_margin, outlines if outlines is not None else Outlines())
+    context = OptionContext(index, weight_margin, outlines=outlines if outlines is not None else Outlines(),
+                            weight_gap_max=weight_gap_max, weight_close_pairs=weight_close_pairs)
     options = list(template.options(context))
     if not options:
         return []

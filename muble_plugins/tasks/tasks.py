@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from muble import ActionCall, Answer, Instruction, Observation, Outcome, PlanningError, SceneGraph, Task
-from muble.core.ranges import configured
+from muble.core.ranges import bounded, configured
 from muble.programs.descriptions import SceneIndex
 
 from muble_plugins.agents.oracle import OracleAgent
@@ -26,6 +26,11 @@ class ShopVrb2TaskConfig:
     instructions_per_scene: int = 1  # -1: one per valid option
     extra_steps: int = 0  # allow descriptions this many words longer than the shortest
     weight_margin_g: float = 2.0  # weights compared by a template differ at least this much
+    # ... and at least weight_close_pairs of them (an order's neighbours, a superlative's choice against each other
+    # candidate) at most weight_gap_max_g (None: no bound): a split of close comparisons, where one reading of a noisy
+    # sensor may order a pair wrong (shopvrb2_v2's noisy_sensing, docs/closed_loop.md)
+    weight_gap_max_g: float | None = bounded(None, gt=0)
+    weight_close_pairs: int = bounded(1, ge=1)
 
 
 class ShopVrb2Task(Task):
@@ -42,7 +47,26 @@ class ShopVrb2Task(Task):
     def generate(self, scene: SceneGraph, rng: np.random.Generator) -> list[Instruction]:
         cfg = self.config
         return generate_for_template(self.template, scene, rng, count=cfg.instructions_per_scene,
-                                     index=SceneIndex(scene, cfg.extra_steps), weight_margin=cfg.weight_margin_g)
+                                     index=SceneIndex(scene, cfg.extra_steps), weight_margin=cfg.weight_margin_g,
+                                     weight_gap_max=cfg.weight_gap_max_g,
+                                     weight_close_pairs=cfg.weight_close_pairs)
+
+    def admits(self, objects: list) -> bool:
+        """With close weight comparisons asked for (``weight_gap_max_g``), whether the objects' weights hold enough
+        close pairs for this template at all, whichever of them its option picks: an order needs
+        ``weight_close_pairs`` pairs between ``weight_margin_g`` and ``weight_gap_max_g`` apart, a superlative an
+        object with that many others that far on one side of it. Always true otherwise."""
+        cfg = self.config
+        if cfg.weight_gap_max_g is None:
+            return True
+        weights = sorted(float(o.weight_g) for o in objects)
+        low, high, need = cfg.weight_margin_g, cfg.weight_gap_max_g, cfg.weight_close_pairs
+        if "order_weight" in self.template.step_types:
+            return sum(low <= b - a <= high for i, a in enumerate(weights) for b in weights[i + 1:]) >= need
+        for w in weights:
+            if sum(low <= v - w <= high for v in weights) >= need or sum(low <= w - v <= high for v in weights) >= need:
+                return True
+        return False
 
     def ground_truth(self, instruction: Instruction, scene: SceneGraph) -> list[ActionCall]:
         """The oracle's primitives, rolled out in the symbolic world from ``scene`` (weights unknown at start), in

@@ -48,6 +48,7 @@ class Template:
     # (option, chosen descriptions) -> (text slots, program without outputs); text + slots -> instruction text
     build: Callable[[tuple, list], tuple[dict[str, str], list[dict]]] | None = None
     fill: Callable[[str, dict[str, str]], str] | None = None
+    step_types: tuple[str, ...] = ()  # the types of its program's steps ("filter_weight", "order_weight" ...)
 
 
 def _memo(method):
@@ -68,6 +69,11 @@ def _memo(method):
 class OptionContext:
     index: SceneIndex
     weight_margin: float
+    # Close comparisons (``ShopVrb2TaskConfig.weight_gap_max_g``, ``weight_close_pairs``): of the pairs of weights a
+    # template compares (an order's neighbours, a superlative's choice against each other candidate), at least
+    # ``weight_close_pairs`` differ by at most ``weight_gap_max``; None: no bound.
+    weight_gap_max: float | None = None
+    weight_close_pairs: int = 1
     # The scene's object outlines for the room check, computed once per object (``Outlines``; a generator that
     # lists several templates' options for one scene hands each context the same memo).
     outlines: Outlines = field(default_factory=Outlines)
@@ -100,7 +106,13 @@ class OptionContext:
         """Group ids heaviest first, or ``None`` when two weights are closer than the margin."""
         ranked = sorted(group, key=lambda i: -self.obj(i).weight_gt)
         gaps = [self.obj(a).weight_gt - self.obj(b).weight_gt for a, b in zip(ranked, ranked[1:])]
-        return ranked if all(g >= self.weight_margin for g in gaps) else None
+        return ranked if self._close(gaps) and all(g >= self.weight_margin for g in gaps) else None
+
+    def _close(self, gaps: list[float]) -> bool:
+        """Whether enough of the compared pairs' ``gaps`` are within ``weight_gap_max`` (always, without one)."""
+        if self.weight_gap_max is None:
+            return True
+        return sum(g <= self.weight_gap_max for g in gaps) >= self.weight_close_pairs
 
     def value(self, quantity: str, i: int):
         """The ground truth of ``quantity`` (``muble.programs.program.QUANTITIES``) of object ``i``, or None."""
@@ -149,9 +161,13 @@ class OptionContext:
 
     @_memo
     def extreme(self, group: tuple[int, ...], which: str) -> int | None:
+        """The heaviest or lightest (``which``) of the group, ``None`` unless it stands apart from the next by the
+        margin (and, with ``weight_gap_max``, enough other members lie within that of it: ``_close``)."""
         ranked = sorted(group, key=lambda i: -self.obj(i).weight_gt)
         top, second = (ranked[0], ranked[1]) if which == "heaviest" else (ranked[-1], ranked[-2])
         if abs(self.obj(top).weight_gt - self.obj(second).weight_gt) < self.weight_margin:
+            return None
+        if not self._close([abs(self.obj(top).weight_gt - self.obj(i).weight_gt) for i in group if i != top]):
             return None
         return top
 
@@ -163,7 +179,7 @@ def load_templates(path: str | Path) -> dict[str, Template]:
         data = DataTemplate(spec)
         out[spec.template_id] = Template(spec.template_id, spec.task_id, spec.index, spec.texts, data.options,
                                          spec.description, data.feasible if data.dear else None, data.build,
-                                         data.fill)
+                                         data.fill, tuple(str(step.get("type", "")) for step in spec.program))
     return out
 
 

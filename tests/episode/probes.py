@@ -13,7 +13,7 @@ from muble.core.observation import leaks
 # The scene keys of the hidden physical properties: no observation may carry them, under any name or nesting.
 HIDDEN_KEYS = (physical_properties.FRICTION, physical_properties.COM_OFFSET, physical_properties.CONTENTS)
 # What each measuring primitive reports, under the name ``leaks`` knows a measurement by.
-MEASURES = {"weigh": "weight", "squeeze": "stiffness", "push": "friction", "balance": "com_offset",
+MEASURES = {"weigh": "weight", "reweigh": "weight", "squeeze": "stiffness", "push": "friction", "balance": "com_offset",
             "shake": "rattles"}
 
 

@@ -24,8 +24,8 @@ def act(env, name, **params):
 
 def test_every_primitive_is_registered_with_declared_params():
     registry = get_registry()
-    expected = {"move", "approach", "close_gripper", "open_gripper", "lift", "lower", "weigh", "squeeze", "push",
-                "balance", "shake", "move_vel"}
+    expected = {"move", "approach", "close_gripper", "open_gripper", "lift", "lower", "weigh", "reweigh", "squeeze",
+                "push", "balance", "shake", "move_vel"}
     assert expected <= set(registry.names("primitive"))
     declared = specs(registry.get("primitive", "move_vel").record.factory.params)
     assert [(p.name, p.kind, p.required) for p in declared] == [("velocity", "vector", True), ("duration", "number", False)]
