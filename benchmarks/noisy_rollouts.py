@@ -73,6 +73,7 @@ def main() -> None:
         files = files[:args.limit]
     solved: dict[str, list[bool]] = {"control": [], "oracle": []}
     readings, steps, other = [], [], Counter()
+    by_template: dict[str, dict[str, list[bool]]] = {}
     for index, path in enumerate(files):
         scene = load_scene(root / args.split / "scenes" / path.name)
         instruction = load_instruction(path)[1]
@@ -82,6 +83,8 @@ def main() -> None:
                 world = NoisyWorld(scene, streams.stream(draws, args.seed, index, trial))
                 result = run_episode(instruction, world, agent, check)
                 solved[name].append(result.outcome is Outcome.SUCCESS)
+                by_template.setdefault(instruction.template_id, {"control": [], "oracle": []})[name].append(
+                    result.outcome is Outcome.SUCCESS)
                 if name == "oracle":
                     readings.append(agent.stats()["readings"])
                     steps.append(len(result.actions))
@@ -93,7 +96,9 @@ def main() -> None:
            "oracle_success": round(float(np.mean(solved["oracle"])), 4),
            "oracle_readings_mean": round(float(np.mean(readings)), 2), "oracle_readings_max": int(max(readings)),
            "oracle_primitives_mean": round(float(np.mean(steps)), 2), "oracle_primitives_max": int(max(steps)),
-           "oracle_failures": dict(other)}
+           "oracle_failures": dict(other),
+           "by_template": {t: {k: round(float(np.mean(v)), 4) for k, v in runs.items()}
+                           for t, runs in sorted(by_template.items())}}
     print(f"{args.protocol} {args.split}: {len(files)} episodes x {args.trials} runs, one weighing errs by "
           f"{args.sigma} g")
     print(f"  open-loop control (one reading each): {row['control_success']:.1%} solved")
@@ -101,6 +106,8 @@ def main() -> None:
           f"{row['oracle_success']:.1%} solved, {row['oracle_readings_mean']} readings per episode (at most "
           f"{row['oracle_readings_max']}), {row['oracle_primitives_mean']} primitives (at most "
           f"{row['oracle_primitives_max']}); not solved: {dict(other) or 'none'}")
+    for template, rates in row["by_template"].items():
+        print(f"  {template}: control {rates['control']:.1%}, oracle {rates['oracle']:.1%}")
     print(json.dumps(row))
 
 

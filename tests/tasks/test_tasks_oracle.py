@@ -171,6 +171,21 @@ def test_monitor_detects_loops_and_timeouts(episodes):
     assert outcomes[-1] is Outcome.TIMEOUT and outcomes[:3] == [None] * 3
 
 
+def test_weighing_again_is_a_loop_only_where_the_readings_repeat(episodes):
+    """The observed state includes the weight read last (to a tenth of a gram): an exact sensor's same reading
+    again and again is a loop, a noisy sensor's differing readings are not."""
+    _, _, ins, scene = episodes[0]
+    obj = scene.objects[0]
+    exact, noisy = EpisodeMonitor(max_repeats=3), EpisodeMonitor(max_repeats=3)
+    outcomes = {"exact": [], "noisy": []}
+    for reading in (351.2, 344.6, 360.9, 349.3, 338.0):
+        obj.weight = 351.2
+        outcomes["exact"].append(exact.before(scene, ActionCall("reweigh")))
+        obj.weight = reading
+        outcomes["noisy"].append(noisy.before(scene, ActionCall("reweigh")))
+    assert outcomes["exact"][3] is Outcome.LOOP_DETECTED and outcomes["noisy"] == [None] * 5
+
+
 def test_random_agent_rarely_succeeds(episodes):
     results = [run_symbolic_episode(ins, scene, RandomAgent(seed=k)).outcome
                for k, (_, _, ins, scene) in enumerate(episodes[:40])]
