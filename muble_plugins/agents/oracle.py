@@ -34,6 +34,10 @@ class OracleConfig:
     # ``reweigh`` (``Property.again``); the action loop tells these apart by the weight each read
     # (muble.episode.loop.EpisodeMonitor), so no number of them is a loop.
     max_readings: int = bounded(12, ge=1)
+    # Readings of one property in an episode at most, all objects together; then the means decide. Every reading
+    # is a primitive and an episode has 100 (muble.episode.DEFAULT_MAX_STEPS): a stack of four close weights read
+    # twelve times each took 48, and the stacking did not fit in what was left. 0: no bound.
+    max_readings_total: int = bounded(36, ge=0)
 
 
 class OracleAgent(Agent):
@@ -124,7 +128,7 @@ class OracleAgent(Agent):
         if self.remeasures and self.belief is None:
             scene.extra[CERTAINTY] = Certainty({"weight": self.config.reading_noise_g}, self.readings,
                                                self.config.decide_sigmas, self.config.max_readings,
-                                               self.read_since_approach)
+                                               self.read_since_approach, self.config.max_readings_total or None)
         return dataclasses.replace(observation, scene=scene)
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:

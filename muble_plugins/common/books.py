@@ -132,6 +132,9 @@ class Certainty:
     sigmas: float = 2.5
     max_readings: int = 3
     read_since_approach: int | None = None
+    # Readings of one property in the episode at most, all objects together (None: no bound): each is a primitive,
+    # and an episode has a step budget; beyond it the means decide.
+    max_total: int | None = None
 
     def measure_again(self, prop: str, pairs: list[tuple[int, int]]) -> tuple[int, ...]:
         """The objects to measure again before the order of ``pairs`` (object ids) by ``prop`` counts: those of the
@@ -146,6 +149,8 @@ class Certainty:
         if not sd > 0:
             return ()
         books = self.readings.get(prop, {})
+        if self.max_total is not None and sum(len(kept) for kept in books.values()) >= self.max_total:
+            return ()
         undecided: list[dict[int, int]] = []  # per undecided pair, its objects that may be read again -> readings
         held = self.read_since_approach
         for a, b in pairs:

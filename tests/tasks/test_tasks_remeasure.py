@@ -140,6 +140,8 @@ def test_the_readings_a_gap_needs_and_the_object_in_hand_first():
     assert certainty.measure_again("weight", [(1, 2)]) == (1,)  # now the other, fetched
     nothing_held = Certainty({"weight": SPREAD_G}, {"weight": {1: [100.0], 2: [113.6, 113.6]}}, 2.5, 12)
     assert nothing_held.measure_again("weight", [(1, 2)]) == (1,)  # the fewest readings
+    spent = Certainty({"weight": SPREAD_G}, {"weight": {1: [100.0], 2: [113.6, 113.6]}}, 2.5, 12, max_total=3)
+    assert spent.measure_again("weight", [(1, 2)]) == ()  # the episode's readings spent: the means decide
 
 
 def test_the_planner_weighs_the_less_certain_object_again_until_the_bound(close_pair):
