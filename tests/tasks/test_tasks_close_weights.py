@@ -94,6 +94,7 @@ def test_every_noisy_sensing_episode_compares_two_close_pairs(noisy_split):
         gaps = compared(record["program"], weights)
         assert min(gaps) >= 8.0 and sum(g <= 14.0 for g in gaps) >= 2, (record["image_index"], gaps)
         closest.append(min(gaps))
-    # one weighing of 9.6 g puts 10-20 % of the closest compared pairs in the wrong order (the calibration)
+    # one weighing of 9.6 g puts about a quarter of the closest compared pairs in the wrong order (24.9 %: the closest
+    # of two pairs in the band lies near its low end, 8.7 g at the median)
     wrong = np.mean([phi(-g / (9.6 * 2 ** 0.5)) for g in closest])
-    assert 0.15 <= wrong <= 0.25, wrong
+    assert 0.20 <= wrong <= 0.30, wrong
