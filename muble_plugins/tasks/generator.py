@@ -50,7 +50,7 @@ def generate_for_template(template: Template, scene: SceneGraph, rng: np.random.
     ``outlines``: the scene's outline memo, where the caller lists other templates for the same scene;
     ``weight_gap_max`` and ``weight_close_pairs``: how close the weights it compares are (``OptionContext``)."""
     index = index or SceneIndex(scene)
-    context = OptionContext(index, weight_margin, outlines=outlines if outlines is not None else Outlines(),
+    context = OptionContext(index, weight_margin, outlines if outlines is not None else Outlines(),
                             weight_gap_max=weight_gap_max, weight_close_pairs=weight_close_pairs)
     options = list(template.options(context))
     if not options:

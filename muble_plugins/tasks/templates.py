@@ -69,14 +69,14 @@ def _memo(method):
 class OptionContext:
     index: SceneIndex
     weight_margin: float
+    # The scene's object outlines for the room check, computed once per object (``Outlines``; a generator that
+    # lists several templates' options for one scene hands each context the same memo).
+    outlines: Outlines = field(default_factory=Outlines)
     # Close comparisons (``ShopVrb2TaskConfig.weight_gap_max_g``, ``weight_close_pairs``): of the pairs of weights a
     # template compares (an order's neighbours, a superlative's choice against each other candidate), at least
     # ``weight_close_pairs`` differ by at most ``weight_gap_max``; None: no bound.
     weight_gap_max: float | None = None
     weight_close_pairs: int = 1
-    # The scene's object outlines for the room check, computed once per object (``Outlines``; a generator that
-    # lists several templates' options for one scene hands each context the same memo).
-    outlines: Outlines = field(default_factory=Outlines)
     # Memos: the scene does not change while the options are listed.
     _parts: dict[int, frozenset[str]] = field(default_factory=dict)
     _ranked: dict[tuple, object] = field(default_factory=dict)
