@@ -5,7 +5,7 @@ Each episode of the split runs ``--trials`` times in the symbolic world (``muble
 ``weigh`` and ``reweigh`` read the true weight plus a Gaussian error of ``--sigma`` grams (the spread one weighing has
 with ``noise=wrist_ft``, docs/physical_properties.md), drawn from the stream ``bench.noisy_rollouts`` of (``--seed``,
 episode index, trial): the open-loop control (one reading of each object) and the closed-loop oracle (``agent.reading_noise_g``,
-``decide_sigmas``, ``max_readings``) get the same draws in the same order as far as their readings go. Printed per
+``decide_sigmas``, ``max_readings`` and the step budget's bound) get the same draws in the same order as far as their readings go. Printed per
 agent: the share of runs solved, and for the oracle the readings and primitives per episode (mean and largest) and
 the outcomes other than success; the last line is a JSON object. Physics adds what this leaves out (grasps that
 slip, put-downs that fail, the sensor's drift): ``muble eval ... noise=wrist_ft`` measures that.
@@ -31,6 +31,11 @@ def main() -> None:
     parser.add_argument("--sigma", type=float, default=9.6, help="sd (g) of one weighing")
     parser.add_argument("--decide-sigmas", type=float, default=None, help="default: the oracle's")
     parser.add_argument("--max-readings", type=int, default=None, help="default: the oracle's")
+    parser.add_argument("--max-readings-total", type=int, default=None, help="default: the oracle's (0: no bound)")
+    parser.add_argument("--step-reserve", type=int, default=None, help="default: the oracle's")
+    parser.add_argument("--step-budget", type=int, default=None,
+                        help="the oracle's reading bound by the step budget (default: the episode's); the episode "
+                             "still ends at its own")
     parser.add_argument("--limit", type=int, default=0, help="the first N episodes only (0: all)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
@@ -65,7 +70,11 @@ def main() -> None:
     defaults = OracleConfig()
     oracle = OracleConfig(reading_noise_g=args.sigma,
                           decide_sigmas=args.decide_sigmas or defaults.decide_sigmas,
-                          max_readings=args.max_readings or defaults.max_readings)
+                          max_readings=args.max_readings or defaults.max_readings,
+                          max_readings_total=(defaults.max_readings_total if args.max_readings_total is None
+                                              else args.max_readings_total),
+                          step_reserve=defaults.step_reserve if args.step_reserve is None else args.step_reserve,
+                          step_budget=args.step_budget or defaults.step_budget)
     control = OracleConfig(closed_loop=False, reading_noise_g=args.sigma)
     root = Path(args.root) if args.root else shipped_root(load_protocol(args.protocol), args.split)
     files = sorted((root / args.split / "instructions").glob("*.json"))
@@ -92,7 +101,8 @@ def main() -> None:
                         other[result.outcome.value] += 1
     row = {"benchmark": "noisy_rollouts", "protocol": args.protocol, "split": args.split, "episodes": len(files),
            "trials": args.trials, "sigma_g": args.sigma, "decide_sigmas": oracle.decide_sigmas,
-           "max_readings": oracle.max_readings, "control_success": round(float(np.mean(solved["control"])), 4),
+           "max_readings": oracle.max_readings, "max_readings_total": oracle.max_readings_total,
+           "step_reserve": oracle.step_reserve, "step_budget": oracle.step_budget, "control_success": round(float(np.mean(solved["control"])), 4),
            "oracle_success": round(float(np.mean(solved["oracle"])), 4),
            "oracle_readings_mean": round(float(np.mean(readings)), 2), "oracle_readings_max": int(max(readings)),
            "oracle_primitives_mean": round(float(np.mean(steps)), 2), "oracle_primitives_max": int(max(steps)),
@@ -102,7 +112,9 @@ def main() -> None:
     print(f"{args.protocol} {args.split}: {len(files)} episodes x {args.trials} runs, one weighing errs by "
           f"{args.sigma} g")
     print(f"  open-loop control (one reading each): {row['control_success']:.1%} solved")
-    print(f"  oracle ({oracle.decide_sigmas} standard errors, at most {oracle.max_readings} readings each): "
+    print(f"  oracle ({oracle.decide_sigmas} standard errors, at most {oracle.max_readings} readings each, "
+          f"{oracle.max_readings_total or 'no bound'} in all, {oracle.step_reserve} primitives kept back of "
+          f"{oracle.step_budget}): "
           f"{row['oracle_success']:.1%} solved, {row['oracle_readings_mean']} readings per episode (at most "
           f"{row['oracle_readings_max']}), {row['oracle_primitives_mean']} primitives (at most "
           f"{row['oracle_primitives_max']}); not solved: {dict(other) or 'none'}")

@@ -4,13 +4,15 @@ from __future__ import annotations
 import copy
 import dataclasses
 import logging
+import math
 from dataclasses import dataclass
 
-from muble import (ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, SceneGraph, Task, Track,
-                   get_registry)
+from muble import (ActionCall, Agent, Answer, Instruction, Observation, ObservationMode, PlanningError, SceneGraph,
+                   Task, Track, get_registry)
 
 from muble.core.ranges import bounded
 from muble.core.symbolic import ArmState
+from muble.episode.loop import DEFAULT_MAX_STEPS
 
 from muble_plugins.common.books import (CERTAINTY, RETRY_LIMIT, Certainty, Known, Readings, book, fill_known,
                                         primitive_params)
@@ -33,11 +35,15 @@ class OracleConfig:
     # Readings of one object at most; then the means decide. Each further reading of the object in the hand is one
     # ``reweigh`` (``Property.again``); the action loop tells these apart by the weight each read
     # (muble.episode.loop.EpisodeMonitor), so no number of them is a loop.
-    max_readings: int = bounded(12, ge=1)
-    # Readings of one property in an episode at most, all objects together; then the means decide. Every reading
-    # is a primitive and an episode has 100 (muble.episode.DEFAULT_MAX_STEPS): a stack of four close weights read
-    # twelve times each took 48, and the stacking did not fit in what was left. 0: no bound.
-    max_readings_total: int = bounded(36, ge=0)
+    max_readings: int = bounded(24, ge=1)
+    # Readings of one property in an episode at most, all objects together; then the means decide. 0: no bound
+    # but the step budget's (below).
+    max_readings_total: int = bounded(0, ge=0)
+    # The episode's step budget (``episode.max_steps``: set both together). Every reading is a primitive: the oracle
+    # weighs again only while the budget spares one beyond the rest of its plan (rolled out in the symbolic world,
+    # as if every comparison were decided now) and ``step_reserve`` primitives for failures and their retries.
+    step_budget: int = bounded(DEFAULT_MAX_STEPS, ge=1)
+    step_reserve: int = bounded(10, ge=0)
 
 
 class OracleAgent(Agent):
@@ -84,6 +90,7 @@ class OracleAgent(Agent):
         self.answered = False
         self.last: ActionCall | None = None
         self.failures: dict[object, int] = {}  # failed primitives per target (object id, table part or None)
+        self.rest: tuple[frozenset, int] | None = None  # the objects measured, the rest of the plan's length then
 
     def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
               mode: ObservationMode = ObservationMode.graph) -> None:
@@ -94,6 +101,7 @@ class OracleAgent(Agent):
         self.answered = False
         self.last = None
         self.failures = {}
+        self.rest = None
         self.belief = None if self.closed_loop else copy.deepcopy(observation.scene)
 
     @property
@@ -121,15 +129,54 @@ class OracleAgent(Agent):
             self.tasks[instruction.template_id] = get_registry().create("task", instruction.template_id, {})
         return self.tasks[instruction.template_id]
 
-    def _known(self, observation: Observation) -> Observation:
+    def _known(self, observation: Observation, instruction: Instruction | None = None) -> Observation:
         """The observation with this agent's measurements and the gripper's hover state filled in."""
         scene = copy.deepcopy(observation.scene)
         fill_known(scene, self.known, self.last, observation.last_result, self.readings)
-        if self.remeasures and self.belief is None:
+        if self.remeasures and self.belief is None and instruction is not None:
             scene.extra[CERTAINTY] = Certainty({"weight": self.config.reading_noise_g}, self.readings,
                                                self.config.decide_sigmas, self.config.max_readings,
-                                               self.read_since_approach, self.config.max_readings_total or None)
+                                               self.read_since_approach, self.config.max_readings_total or None,
+                                               self._spare_steps(instruction, observation))
         return dataclasses.replace(observation, scene=scene)
+
+    def _spare_steps(self, instruction: Instruction, observation: Observation):
+        """What ``Certainty`` asks before a reading: the primitives the step budget spares beyond the plan's rest
+        (``plan_length``, worked out again only when another object has been measured) and the reserve."""
+        def spare() -> int:
+            measured = frozenset(obj for by_object in self.readings.values() for obj in by_object)
+            if self.rest is None or self.rest[0] != measured:
+                self.rest = (measured, self.plan_length(instruction, observation))
+            return self.config.step_budget - observation.step - self.rest[1] - self.config.step_reserve
+        return spare
+
+    def plan_length(self, instruction: Instruction, observation: Observation) -> int:
+        """The primitives the task's plan takes from ``observation`` to its end, were every comparison decided on
+        the means so far: the plan rolled out in the symbolic world (each primitive's ``symbolic_effect``) on this
+        agent's view, an object not yet measured taken at the mean weight of those that were. A roll-out that
+        fails counts what it planned until then."""
+        scene = self._known(observation).scene  # a copy
+        weights = [o.weight for o in scene.objects if o.weight is not None]
+        guess = math.fsum(weights) / len(weights) if weights else 100.0
+        for o in scene.objects:
+            o.weight_gt = o.weight if o.weight is not None else guess
+        task, registry = self._task(instruction), get_registry()
+        done = 0
+        while done < self.config.step_budget:
+            try:
+                step = task.next_actions(instruction, Observation(scene=scene, step=done))
+            except PlanningError as e:
+                log.warning("the plan's rest could not be rolled out (%s): counting %d primitives", e, done)
+                return done
+            if isinstance(step, Answer) or not step:
+                return done
+            for call in step:
+                done += 1
+                if not registry.create("primitive", call.name, call.params).symbolic_effect(scene).success:
+                    log.warning("the plan's rest could not be rolled out (%s failed symbolically): counting %d "
+                                "primitives", call, done)
+                    return done
+        return done
 
     def act(self, instruction: Instruction, observation: Observation) -> ActionCall | Answer | None:
         result = observation.last_result
@@ -151,7 +198,7 @@ class OracleAgent(Agent):
                 self._expect(self.last)
         if self.belief is not None:  # open loop: plan on the world as expected, not as observed
             observation = dataclasses.replace(observation, scene=self.belief)
-        step = self._task(instruction).next_actions(instruction, self._known(observation))
+        step = self._task(instruction).next_actions(instruction, self._known(observation, instruction))
         if isinstance(step, Answer):
             if self.answered:
                 return None

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Callable, Mapping
 
 from muble import ActionCall, ActionResult, PluginError, PrimitiveAction, SceneGraph, get_registry
 from muble.core.observation import MEASURED_EXTRA, plain_measurement
@@ -122,7 +122,8 @@ class Certainty:
     implies; a property not named, or 0, is read exactly). The mean of n readings then errs by noise/√n, and the
     difference of two objects' means by noise·√(1/n_a + 1/n_b): the comparison is decided when the means differ by
     more than ``sigmas`` times that. Until then the object read fewer times (the less certain) is measured again,
-    up to ``max_readings`` readings of each; beyond that the means decide. ``readings`` are the agent's books
+    up to ``max_readings`` readings of each, ``max_total`` in all, and while the episode's step budget spares a
+    primitive for it (``spare_steps``); beyond that the means decide. ``readings`` are the agent's books
     (kept up to date by ``book``). ``read_since_approach`` is the object measured since the hand last approached
     one, if any: approaching tares the wrist sensor, so a reading of that object now would share the last one's tare
     and its error."""
@@ -135,6 +136,10 @@ class Certainty:
     # Readings of one property in the episode at most, all objects together (None: no bound): each is a primitive,
     # and an episode has a step budget; beyond it the means decide.
     max_total: int | None = None
+    # The primitives the episode can still spend on measuring again (None: no bound): what its step budget leaves
+    # after the rest of the plan, were every comparison decided now. Asked only of an undecided comparison; at 0 or
+    # less the means decide.
+    spare_steps: Callable[[], int] | None = None
 
     def measure_again(self, prop: str, pairs: list[tuple[int, int]]) -> tuple[int, ...]:
         """The objects to measure again before the order of ``pairs`` (object ids) by ``prop`` counts: those of the
@@ -164,9 +169,13 @@ class Certainty:
             if held in open_:
                 other = len(second) if held == a else len(first)
                 if open_[held] < max(other, self.readings_needed(sd, gap)):
+                    if self.spare_steps is not None and self.spare_steps() <= 0:
+                        return ()
                     return (held,)  # in the hand: one primitive more, where fetching the other takes several
             if open_:
                 undecided.append(open_)
+        if undecided and self.spare_steps is not None and self.spare_steps() <= 0:
+            return ()
         if undecided:
             fewest = min(undecided[0].values())
             return tuple(obj_id for obj_id, n in undecided[0].items() if n == fewest)
