@@ -123,7 +123,9 @@ class Certainty:
     difference of two objects' means by noise·√(1/n_a + 1/n_b): the comparison is decided when the means differ by
     more than ``sigmas`` times that. Until then the object read fewer times (the less certain) is measured again,
     up to ``max_readings`` readings of each, ``max_total`` in all, and while the episode's step budget spares a
-    primitive for it (``spare_steps``); beyond that the means decide. ``readings`` are the agent's books
+    primitive for it (``spare_steps``); beyond that the means decide. A budget too short to decide every undecided
+    pair is shared out: no object of them is read beyond the mean of their readings and the spare primitives (one
+    close pair read to its bound would leave the next with a reading each). ``readings`` are the agent's books
     (kept up to date by ``book``). ``read_since_approach`` is the object measured since the hand last approached
     one, if any: approaching tares the wrist sensor, so a reading of that object now would share the last one's tare
     and its error."""
@@ -156,26 +158,34 @@ class Certainty:
         books = self.readings.get(prop, {})
         if self.max_total is not None and sum(len(kept) for kept in books.values()) >= self.max_total:
             return ()
-        undecided: list[dict[int, int]] = []  # per undecided pair, its objects that may be read again -> readings
-        held = self.read_since_approach
+        pending: list[tuple[int, int, float]] = []  # the undecided pairs (object ids) with their means' gap
         for a, b in pairs:
             first, second = books.get(a, ()), books.get(b, ())
             if not (first and second and _numbers(first) and _numbers(second)):
                 continue  # not this agent's readings (or not numbers): nothing to weigh them against
             gap = abs(math.fsum(first) / len(first) - math.fsum(second) / len(second))
-            if gap > self.sigmas * sd * math.sqrt(1.0 / len(first) + 1.0 / len(second)):
-                continue
-            open_ = {obj_id: len(kept) for obj_id, kept in ((a, first), (b, second)) if len(kept) < self.max_readings}
+            if gap <= self.sigmas * sd * math.sqrt(1.0 / len(first) + 1.0 / len(second)):
+                pending.append((a, b, gap))
+        counts = {obj_id: len(books[obj_id]) for a, b, _ in pending for obj_id in (a, b)
+                  if len(books[obj_id]) < self.max_readings}
+        if not counts:
+            return ()
+        share = math.inf  # readings of an object at most, for now: the budget's spare shared by the open objects
+        if self.spare_steps is not None:
+            spare = self.spare_steps()
+            if spare <= 0:
+                return ()
+            share = (sum(counts.values()) + spare) / len(counts)
+        held = self.read_since_approach
+        undecided: list[dict[int, int]] = []  # per undecided pair, its objects that may be read again -> readings
+        for a, b, gap in pending:
+            open_ = {obj_id: counts[obj_id] for obj_id in (a, b) if obj_id in counts and counts[obj_id] < share}
             if held in open_:
-                other = len(second) if held == a else len(first)
-                if open_[held] < max(other, self.readings_needed(sd, gap)):
-                    if self.spare_steps is not None and self.spare_steps() <= 0:
-                        return ()
+                other = len(books[b]) if held == a else len(books[a])
+                if open_[held] < max(other, min(self.readings_needed(sd, gap), share)):
                     return (held,)  # in the hand: one primitive more, where fetching the other takes several
             if open_:
                 undecided.append(open_)
-        if undecided and self.spare_steps is not None and self.spare_steps() <= 0:
-            return ()
         if undecided:
             fewest = min(undecided[0].values())
             return tuple(obj_id for obj_id, n in undecided[0].items() if n == fewest)
