@@ -91,7 +91,6 @@ class OracleAgent(Agent):
         self.last: ActionCall | None = None
         self.failures: dict[object, int] = {}  # failed primitives per target (object id, table part or None)
         self.rest: tuple[frozenset, int] | None = None  # the objects measured, the rest of the plan's length then
-        self.acting_on: Instruction | None = None  # the instruction of the current ``act``
 
     def reset(self, instruction: Instruction, observation: Observation, *, track: Track = Track.program,
               mode: ObservationMode = ObservationMode.graph) -> None:
@@ -131,17 +130,16 @@ class OracleAgent(Agent):
         return self.tasks[instruction.template_id]
 
     def _known(self, observation: Observation) -> Observation:
-        """The observation with this agent's measurements and the gripper's hover state filled in (and, where it
-        weighs again, the ``Certainty`` for the instruction it is acting on)."""
-        instruction = self.acting_on
+        """The observation with this agent's measurements and the gripper's hover state filled in."""
         scene = copy.deepcopy(observation.scene)
         fill_known(scene, self.known, self.last, observation.last_result, self.readings)
-        if self.remeasures and self.belief is None and instruction is not None:
-            scene.extra[CERTAINTY] = Certainty({"weight": self.config.reading_noise_g}, self.readings,
-                                               self.config.decide_sigmas, self.config.max_readings,
-                                               self.read_since_approach, self.config.max_readings_total or None,
-                                               self._spare_steps(instruction, observation))
         return dataclasses.replace(observation, scene=scene)
+
+    def _certainty(self, instruction: Instruction, observation: Observation) -> Certainty:
+        """When a weight comparison counts as decided (``books.Certainty``), for a noisy sensor, closed loop."""
+        return Certainty({"weight": self.config.reading_noise_g}, self.readings, self.config.decide_sigmas,
+                         self.config.max_readings, self.read_since_approach, self.config.max_readings_total or None,
+                         self._spare_steps(instruction, observation))
 
     def _spare_steps(self, instruction: Instruction, observation: Observation):
         """What ``Certainty`` asks before a reading: the primitives the step budget spares beyond the plan's rest
@@ -158,11 +156,7 @@ class OracleAgent(Agent):
         the means so far: the plan rolled out in the symbolic world (each primitive's ``symbolic_effect``) on this
         agent's view, an object not yet measured taken at the mean weight of those that were. A roll-out that
         fails counts what it planned until then."""
-        self.acting_on, acting_on = None, self.acting_on  # no Certainty: every comparison decided now
-        try:
-            scene = self._known(observation).scene  # a copy
-        finally:
-            self.acting_on = acting_on
+        scene = self._known(observation).scene  # a copy, with no Certainty: every comparison decided now
         weights = [o.weight for o in scene.objects if o.weight is not None]
         guess = math.fsum(weights) / len(weights) if weights else 100.0
         for o in scene.objects:
@@ -205,8 +199,10 @@ class OracleAgent(Agent):
                 self._expect(self.last)
         if self.belief is not None:  # open loop: plan on the world as expected, not as observed
             observation = dataclasses.replace(observation, scene=self.belief)
-        self.acting_on = instruction
-        step = self._task(instruction).next_actions(instruction, self._known(observation))
+        known = self._known(observation)
+        if self.remeasures and self.belief is None:
+            known.scene.extra[CERTAINTY] = self._certainty(instruction, observation)
+        step = self._task(instruction).next_actions(instruction, known)
         if isinstance(step, Answer):
             if self.answered:
                 return None
